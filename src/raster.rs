@@ -1,0 +1,128 @@
+//! The one in-memory pixel representation every method works on.
+//!
+//! Samples are reduced to 8-bit RGB on decode (alpha dropped, 16-bit and float inputs quantised),
+//! so that colour errors are exact integers (methods.md §0) and so that a method never needs to
+//! know what format the job asked for on output: bit depth and file format are chosen at encode
+//! time by `imageio`.
+
+/// An 8-bit RGB image, row-major, `y` downwards, 3 bytes per pixel.
+#[derive(Clone, PartialEq, Eq)]
+pub struct RgbImage {
+    width: u32,
+    height: u32,
+    data: Vec<u8>,
+}
+
+impl std::fmt::Debug for RgbImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "RgbImage({}x{})", self.width, self.height)
+    }
+}
+
+impl RgbImage {
+    /// A black image.
+    pub fn new(width: u32, height: u32) -> Self {
+        RgbImage { width, height, data: vec![0; width as usize * height as usize * 3] }
+    }
+
+    /// Wraps raw RGB bytes; `None` when the length does not match the size.
+    pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Option<Self> {
+        (data.len() == width as usize * height as usize * 3).then_some(RgbImage { width, height, data })
+    }
+
+    /// Builds an image from a per-pixel function (row-major order of calls).
+    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> [u8; 3]) -> Self {
+        let mut img = RgbImage::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                img.put(x, y, f(x, y));
+            }
+        }
+        img
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// All pixels, row-major RGB.
+    pub fn as_raw(&self) -> &[u8] {
+        &self.data
+    }
+    pub fn as_raw_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+    pub fn into_raw(self) -> Vec<u8> {
+        self.data
+    }
+
+    #[inline]
+    fn index(&self, x: u32, y: u32) -> usize {
+        debug_assert!(x < self.width && y < self.height, "({x},{y}) outside {}x{}", self.width, self.height);
+        (y as usize * self.width as usize + x as usize) * 3
+    }
+
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = self.index(x, y);
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    #[inline]
+    pub fn put(&mut self, x: u32, y: u32, p: [u8; 3]) {
+        let i = self.index(x, y);
+        self.data[i..i + 3].copy_from_slice(&p);
+    }
+
+    /// One row as RGB bytes.
+    #[inline]
+    pub fn row(&self, y: u32) -> &[u8] {
+        let w = self.width as usize * 3;
+        &self.data[y as usize * w..(y as usize + 1) * w]
+    }
+
+    /// A copy of the rectangle `[x, x+w) × [y, y+h)`, which must lie inside the image.
+    pub fn crop(&self, x: u32, y: u32, w: u32, h: u32) -> RgbImage {
+        assert!(x + w <= self.width && y + h <= self.height, "crop outside the image");
+        let mut out = RgbImage::new(w, h);
+        for r in 0..h {
+            let src = &self.row(y + r)[x as usize * 3..(x + w) as usize * 3];
+            let dst_w = w as usize * 3;
+            out.data[r as usize * dst_w..(r as usize + 1) * dst_w].copy_from_slice(src);
+        }
+        out
+    }
+
+    /// Gray level `(R+G+B)/3` on unit scale, row-major (methods.md B6: gray is `I`, not luma).
+    pub fn gray_unit(&self) -> Vec<f64> {
+        self.data
+            .chunks_exact(3)
+            .map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crop_copies_the_right_pixels() {
+        let img = RgbImage::from_fn(5, 4, |x, y| [x as u8, y as u8, (x * y) as u8]);
+        let c = img.crop(1, 2, 3, 2);
+        assert_eq!(c.dimensions(), (3, 2));
+        assert_eq!(c.get(0, 0), [1, 2, 2]);
+        assert_eq!(c.get(2, 1), [3, 3, 9]);
+    }
+
+    #[test]
+    fn from_raw_checks_length() {
+        assert!(RgbImage::from_raw(2, 2, vec![0; 12]).is_some());
+        assert!(RgbImage::from_raw(2, 2, vec![0; 11]).is_none());
+    }
+}
