@@ -9,5 +9,6 @@
 pub mod digest;
 pub mod raster;
 pub mod rng;
+pub mod seamgrid;
 
 pub use raster::RgbImage;
