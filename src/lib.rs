@@ -12,3 +12,6 @@ pub mod rng;
 pub mod seamgrid;
 
 pub use raster::RgbImage;
+pub mod methods;
+pub mod params;
+pub mod primitives;

@@ -1,0 +1,74 @@
+//! The synthesis methods, one file each, behind one interface.
+//!
+//! A method is a pure function of (sample pixels, resolved parameters, seed, output size): it
+//! never sees file names, formats or the clock. That is what lets the runner cache, verify and
+//! re-run results from the manifest alone. Adding a method means adding a file here and one line
+//! in [`registry`]; the job model, scheduler and manifest do not change.
+
+pub mod quilting;
+
+use crate::params::{ParamError, ParamSpec, Params};
+use crate::seamgrid::SeamGrid;
+use crate::RgbImage;
+
+/// What a method is asked to do.
+pub struct Request<'a> {
+    pub sample: &'a RgbImage,
+    pub width: u32,
+    pub height: u32,
+    pub params: &'a Params,
+    pub seed: u64,
+}
+
+/// What a method produces.
+#[derive(Debug)]
+pub struct Synthesis {
+    /// The output, exactly `width × height`.
+    pub image: RgbImage,
+    /// Where block seams may be, for the seam-visibility metric (grid-based methods only).
+    pub seams: Option<SeamGrid>,
+    /// Method-specific diagnostics worth recording in the manifest (`null` when none). Must be
+    /// deterministic: it is part of the reproducible record.
+    pub diagnostics: serde_json::Value,
+}
+
+impl Synthesis {
+    pub fn new(image: RgbImage) -> Synthesis {
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null }
+    }
+}
+
+/// A synthesis method.
+pub trait Method: Send + Sync {
+    /// The name used in job files (`method = "…"`).
+    fn name(&self) -> &'static str;
+    /// Bumped whenever a change alters the pixels produced for the same inputs; part of the
+    /// content key, so outputs made by an older algorithm are recomputed, not trusted.
+    fn algorithm_version(&self) -> u32;
+    /// One line for `texsyn methods`.
+    fn summary(&self) -> &'static str;
+    /// The declared parameters.
+    fn params(&self) -> &'static [ParamSpec];
+    /// Checks that need several parameters together or the sample and output sizes (e.g. a block
+    /// larger than the sample). Runs before anything is synthesised.
+    fn check(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        Vec::new()
+    }
+    /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
+    fn synthesize(&self, request: &Request) -> Result<Synthesis, String>;
+}
+
+/// Every available method, in listing order.
+pub fn registry() -> &'static [&'static dyn Method] {
+    &[&quilting::Quilting]
+}
+
+/// The method called `name`.
+pub fn find(name: &str) -> Option<&'static dyn Method> {
+    registry().iter().copied().find(|m| m.name() == name)
+}
+
+/// The names of all methods, for error messages.
+pub fn names() -> Vec<&'static str> {
+    registry().iter().map(|m| m.name()).collect()
+}

@@ -1,0 +1,319 @@
+//! Efros–Freeman image quilting with the minimum-error boundary cut (methods.md §6): the
+//! baseline every paper we follow compares against.
+//!
+//! Blocks are laid in raster order at stride `block − overlap`. Each new block is chosen at random
+//! among the sample positions whose overlap error is within `(1 + tolerance)` of the best, found by
+//! an exhaustive exact search (`primitives::overlap_search`), and pasted along the minimum-error
+//! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
+//! last row and column of blocks are cropped.
+
+use super::{Method, Request, Synthesis};
+use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::primitives::boundary_cut::{horizontal_cut, vertical_cut};
+use crate::primitives::feather;
+use crate::primitives::overlap::{Rect, error_surface};
+use crate::primitives::overlap_search::OverlapSearch;
+use crate::rng::Stream;
+use crate::seamgrid::{SeamBand, SeamGrid};
+use crate::RgbImage;
+
+pub struct Quilting;
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "block",
+        kind: ParamKind::Int { min: 3, max: 4096 },
+        default: Default::Int(50),
+        doc: "side of the square blocks, in pixels (at most the sample's smaller side)",
+    },
+    ParamSpec {
+        name: "overlap",
+        kind: ParamKind::Int { min: 1, max: 2048 },
+        default: Default::Derived {
+            rule: "round(block / 6)",
+            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+        },
+        doc: "width of the overlap between neighbouring blocks (at most block / 2)",
+    },
+    ParamSpec {
+        name: "tolerance",
+        kind: ParamKind::Float { min: 0.0, max: 100.0 },
+        default: Default::Float(0.1),
+        doc: "candidates within (1 + tolerance) x the best overlap error; one is picked at random",
+    },
+    ParamSpec {
+        name: "cut",
+        kind: ParamKind::Choice(&["dp", "none"]),
+        default: Default::Str("dp"),
+        doc: "dp: minimum-error boundary cut; none: paste the whole block over the overlap",
+    },
+    ParamSpec {
+        name: "blend",
+        kind: ParamKind::Choice(&["none", "feather"]),
+        default: Default::Str("none"),
+        doc: "feather: linear blend across the overlap (Liang et al.) instead of a cut; needs cut = \"none\"",
+    },
+];
+
+/// Block layout of a quilt covering at least `width × height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Layout {
+    block: u32,
+    overlap: u32,
+    cols: u32,
+    rows: u32,
+}
+
+impl Layout {
+    fn new(block: u32, overlap: u32, width: u32, height: u32) -> Layout {
+        let stride = block - overlap;
+        let count = |len: u32| if len <= block { 1 } else { (len - overlap).div_ceil(stride) };
+        Layout { block, overlap, cols: count(width), rows: count(height) }
+    }
+    fn stride(&self) -> u32 {
+        self.block - self.overlap
+    }
+    fn canvas(&self) -> (u32, u32) {
+        (self.cols * self.stride() + self.overlap, self.rows * self.stride() + self.overlap)
+    }
+}
+
+impl Method for Quilting {
+    fn name(&self) -> &'static str {
+        "quilting"
+    }
+    fn algorithm_version(&self) -> u32 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "Efros-Freeman image quilting: exact exhaustive block search, minimum-error boundary cut"
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        PARAMS
+    }
+
+    fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let mut errors = Vec::new();
+        let block = p.int("block");
+        let overlap = p.int("overlap");
+        let smaller = sample.0.min(sample.1) as i64;
+        if block > smaller {
+            errors.push(ParamError::new(
+                "block",
+                format!("block {block} is larger than the sample ({}x{}); use at most {smaller}", sample.0, sample.1),
+            ));
+        }
+        if overlap * 2 > block {
+            errors.push(ParamError::new(
+                "overlap",
+                format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2),
+            ));
+        }
+        if p.str("blend") == "feather" && p.str("cut") != "none" {
+            errors.push(ParamError::new("blend", "blend = \"feather\" replaces the boundary cut; also set cut = \"none\""));
+        }
+        errors
+    }
+
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+        let block = req.params.int("block") as u32;
+        let overlap = req.params.int("overlap") as u32;
+        let tolerance = req.params.float("tolerance");
+        let use_cut = req.params.str("cut") == "dp";
+        let feather = req.params.str("blend") == "feather";
+        let sample = req.sample;
+        if block > sample.width() || block > sample.height() {
+            return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
+        }
+        let layout = Layout::new(block, overlap, req.width, req.height);
+        let (cw, ch) = layout.canvas();
+        let mut canvas = RgbImage::new(cw, ch);
+        let search = OverlapSearch::new(sample, block, block);
+        let stride = layout.stride();
+        let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
+
+        for bi in 0..layout.rows {
+            for bj in 0..layout.cols {
+                let (ox, oy) = (bj * stride, bi * stride);
+                let (sx, sy) = if bi == 0 && bj == 0 {
+                    let mut s = Stream::new(req.seed, "quilt/first");
+                    let x = s.below((sample.width() - block + 1) as u64) as u32;
+                    let y = s.below((sample.height() - block + 1) as u64) as u32;
+                    (x, y)
+                } else {
+                    let mut regions = Vec::with_capacity(2);
+                    if bj > 0 {
+                        regions.push(Rect::new(0, 0, overlap, block));
+                    }
+                    if bi > 0 {
+                        let x0 = if bj > 0 { overlap } else { 0 };
+                        regions.push(Rect::new(x0, 0, block - x0, overlap));
+                    }
+                    let c = search.candidates(&canvas, (ox, oy), &regions, tolerance);
+                    candidate_counts.push(c.members.len());
+                    let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
+                    let pick = c.members[s.below_usize(c.members.len())];
+                    (pick.0, pick.1)
+                };
+                paste(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, use_cut, feather);
+            }
+        }
+        let image = canvas.crop(0, 0, req.width, req.height);
+        let seams = seam_grid(&layout, req.width, req.height);
+        let diagnostics = serde_json::json!({
+            "blocks": { "cols": layout.cols, "rows": layout.rows },
+            "mean_candidates": if candidate_counts.is_empty() { 0.0 } else {
+                candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
+            },
+        });
+        Ok(Synthesis { image, seams: Some(seams), diagnostics })
+    }
+}
+
+/// Pastes the sample block at `src` onto the canvas at `dst`, resolving the overlaps with the
+/// boundary cut (B3), a feathered blend (B5) or a plain overwrite.
+#[allow(clippy::too_many_arguments)]
+fn paste(
+    canvas: &mut RgbImage,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    use_cut: bool,
+    feather: bool,
+) {
+    let b = block as usize;
+    let ov = overlap as usize;
+    // For each row, the first column taken from the new block; for each column, the first row.
+    let mut first_col = vec![0usize; b];
+    let mut first_row = vec![0usize; b];
+    if use_cut && left {
+        let e = error_surface(sample, src, canvas, dst, overlap, block);
+        first_col = vertical_cut(&e, b, ov);
+    }
+    if use_cut && top {
+        let e = error_surface(sample, src, canvas, dst, block, overlap);
+        first_row = horizontal_cut(&e, ov, b);
+    }
+    for y in 0..block {
+        for x in 0..block {
+            let new = sample.get(src.0 + x, src.1 + y);
+            let (cx, cy) = (dst.0 + x, dst.1 + y);
+            let in_left = left && (x as usize) < ov;
+            let in_top = top && (y as usize) < ov;
+            if feather && (in_left || in_top) {
+                let mut alpha: f64 = 1.0;
+                if in_left {
+                    alpha = alpha.min(feather::new_weight(x, overlap));
+                }
+                if in_top {
+                    alpha = alpha.min(feather::new_weight(y, overlap));
+                }
+                let old = canvas.get(cx, cy);
+                canvas.put(cx, cy, feather::blend(old, new, alpha));
+            } else if x as usize >= first_col[y as usize] && y as usize >= first_row[x as usize] {
+                canvas.put(cx, cy, new);
+            }
+        }
+    }
+}
+
+fn seam_grid(layout: &Layout, width: u32, height: u32) -> SeamGrid {
+    let bands = |count: u32, limit: u32| -> Vec<SeamBand> {
+        (1..count)
+            .map(|k| k * layout.stride())
+            .filter(|&start| start < limit)
+            .map(|start| SeamBand { start: start.max(1), len: (layout.overlap + 1).min(limit - start) })
+            .collect()
+    };
+    SeamGrid { columns: bands(layout.cols, width), rows: bands(layout.rows, height) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::resolve;
+
+    fn params(given: &[(&str, ParamValue)]) -> Params {
+        let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        resolve(PARAMS, &g).unwrap()
+    }
+
+    fn sample() -> RgbImage {
+        RgbImage::from_fn(64, 64, |x, y| {
+            let v = ((x / 8 + y / 8) % 2) as u8 * 120 + ((x * 7 + y * 3) % 13) as u8 * 5;
+            [v, v / 2 + 20, 255 - v]
+        })
+    }
+
+    #[test]
+    fn layout_covers_the_output_with_the_fewest_blocks() {
+        // 9 blocks of 50 with overlap 8 give 9·50 − 8·8 = 386 (paper 003's protocol).
+        let l = Layout::new(50, 8, 386, 386);
+        assert_eq!((l.cols, l.rows), (9, 9));
+        assert_eq!(l.canvas(), (386, 386));
+        let l = Layout::new(40, 10, 512, 100);
+        assert!(l.canvas().0 >= 512 && l.canvas().0 - 30 < 512);
+        assert_eq!(Layout::new(50, 8, 20, 50).cols, 1);
+    }
+
+    #[test]
+    fn output_has_the_requested_size_and_is_deterministic() {
+        let s = sample();
+        let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4))]);
+        let req = Request { sample: &s, width: 70, height: 45, params: &p, seed: 3 };
+        let a = Quilting.synthesize(&req).unwrap();
+        let b = Quilting.synthesize(&req).unwrap();
+        assert_eq!(a.image.dimensions(), (70, 45));
+        assert_eq!(a.image, b.image);
+        let other = Quilting.synthesize(&Request { seed: 4, ..req }).unwrap();
+        assert_ne!(a.image, other.image);
+    }
+
+    #[test]
+    fn every_output_pixel_comes_from_the_sample_without_blending() {
+        let s = sample();
+        let colours: std::collections::HashSet<[u8; 3]> = (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
+        let p = params(&[("block", ParamValue::Int(20))]);
+        let out = Quilting.synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1 }).unwrap();
+        for y in 0..90 {
+            for x in 0..90 {
+                assert!(colours.contains(&out.image.get(x, y)), "pixel ({x},{y}) is not a sample colour");
+            }
+        }
+    }
+
+    #[test]
+    fn a_periodic_sample_is_continued_seamlessly() {
+        // A texture with period 8 in both directions: with tolerance 0 every block must continue
+        // the pattern exactly, so the output is itself periodic.
+        let s = RgbImage::from_fn(48, 48, |x, y| [(x % 8 * 30) as u8, (y % 8 * 30) as u8, ((x + y) % 8 * 20) as u8]);
+        let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4)), ("tolerance", ParamValue::Float(0.0))]);
+        let out = Quilting.synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5 }).unwrap().image;
+        for y in 0..52 {
+            for x in 0..52 {
+                assert_eq!(out.get(x, y), out.get(x + 8, y + 8), "({x},{y})");
+            }
+        }
+    }
+
+    #[test]
+    fn rejects_blocks_larger_than_the_sample_and_wide_overlaps() {
+        let p = params(&[("block", ParamValue::Int(80)), ("overlap", ParamValue::Int(50))]);
+        let errs = Quilting.check(&p, (64, 64), (100, 100));
+        let keys: Vec<&str> = errs.iter().map(|e| e.key.as_str()).collect();
+        assert_eq!(keys, vec!["block", "overlap"]);
+        assert!(errs[0].message.contains("larger than the sample"));
+    }
+
+    #[test]
+    fn seam_bands_follow_the_block_grid() {
+        let l = Layout::new(50, 8, 386, 386);
+        let g = seam_grid(&l, 386, 386);
+        assert_eq!(g.columns.len(), 8);
+        assert_eq!(g.columns[0], SeamBand { start: 42, len: 9 });
+    }
+}

@@ -1,0 +1,361 @@
+//! Method parameters: their specifications, validation and resolution.
+//!
+//! Every method declares its parameters as a static table of [`ParamSpec`]s (name, type, range,
+//! default, documentation). The same table drives job-file validation, default filling, the
+//! `texsyn methods` listing and re-running from a manifest, so the four can never disagree.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A parameter value as written in a job file or a manifest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ParamValue {
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    Str(String),
+}
+
+impl ParamValue {
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            ParamValue::Bool(_) => "a boolean",
+            ParamValue::Int(_) => "an integer",
+            ParamValue::Float(_) => "a float",
+            ParamValue::Str(_) => "a string",
+        }
+    }
+
+    /// The value as it appears in templated output paths and job ids.
+    pub fn display(&self) -> String {
+        match self {
+            ParamValue::Bool(b) => b.to_string(),
+            ParamValue::Int(i) => i.to_string(),
+            ParamValue::Float(f) => crate::digest::ecmascript_number(*f),
+            ParamValue::Str(s) => s.clone(),
+        }
+    }
+}
+
+/// The type and allowed values of a parameter.
+#[derive(Clone, Copy, Debug)]
+pub enum ParamKind {
+    Int { min: i64, max: i64 },
+    Float { min: f64, max: f64 },
+    Bool,
+    Choice(&'static [&'static str]),
+}
+
+impl ParamKind {
+    /// Human description of the allowed values, for listings and errors.
+    pub fn describe(&self) -> String {
+        match self {
+            ParamKind::Int { min, max } => format!("integer in {min}..={max}"),
+            ParamKind::Float { min, max } => format!("float in [{}, {}]", fmt_f(*min), fmt_f(*max)),
+            ParamKind::Bool => "boolean".into(),
+            ParamKind::Choice(c) => format!("one of {}", c.join(" | ")),
+        }
+    }
+}
+
+fn fmt_f(v: f64) -> String {
+    crate::digest::ecmascript_number(v)
+}
+
+/// Where a parameter's default comes from.
+#[derive(Clone, Copy)]
+pub enum Default {
+    Int(i64),
+    Float(f64),
+    Bool(bool),
+    Str(&'static str),
+    /// Computed from the other (already resolved) parameters, e.g. `overlap = round(block / 6)`.
+    Derived { rule: &'static str, compute: fn(&Params) -> ParamValue },
+}
+
+impl Default {
+    pub fn describe(&self) -> String {
+        match self {
+            Default::Int(i) => i.to_string(),
+            Default::Float(f) => fmt_f(*f),
+            Default::Bool(b) => b.to_string(),
+            Default::Str(s) => format!("{s:?}"),
+            Default::Derived { rule, .. } => rule.to_string(),
+        }
+    }
+}
+
+/// One declared parameter of a method.
+#[derive(Clone, Copy)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub kind: ParamKind,
+    pub default: Default,
+    pub doc: &'static str,
+}
+
+impl ParamSpec {
+    /// Checks a value against this spec, converting integers to floats where a float is expected.
+    pub fn check(&self, value: &ParamValue) -> Result<ParamValue, String> {
+        match (&self.kind, value) {
+            (ParamKind::Int { min, max }, ParamValue::Int(v)) => {
+                if v < min || v > max {
+                    Err(format!("{v} is out of range: allowed {min}..={max}"))
+                } else {
+                    Ok(value.clone())
+                }
+            }
+            (ParamKind::Float { min, max }, ParamValue::Int(_) | ParamValue::Float(_)) => {
+                let v = match value {
+                    ParamValue::Int(i) => *i as f64,
+                    ParamValue::Float(f) => *f,
+                    _ => unreachable!(),
+                };
+                if !v.is_finite() {
+                    Err(format!("{v} is not a finite number"))
+                } else if v < *min || v > *max {
+                    Err(format!("{} is out of range: allowed [{}, {}]", fmt_f(v), fmt_f(*min), fmt_f(*max)))
+                } else {
+                    Ok(ParamValue::Float(v))
+                }
+            }
+            (ParamKind::Bool, ParamValue::Bool(_)) => Ok(value.clone()),
+            (ParamKind::Choice(choices), ParamValue::Str(s)) => {
+                if choices.contains(&s.as_str()) {
+                    Ok(value.clone())
+                } else {
+                    Err(format!("{s:?} is not allowed: expected {}", self.kind.describe()))
+                }
+            }
+            (kind, v) => Err(format!("expected {}, found {}", kind_noun(kind), v.type_name())),
+        }
+    }
+}
+
+fn kind_noun(kind: &ParamKind) -> &'static str {
+    match kind {
+        ParamKind::Int { .. } => "an integer",
+        ParamKind::Float { .. } => "a number",
+        ParamKind::Bool => "a boolean (true or false)",
+        ParamKind::Choice(_) => "a string",
+    }
+}
+
+/// A problem with one parameter; `key` is the parameter name so callers can point at its line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamError {
+    pub key: String,
+    pub message: String,
+}
+
+impl ParamError {
+    pub fn new(key: &str, message: impl Into<String>) -> ParamError {
+        ParamError { key: key.to_string(), message: message.into() }
+    }
+}
+
+/// Fully resolved parameters of one job: every declared parameter has a value.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Params(pub BTreeMap<String, ParamValue>);
+
+impl Params {
+    pub fn get(&self, name: &str) -> Option<&ParamValue> {
+        self.0.get(name)
+    }
+
+    /// An integer parameter. Panics if the method asks for one it did not declare as an integer,
+    /// which is a programming error caught by the method's tests.
+    pub fn int(&self, name: &str) -> i64 {
+        match self.0.get(name) {
+            Some(ParamValue::Int(v)) => *v,
+            other => panic!("parameter {name} is not a resolved integer: {other:?}"),
+        }
+    }
+
+    pub fn float(&self, name: &str) -> f64 {
+        match self.0.get(name) {
+            Some(ParamValue::Float(v)) => *v,
+            Some(ParamValue::Int(v)) => *v as f64,
+            other => panic!("parameter {name} is not a resolved float: {other:?}"),
+        }
+    }
+
+    pub fn bool(&self, name: &str) -> bool {
+        match self.0.get(name) {
+            Some(ParamValue::Bool(v)) => *v,
+            other => panic!("parameter {name} is not a resolved boolean: {other:?}"),
+        }
+    }
+
+    pub fn str(&self, name: &str) -> &str {
+        match self.0.get(name) {
+            Some(ParamValue::Str(v)) => v,
+            other => panic!("parameter {name} is not a resolved string: {other:?}"),
+        }
+    }
+
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).expect("params serialise")
+    }
+}
+
+/// Resolves the given values against `specs`: rejects unknown names (suggesting the nearest),
+/// checks types and ranges, then fills defaults (fixed ones first, then derived ones in
+/// declaration order, so a derived default can use any explicitly given or fixed value).
+pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Params, Vec<ParamError>> {
+    let mut errors = Vec::new();
+    let mut out = BTreeMap::new();
+    for (name, value) in given {
+        match specs.iter().find(|s| s.name == name) {
+            None => {
+                let names: Vec<&str> = specs.iter().map(|s| s.name).collect();
+                errors.push(ParamError::new(name, unknown_key_message(name, &names)));
+            }
+            Some(spec) => match spec.check(value) {
+                Ok(v) => {
+                    out.insert(name.clone(), v);
+                }
+                Err(e) => errors.push(ParamError::new(name, e)),
+            },
+        }
+    }
+    for spec in specs {
+        if out.contains_key(spec.name) {
+            continue;
+        }
+        let v = match spec.default {
+            Default::Int(i) => ParamValue::Int(i),
+            Default::Float(f) => ParamValue::Float(f),
+            Default::Bool(b) => ParamValue::Bool(b),
+            Default::Str(s) => ParamValue::Str(s.to_string()),
+            Default::Derived { .. } => continue,
+        };
+        out.insert(spec.name.to_string(), v);
+    }
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    for spec in specs {
+        if let Default::Derived { rule, compute } = spec.default {
+            if out.contains_key(spec.name) {
+                continue;
+            }
+            let v = compute(&Params(out.clone()));
+            match spec.check(&v) {
+                Ok(v) => {
+                    out.insert(spec.name.to_string(), v);
+                }
+                Err(e) => errors.push(ParamError::new(
+                    spec.name,
+                    format!("its default ({rule}) gives {}: {e}; set it explicitly", v.display()),
+                )),
+            }
+        }
+    }
+    if errors.is_empty() { Ok(Params(out)) } else { Err(errors) }
+}
+
+/// "unknown key `x`", plus the nearest valid name when one is close, else the list of names.
+pub fn unknown_key_message(key: &str, valid: &[&str]) -> String {
+    match nearest(key, valid) {
+        Some(n) => format!("unknown key `{key}`; did you mean `{n}`?"),
+        None => format!("unknown key `{key}`; valid keys: {}", valid.join(", ")),
+    }
+}
+
+/// The valid name closest to `key` by edit distance, if it is plausibly a typo of it.
+pub fn nearest<'a>(key: &str, valid: &[&'a str]) -> Option<&'a str> {
+    let best = valid.iter().map(|v| (edit_distance(key, v), *v)).min_by_key(|(d, v)| (*d, *v))?;
+    let limit = (key.chars().count().max(best.1.len()) / 3).max(1) + 1;
+    (best.0 <= limit).then_some(best.1)
+}
+
+/// Levenshtein distance over chars.
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let sub = prev[j] + usize::from(ca != *cb);
+            cur[j + 1] = sub.min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPECS: &[ParamSpec] = &[
+        ParamSpec { name: "block", kind: ParamKind::Int { min: 4, max: 100 }, default: Default::Int(50), doc: "" },
+        ParamSpec {
+            name: "overlap",
+            kind: ParamKind::Int { min: 2, max: 50 },
+            default: Default::Derived {
+                rule: "round(block / 6)",
+                compute: |p| ParamValue::Int((p.int("block") as f64 / 6.0).round() as i64),
+            },
+            doc: "",
+        },
+        ParamSpec { name: "tolerance", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.1), doc: "" },
+        ParamSpec { name: "cut", kind: ParamKind::Choice(&["dp", "none"]), default: Default::Str("dp"), doc: "" },
+    ];
+
+    fn given(v: &[(&str, ParamValue)]) -> Vec<(String, ParamValue)> {
+        v.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()
+    }
+
+    #[test]
+    fn fills_fixed_and_derived_defaults() {
+        let p = resolve(SPECS, &given(&[("block", ParamValue::Int(30))])).unwrap();
+        assert_eq!(p.int("overlap"), 5);
+        assert_eq!(p.float("tolerance"), 0.1);
+        assert_eq!(p.str("cut"), "dp");
+    }
+
+    #[test]
+    fn integers_are_accepted_for_floats() {
+        let p = resolve(SPECS, &given(&[("tolerance", ParamValue::Int(0))])).unwrap();
+        assert_eq!(p.get("tolerance"), Some(&ParamValue::Float(0.0)));
+    }
+
+    #[test]
+    fn reports_every_problem_with_its_key() {
+        let errs = resolve(
+            SPECS,
+            &given(&[
+                ("blok", ParamValue::Int(3)),
+                ("tolerance", ParamValue::Float(2.0)),
+                ("cut", ParamValue::Str("zigzag".into())),
+                ("overlap", ParamValue::Str("8".into())),
+            ]),
+        )
+        .unwrap_err();
+        let keys: Vec<&str> = errs.iter().map(|e| e.key.as_str()).collect();
+        assert_eq!(keys, vec!["blok", "tolerance", "cut", "overlap"]);
+        assert!(errs[0].message.contains("did you mean `block`"), "{}", errs[0].message);
+        assert!(errs[1].message.contains("[0, 1]"), "{}", errs[1].message);
+        assert!(errs[2].message.contains("dp | none"), "{}", errs[2].message);
+        assert!(errs[3].message.contains("expected an integer, found a string"), "{}", errs[3].message);
+    }
+
+    #[test]
+    fn derived_default_out_of_range_is_explained() {
+        let errs = resolve(SPECS, &given(&[("block", ParamValue::Int(4))])).unwrap_err();
+        assert_eq!(errs[0].key, "overlap");
+        assert!(errs[0].message.contains("(round(block / 6)) gives 1"), "{}", errs[0].message);
+        assert!(errs[0].message.contains("set it explicitly"));
+    }
+
+    #[test]
+    fn nearest_name_only_for_plausible_typos() {
+        assert_eq!(nearest("tolerence", &["tolerance", "block"]), Some("tolerance"));
+        assert_eq!(nearest("zzzzzz", &["tolerance", "block"]), None);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+    }
+}

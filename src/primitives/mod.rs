@@ -1,0 +1,6 @@
+//! Image building blocks shared by the methods (methods.md §1), written and tested once.
+
+pub mod boundary_cut;
+pub mod feather;
+pub mod overlap;
+pub mod overlap_search;
