@@ -7,6 +7,8 @@
 //! share, `rng` the seeded random streams and `digest` the hashing and canonical JSON.
 
 pub mod digest;
+pub mod imageio;
+pub mod job;
 pub mod raster;
 pub mod rng;
 pub mod seamgrid;
