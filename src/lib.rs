@@ -7,13 +7,19 @@
 //! share, `rng` the seeded random streams and `digest` the hashing and canonical JSON.
 
 pub mod digest;
+pub mod golden;
 pub mod imageio;
 pub mod job;
+pub mod manifest;
 pub mod raster;
 pub mod rng;
 pub mod seamgrid;
+pub mod verify;
 
 pub use raster::RgbImage;
 pub mod methods;
+pub mod outdir;
 pub mod params;
 pub mod primitives;
+pub mod progress;
+pub mod runner;

@@ -1,1 +1,223 @@
-fn main(){}
+//! The `texsyn` command line: a thin layer over the library.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use texsyn::manifest::Manifest;
+use texsyn::{golden, methods, runner, verify};
+
+const EXIT_CODES: &str = "\
+Exit codes:
+  0    all good (including: everything was already up to date)
+  1    some job failed or was invalid (the others still ran; see the manifest)
+  2    usage error, or the run could not start (no job files, output directory locked)
+  3    verify or golden mismatch
+  130  interrupted (Ctrl-C); finished jobs are recorded, re-run to continue";
+
+#[derive(Parser)]
+#[command(name = "texsyn", version, about = "Reproducible texture synthesis from TOML job files", after_help = EXIT_CODES)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run job files and directories (searched recursively for *.toml).
+    #[command(after_help = EXIT_CODES)]
+    Run {
+        /// Job files and/or directories.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output directory (holds the images and manifest.json).
+        #[arg(short, long, default_value = "out")]
+        out: PathBuf,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(short, long)]
+        jobs: Option<usize>,
+        /// Print the plan and why each job would (not) run; write nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Run every job even if it is up to date.
+        #[arg(long)]
+        force: bool,
+        /// JSON Lines events on stdout instead of progress on stderr.
+        #[arg(long)]
+        json: bool,
+        /// No progress output (errors and the summary are still printed).
+        #[arg(short, long)]
+        quiet: bool,
+        /// Take jobs in reverse order (for testing order independence).
+        #[arg(long, hide = true)]
+        reverse: bool,
+    },
+    /// Re-run every recorded job from a manifest alone and compare pixel digests.
+    #[command(after_help = EXIT_CODES)]
+    Verify {
+        manifest: PathBuf,
+        #[arg(short, long)]
+        jobs: Option<usize>,
+    },
+    /// Compare a run with the expected digests in a golden directory, or record new ones.
+    #[command(subcommand)]
+    Golden(GoldenCommand),
+    /// List the methods, their parameters, defaults and ranges.
+    Methods,
+}
+
+#[derive(Subcommand)]
+enum GoldenCommand {
+    /// Compare a manifest's pixel digests with the golden files (exit 3 on any difference).
+    Check { golden: PathBuf, manifest: PathBuf },
+    /// Record the manifest's pixel digests as the expected ones, printing what changed.
+    Bless { golden: PathBuf, manifest: PathBuf },
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    match cli.command {
+        Command::Run { inputs, out, jobs, dry_run, force, json, quiet, reverse } => {
+            if jobs == Some(0) {
+                eprintln!("error: --jobs must be at least 1");
+                return ExitCode::from(2);
+            }
+            let interrupt = Arc::new(AtomicBool::new(false));
+            {
+                let flag = interrupt.clone();
+                let _ = ctrlc::set_handler(move || {
+                    if flag.swap(true, Ordering::SeqCst) {
+                        std::process::exit(130);
+                    }
+                    eprintln!("texsyn: interrupted; finishing running jobs and writing the manifest (Ctrl-C again to stop now)");
+                });
+            }
+            let opts = runner::RunOptions { out: out.clone(), threads: jobs, dry_run, force, json, quiet, reverse, interrupt: Some(interrupt) };
+            match runner::run(&inputs, &opts) {
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+                Ok(s) => {
+                    if !json {
+                        let verb = if dry_run { "planned" } else { "ran" };
+                        eprintln!(
+                            "texsyn: {verb} {}, up to date {}, failed {}, invalid {}{} in {:.1}s{}",
+                            s.ran,
+                            s.up_to_date,
+                            s.failed,
+                            s.invalid,
+                            if s.interrupted { " (interrupted)" } else { "" },
+                            s.wall_seconds,
+                            if dry_run { String::new() } else { format!("; manifest: {}", out.join("manifest.json").display()) }
+                        );
+                    }
+                    if s.interrupted {
+                        ExitCode::from(130)
+                    } else if s.all_good() {
+                        ExitCode::SUCCESS
+                    } else {
+                        ExitCode::from(1)
+                    }
+                }
+            }
+        }
+        Command::Verify { manifest, jobs } => match verify::verify(&manifest, jobs) {
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+            Ok(report) => {
+                for p in &report.manifest_problems {
+                    println!("MANIFEST  {p}");
+                }
+                let mut verified = 0;
+                for (id, outcome) in &report.jobs {
+                    match outcome {
+                        verify::Outcome::Verified => verified += 1,
+                        verify::Outcome::Skipped(why) => println!("SKIPPED   {id}: {why}"),
+                        verify::Outcome::Mismatch(problems) => {
+                            for p in problems {
+                                println!("MISMATCH  {id}: {p}");
+                            }
+                        }
+                    }
+                }
+                let bad = report.jobs.iter().filter(|(_, o)| matches!(o, verify::Outcome::Mismatch(_))).count();
+                eprintln!("texsyn verify: {verified} verified, {bad} mismatched, {} manifest problems", report.manifest_problems.len());
+                if report.ok() { ExitCode::SUCCESS } else { ExitCode::from(3) }
+            }
+        },
+        Command::Golden(g) => {
+            let (dir, manifest_path, bless) = match g {
+                GoldenCommand::Check { golden, manifest } => (golden, manifest, false),
+                GoldenCommand::Bless { golden, manifest } => (golden, manifest, true),
+            };
+            let manifest = match Manifest::load(&manifest_path) {
+                Ok(m) => m,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            if bless {
+                match golden::bless(&dir, &manifest) {
+                    Ok(changes) => {
+                        for c in &changes {
+                            println!("{c}");
+                        }
+                        eprintln!("texsyn golden bless: {} change(s) written to {}", changes.len(), dir.display());
+                        ExitCode::SUCCESS
+                    }
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        ExitCode::from(2)
+                    }
+                }
+            } else {
+                match golden::check(&dir, &manifest) {
+                    Ok(r) => {
+                        for m in &r.mismatched {
+                            println!("MISMATCH  {m}");
+                        }
+                        for m in &r.missing {
+                            println!("MISSING   {m}");
+                        }
+                        for m in &r.not_checked {
+                            println!("UNCHECKED {m}");
+                        }
+                        eprintln!(
+                            "texsyn golden check: {} matched, {} mismatched, {} missing, {} not checked",
+                            r.matched,
+                            r.mismatched.len(),
+                            r.missing.len(),
+                            r.not_checked.len()
+                        );
+                        if r.ok() { ExitCode::SUCCESS } else { ExitCode::from(3) }
+                    }
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        ExitCode::from(2)
+                    }
+                }
+            }
+        }
+        Command::Methods => {
+            for m in methods::registry() {
+                println!("{} (algorithm version {})\n  {}", m.name(), m.algorithm_version(), m.summary());
+                for p in m.params() {
+                    println!("  {:<12} {:<28} default {:<18} {}", p.name, p.kind.describe(), p.default.describe(), p.doc);
+                }
+                println!();
+            }
+            ExitCode::SUCCESS
+        }
+    }
+}

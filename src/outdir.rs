@@ -1,0 +1,175 @@
+//! The output directory: an exclusive lock, atomic writes, and containment.
+//!
+//! Every file texsyn writes goes to a temporary name in its final directory and is renamed into
+//! place, so a run killed at any instant leaves only complete files (plus temporaries, which the
+//! next run removes). The lock is an OS file lock, released by the kernel when the process dies,
+//! so a killed run never leaves it stuck. Paths are checked to resolve inside the directory, so a
+//! symlink planted in it cannot redirect a write elsewhere.
+
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+const LOCK_NAME: &str = ".texsyn.lock";
+const TMP_SUFFIX: &str = ".texsyn-tmp";
+
+/// An output directory held exclusively by this process.
+pub struct OutDir {
+    root: PathBuf,
+    canonical: PathBuf,
+    _lock: File,
+}
+
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+impl OutDir {
+    /// Creates the directory if needed and takes its lock, or explains who holds it.
+    pub fn open(root: &Path) -> Result<OutDir, String> {
+        std::fs::create_dir_all(root).map_err(|e| format!("cannot create output directory {}: {e}", root.display()))?;
+        let canonical = root.canonicalize().map_err(|e| format!("{}: {e}", root.display()))?;
+        let lock_path = root.join(LOCK_NAME);
+        let mut lock = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock_path)
+            .map_err(|e| format!("cannot open lock file {}: {e}", lock_path.display()))?;
+        match lock.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let holder = std::fs::read_to_string(&lock_path).unwrap_or_default();
+                let holder = holder.trim();
+                let who = if holder.is_empty() { String::new() } else { format!(" (process {holder})") };
+                return Err(format!(
+                    "another texsyn run is using the output directory {}{who}; wait for it to finish or choose another --out",
+                    root.display()
+                ));
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(format!("cannot lock {}: {e}", lock_path.display())),
+        }
+        lock.set_len(0).ok();
+        let _ = write!(lock, "{}", std::process::id());
+        let dir = OutDir { root: root.to_path_buf(), canonical, _lock: lock };
+        dir.remove_stale_temporaries();
+        Ok(dir)
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// The absolute path of a relative output path, after checking that its directory resolves
+    /// inside the output directory (creating the directories as needed).
+    pub fn resolve(&self, rel: &str) -> Result<PathBuf, String> {
+        let path = self.root.join(rel);
+        let parent = path.parent().expect("a file inside the root has a parent");
+        std::fs::create_dir_all(parent).map_err(|e| format!("cannot create directory {}: {e}", parent.display()))?;
+        let real_parent = parent.canonicalize().map_err(|e| format!("{}: {e}", parent.display()))?;
+        if !real_parent.starts_with(&self.canonical) {
+            return Err(format!(
+                "`{rel}` would be written to {}, outside the output directory (a symlink?); refusing",
+                real_parent.display()
+            ));
+        }
+        if let Ok(meta) = std::fs::symlink_metadata(&path) {
+            if meta.file_type().is_symlink() {
+                return Err(format!("`{rel}` is a symlink in the output directory; refusing to write through it"));
+            }
+        }
+        Ok(path)
+    }
+
+    /// Writes `bytes` to the relative path atomically.
+    pub fn write(&self, rel: &str, bytes: &[u8]) -> Result<PathBuf, String> {
+        let path = self.resolve(rel)?;
+        write_atomic(&path, bytes)?;
+        Ok(path)
+    }
+
+    /// Removes temporaries left by a killed run.
+    fn remove_stale_temporaries(&self) {
+        fn walk(dir: &Path) {
+            let Ok(entries) = std::fs::read_dir(dir) else { return };
+            for e in entries.flatten() {
+                let p = e.path();
+                let Ok(ft) = e.file_type() else { continue };
+                if ft.is_dir() {
+                    walk(&p);
+                } else if ft.is_file() && e.file_name().to_string_lossy().ends_with(TMP_SUFFIX) {
+                    let _ = std::fs::remove_file(&p);
+                }
+            }
+        }
+        walk(&self.root);
+    }
+}
+
+/// Writes to a temporary file in the same directory, flushes it to disk and renames it over
+/// `path`. Readers see the old file or the new one, never a partial one.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
+    let result = (|| -> std::io::Result<()> {
+        let mut f = File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        std::fs::rename(&tmp, path)?;
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("cannot write {}: {e}", path.display())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("texsyn-outdir-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn second_open_is_refused_while_the_first_holds_the_lock() {
+        let d = tmp("lock");
+        let first = OutDir::open(&d).unwrap();
+        let err = OutDir::open(&d).err().expect("second open must fail");
+        assert!(err.contains("another texsyn run"), "{err}");
+        drop(first);
+        assert!(OutDir::open(&d).is_ok());
+    }
+
+    #[test]
+    fn writes_are_atomic_and_temporaries_are_cleaned() {
+        let d = tmp("atomic");
+        let out = OutDir::open(&d).unwrap();
+        out.write("a/b.png", b"12345").unwrap();
+        assert_eq!(std::fs::read(d.join("a/b.png")).unwrap(), b"12345");
+        std::fs::write(d.join("a/.b.png.1.2.texsyn-tmp"), b"partial").unwrap();
+        drop(out);
+        let _again = OutDir::open(&d).unwrap();
+        assert!(!d.join("a/.b.png.1.2.texsyn-tmp").exists());
+    }
+
+    #[test]
+    fn symlinks_cannot_redirect_writes_outside() {
+        let d = tmp("symlink");
+        let outside = tmp("symlink-target");
+        std::fs::create_dir_all(&outside).unwrap();
+        let out = OutDir::open(&d).unwrap();
+        std::os::unix::fs::symlink(&outside, d.join("escape")).unwrap();
+        let err = out.write("escape/x.png", b"x").unwrap_err();
+        assert!(err.contains("outside the output directory"), "{err}");
+        assert!(!outside.join("x.png").exists());
+    }
+}
