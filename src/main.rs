@@ -83,6 +83,7 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
+    runner::install_panic_hook();
     match cli.command {
         Command::Run { inputs, out, jobs, dry_run, force, json, quiet, reverse } => {
             if jobs == Some(0) {

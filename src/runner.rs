@@ -75,6 +75,19 @@ pub fn load_sample(path: &Path) -> Result<LoadedSample, String> {
     Ok(LoadedSample { pixel_digest: imageio::rgb_pixel_digest(&image), file_digest: Digest::of_bytes(&bytes), image })
 }
 
+thread_local! {
+    static PANIC_LOCATION: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Replaces the default panic output (a backtrace per panicking job would bury the run's report)
+/// with a record of where the panic happened, which the job's error message then includes.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let location = info.location().map(|l| format!("{}:{}", l.file(), l.line()));
+        PANIC_LOCATION.with(|p| *p.borrow_mut() = location);
+    }));
+}
+
 /// Runs the method (catching panics) and encodes the result as the job asked.
 pub fn synthesize_and_encode(
     method: &dyn Method,
@@ -96,7 +109,8 @@ pub fn synthesize_and_encode(
                 .cloned()
                 .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_else(|| "unknown panic".into());
-            return Err(format!("{} panicked: {what} (this is a bug in texsyn; please report it)", method.name()));
+            let at = PANIC_LOCATION.with(|p| p.borrow_mut().take()).map(|l| format!(" at {l}")).unwrap_or_default();
+            return Err(format!("{} crashed: {what}{at} (this is a bug in texsyn; please report it)", method.name()));
         }
     };
     if synthesis.image.dimensions() != (output.width, output.height) {

@@ -128,7 +128,7 @@ impl Method for Quilting {
         let layout = Layout::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = RgbImage::new(cw, ch);
-        let search = OverlapSearch::new(sample, block, block);
+        let mut search = OverlapSearch::new(sample, block, block);
         let stride = layout.stride();
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 

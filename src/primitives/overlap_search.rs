@@ -49,6 +49,24 @@ pub struct OverlapSearch<'a> {
     fft_col: Arc<dyn Fft<f64>>,
     ifft_row: Arc<dyn Fft<f64>>,
     ifft_col: Arc<dyn Fft<f64>>,
+    /// Reused buffers: allocating megabytes per block costs more than the FFTs.
+    work: Workspace,
+    /// ΣS² over each region set seen so far, per candidate position (exact integers as f64).
+    sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
+}
+
+#[derive(Default)]
+struct Workspace {
+    /// Template planes, only the first `block_h` rows (the rest of the plane is zero).
+    rows_rg: Vec<Complex64>,
+    rows_b: Vec<Complex64>,
+    /// Transposed spectra of the templates (entries `block_h..H` of every row are the zero rows).
+    spec_rg: Vec<Complex64>,
+    spec_b: Vec<Complex64>,
+    /// Product spectrum, then the correlation in row-major layout.
+    product: Vec<Complex64>,
+    plane: Vec<Complex64>,
+    approx: Vec<f64>,
 }
 
 impl<'a> OverlapSearch<'a> {
@@ -81,6 +99,8 @@ impl<'a> OverlapSearch<'a> {
             fft_col,
             ifft_row,
             ifft_col,
+            work: Workspace::default(),
+            sum_sq_maps: Vec::new(),
         };
         search.spec_rg = search.fft2(rg, h as usize);
         search.spec_b = search.fft2(b, h as usize);
@@ -101,15 +121,6 @@ impl<'a> OverlapSearch<'a> {
         let mut t = transpose(&plane, w, h);
         process_rows(&self.fft_col, &mut t, h);
         t
-    }
-
-    /// Inverse of `fft2` (unnormalised): returns a `W × H` row-major plane.
-    fn ifft2(&self, mut spectrum: Vec<Complex64>) -> Vec<Complex64> {
-        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
-        process_rows(&self.ifft_col, &mut spectrum, h);
-        let mut plane = transpose(&spectrum, h, w);
-        process_rows(&self.ifft_row, &mut plane, w);
-        plane
     }
 
     fn region_sum_sq(&self, x: u32, y: u32, r: &Rect) -> u64 {
@@ -157,68 +168,109 @@ impl<'a> OverlapSearch<'a> {
     /// The candidate set, fast and exact (see the module comment). `regions` are disjoint
     /// rectangles inside the block; `target` holds the already-synthesised pixels at
     /// `origin + region`.
-    pub fn candidates(&self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+    pub fn candidates(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
         let total_area: u64 = regions.iter().map(|r| r.area()).sum();
         if total_area == 0 {
             return self.candidates_direct(target, origin, regions, tolerance);
         }
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let (nx, ny) = self.positions();
+        let (nxu, nyu) = (nx as usize, ny as usize);
+        let rows = self.block_h as usize;
+        let map_index = self.sum_sq_map(regions);
+        let mut work = std::mem::take(&mut self.work);
+        if work.spec_rg.len() != w * h {
+            work.rows_rg = vec![Complex64::new(0.0, 0.0); w * rows];
+            work.rows_b = vec![Complex64::new(0.0, 0.0); w * rows];
+            work.spec_rg = vec![Complex64::new(0.0, 0.0); w * h];
+            work.spec_b = vec![Complex64::new(0.0, 0.0); w * h];
+            work.product = vec![Complex64::new(0.0, 0.0); w * h];
+            work.plane = vec![Complex64::new(0.0, 0.0); w * h];
+            work.approx = vec![0.0; nxu * nyu];
+        }
         // Template planes: the target's overlap pixels at their block offsets, zero elsewhere.
-        let mut t_rg = vec![Complex64::new(0.0, 0.0); w * h];
-        let mut t_b = vec![Complex64::new(0.0, 0.0); w * h];
+        work.rows_rg.fill(Complex64::new(0.0, 0.0));
+        work.rows_b.fill(Complex64::new(0.0, 0.0));
         let mut sum_t2: u64 = 0;
         for r in regions {
             for dy in 0..r.h {
                 for dx in 0..r.w {
                     let p = target.get(origin.0 + r.x + dx, origin.1 + r.y + dy);
                     let i = (r.y + dy) as usize * w + (r.x + dx) as usize;
-                    t_rg[i] = Complex64::new(p[0] as f64, p[1] as f64);
-                    t_b[i] = Complex64::new(p[2] as f64, 0.0);
+                    work.rows_rg[i] = Complex64::new(p[0] as f64, p[1] as f64);
+                    work.rows_b[i] = Complex64::new(p[2] as f64, 0.0);
                     sum_t2 += p.iter().map(|&c| c as u64 * c as u64).sum::<u64>();
                 }
             }
         }
-        let rows = self.block_h as usize;
-        let f_rg = self.fft2(t_rg, rows);
-        let f_b = self.fft2(t_b, rows);
+        // Forward 2-D FFTs of the templates: rows (only the non-zero ones), then columns.
+        for (plane, spec) in [(&mut work.rows_rg, &mut work.spec_rg), (&mut work.rows_b, &mut work.spec_b)] {
+            process_rows(&self.fft_row, plane, w);
+            // The column pass of the previous block filled whole rows: clear their zero tails.
+            for row in spec.chunks_exact_mut(h) {
+                row[rows..].fill(Complex64::new(0.0, 0.0));
+            }
+            transpose_into(plane, w, rows, spec, h);
+            process_rows(&self.fft_col, spec, h);
+        }
         // Σ_c S_c ⋆ T_c = Re IFFT( F(R+iG)·conj F(Tr+iTg) + F(B)·conj F(Tb) ).
-        let mut prod: Vec<Complex64> = Vec::with_capacity(w * h);
-        prod.extend(
-            self.spec_rg
-                .iter()
-                .zip(&f_rg)
-                .zip(self.spec_b.iter().zip(&f_b))
-                .map(|((s1, t1), (s2, t2))| s1 * t1.conj() + s2 * t2.conj()),
-        );
-        let corr = self.ifft2(prod);
+        for (((p, s1), t1), (s2, t2)) in
+            work.product.iter_mut().zip(&self.spec_rg).zip(&work.spec_rg).zip(self.spec_b.iter().zip(&work.spec_b))
+        {
+            *p = s1 * t1.conj() + s2 * t2.conj();
+        }
+        // Inverse: columns, then only the rows that hold candidate positions.
+        process_rows(&self.ifft_col, &mut work.product, h);
+        transpose_into(&work.product, h, w, &mut work.plane[..nyu * w], w);
+        process_rows(&self.ifft_row, &mut work.plane[..nyu * w], w);
         let scale = 1.0 / (w * h) as f64;
 
-        // A generous bound on the FFT's absolute error (the usual bound is ~1e-16·log n·‖S‖‖T‖).
+        // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
+        // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
         let margin = 1e-9 * self.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
-        let approx = |x: u32, y: u32| -> f64 {
-            let s2: u64 = regions.iter().map(|r| self.region_sum_sq(x, y, r)).sum();
-            s2 as f64 - 2.0 * corr[y as usize * w + x as usize].re * scale + sum_t2 as f64
-        };
-        let row_min: Vec<f64> = (0..ny)
-            .into_par_iter()
-            .map(|y| (0..nx).map(|x| approx(x, y)).fold(f64::INFINITY, f64::min))
-            .collect();
-        let amin = row_min.iter().copied().fold(f64::INFINITY, f64::min);
+        let sum_sq = &self.sum_sq_maps[map_index].1;
+        let plane = &work.plane;
+        work.approx.par_chunks_mut(nxu).enumerate().for_each(|(y, row)| {
+            let corr = &plane[y * w..y * w + nxu];
+            let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
+            for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
+                *a = s - 2.0 * c.re * scale + sum_t2 as f64;
+            }
+        });
+        let amin = work.approx.iter().copied().fold(f64::INFINITY, f64::min);
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
+        let approx = &work.approx;
+        let this = &*self;
         let rechecked: Vec<(u32, u32, u64)> = (0..ny)
             .into_par_iter()
             .flat_map_iter(|y| {
-                let approx = &approx;
-                (0..nx)
-                    .filter(move |&x| approx(x, y) <= threshold)
-                    .map(move |x| (x, y, self.exact_ssd(x, y, target, origin, regions)))
+                let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
+                row.iter()
+                    .enumerate()
+                    .filter(|(_, a)| **a <= threshold)
+                    .map(|(x, _)| (x as u32, y, this.exact_ssd(x as u32, y, target, origin, regions)))
                     .collect::<Vec<_>>()
             })
             .collect();
+        self.work = work;
         let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
         let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
         Candidates { min_ssd: min, members }
+    }
+
+    /// Index of the ΣS² map for this region set, computing it the first time (exactly, from the
+    /// integral image; there are only a handful of distinct region sets per job).
+    fn sum_sq_map(&mut self, regions: &[Rect]) -> usize {
+        if let Some(i) = self.sum_sq_maps.iter().position(|(r, _)| r == regions) {
+            return i;
+        }
+        let (nx, ny) = self.positions();
+        let map: Vec<f64> = (0..ny)
+            .flat_map(|y| (0..nx).map(move |x| (x, y)))
+            .map(|(x, y)| regions.iter().map(|r| self.region_sum_sq(x, y, r)).sum::<u64>() as f64)
+            .collect();
+        self.sum_sq_maps.push((regions.to_vec(), map));
+        self.sum_sq_maps.len() - 1
     }
 }
 
@@ -230,17 +282,28 @@ fn process_rows(fft: &Arc<dyn Fft<f64>>, data: &mut [Complex64], len: usize) {
 
 fn transpose(src: &[Complex64], w: usize, h: usize) -> Vec<Complex64> {
     let mut dst = vec![Complex64::new(0.0, 0.0); w * h];
-    const T: usize = 32;
-    for by in (0..h).step_by(T) {
-        for bx in (0..w).step_by(T) {
-            for y in by..(by + T).min(h) {
-                for x in bx..(bx + T).min(w) {
-                    dst[x * h + y] = src[y * w + x];
+    transpose_into(src, w, h, &mut dst, h);
+    dst
+}
+
+/// Writes the transpose of the `w × h` row-major `src` into `dst`, whose rows are `dst_stride`
+/// long: `dst[x·dst_stride + y] = src[y·w + x]` for `y < min(h, dst_stride)`; other entries of
+/// `dst` are left untouched. Also used to read only the first rows of a transposed result.
+fn transpose_into(src: &[Complex64], w: usize, h: usize, dst: &mut [Complex64], dst_stride: usize) {
+    const T: usize = 16;
+    let h_used = h.min(dst_stride);
+    let rows_out = dst.len() / dst_stride;
+    let w_used = w.min(rows_out);
+    for by in (0..h_used).step_by(T) {
+        for bx in (0..w_used).step_by(T) {
+            for x in bx..(bx + T).min(w_used) {
+                let d = &mut dst[x * dst_stride..x * dst_stride + dst_stride];
+                for y in by..(by + T).min(h_used) {
+                    d[y] = src[y * w + x];
                 }
             }
         }
     }
-    dst
 }
 
 fn integral_of_squares(img: &RgbImage) -> Vec<u64> {
@@ -281,10 +344,28 @@ mod tests {
                 }
             }
             let regions = [Rect::new(0, 0, ov, b), Rect::new(ov, 0, b - ov, ov)];
-            let search = OverlapSearch::new(&sample, b, b);
+            let mut search = OverlapSearch::new(&sample, b, b);
             let fast = search.candidates(&target, (20, 20), &regions, tol);
             let slow = search.candidates_direct(&target, (20, 20), &regions, tol);
             assert_eq!(fast, slow, "{sw}x{sh} block {b}");
+        }
+    }
+
+    #[test]
+    fn a_reused_search_stays_exact_across_blocks_and_region_sets() {
+        let sample = noise(70, 64, 21);
+        let target = noise(120, 120, 22);
+        let mut search = OverlapSearch::new(&sample, 20, 20);
+        let shapes: [&[Rect]; 3] = [
+            &[Rect::new(0, 0, 5, 20)],
+            &[Rect::new(0, 0, 20, 5)],
+            &[Rect::new(0, 0, 5, 20), Rect::new(5, 0, 15, 5)],
+        ];
+        for k in 0..9u32 {
+            let regions = shapes[(k % 3) as usize];
+            let origin = (k * 9, 100 - k * 7);
+            let fast = search.candidates(&target, origin, regions, 0.05 * k as f64);
+            assert_eq!(fast, search.candidates_direct(&target, origin, regions, 0.05 * k as f64), "call {k}");
         }
     }
 
@@ -293,7 +374,7 @@ mod tests {
         let sample = noise(40, 40, 9);
         let target = sample.crop(10, 12, 20, 20);
         let regions = [Rect::new(0, 0, 4, 12), Rect::new(4, 0, 8, 4)];
-        let search = OverlapSearch::new(&sample, 12, 12);
+        let mut search = OverlapSearch::new(&sample, 12, 12);
         let c = search.candidates(&target, (0, 0), &regions, 0.1);
         assert_eq!(c.min_ssd, 0);
         assert_eq!(c.members, vec![(10, 12, 0)]);
