@@ -141,6 +141,10 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
         return Err(format!("unsupported image format {format:?} (expected PNG, JPEG or EXR)"));
     }
+    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
+        // The JPEG decoder pads a truncated scan with flat colour instead of failing.
+        return Err("file is truncated (the JPEG has no end-of-image marker after its last scan)".into());
+    }
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let mut l = image::Limits::default();
     l.max_image_width = Some(limits.max_side);
@@ -167,6 +171,17 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
         }
         _ => NativeImage { width: w, height: h, channels: 3, samples: Samples::U8(img.to_rgb8().into_raw()) },
     })
+}
+
+/// Whether an end-of-image marker (FF D9) follows the last start-of-scan marker (FF DA). Inside
+/// entropy-coded data 0xFF is always stuffed or a restart marker, so neither can occur there; an
+/// EXIF thumbnail's own markers come before the main scan.
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last = |marker: u8| bytes.windows(2).rposition(|w| w[0] == 0xFF && w[1] == marker);
+    match (last(0xDA), last(0xD9)) {
+        (Some(sos), Some(eoi)) => eoi > sos,
+        _ => false,
+    }
 }
 
 fn describe_image_error(e: image::ImageError) -> String {
@@ -371,6 +386,17 @@ mod tests {
         assert!(decode_native(b"hello world", l).unwrap_err().contains("not a recognised image"));
         let truncated = &good[..good.len() / 2];
         assert!(decode_native(truncated, l).is_err());
+        let mut jpeg = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::jpeg::JpegEncoder::new(&mut jpeg),
+            img().as_raw(),
+            17,
+            9,
+            image::ExtendedColorType::Rgb8,
+        )
+        .unwrap();
+        assert!(decode_native(&jpeg, l).is_ok());
+        assert!(decode_native(&jpeg[..jpeg.len() - 40], l).unwrap_err().contains("truncated"));
         let tiny = DecodeLimits { max_side: 10, ..l };
         assert!(decode_native(&good, tiny).unwrap_err().contains("limit"));
     }

@@ -422,7 +422,8 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     if let Some(s) = sweep_table {
         read_sweep(ctx, s.get_ref().as_table().expect("checked"), method, &mut raw);
     }
-    if raw.seed.is_none() && !raw.sweep.iter().any(|(k, _)| k == "seed") && table.get("seed").is_none() {
+    let sweep_has_seed = sweep_table.and_then(|t| t.get_ref().as_table()).is_some_and(|t| t.get("seed").is_some());
+    if raw.seed.is_none() && !sweep_has_seed && table.get("seed").is_none() {
         ctx.err(None, Some("seed"), "missing required key `seed` (or a `seed` list in [sweep])");
     }
     if raw.seed.is_some() && raw.sweep.iter().any(|(k, _)| k == "seed") {
