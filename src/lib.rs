@@ -7,6 +7,7 @@
 //! share, `rng` the seeded random streams and `digest` the hashing and canonical JSON.
 
 pub mod digest;
+pub mod metrics;
 pub mod raster;
 pub mod rng;
 pub mod seamgrid;
