@@ -1,0 +1,268 @@
+//! Objective metrics between a sample and a synthesised output (methods.md §5.6, B9, B10).
+//!
+//! The four metrics of paper 003 (after Akl et al. 2018), lower is better for all of them:
+//! - `kl_gray`: KL divergence of the 256-bin gray-level histograms, `D_KL(sample‖output)`;
+//! - `kl_orientation`: KL divergence of the 180-bin local-orientation histograms;
+//! - `acf_gray`: Euclidean distance between the 33 × 33 gray autocorrelations (overlap-mean form of
+//!   the mean-subtracted gray plane);
+//! - `acf_orientation`: Euclidean distance between the 33 × 33 moduli of the raw overlap-mean
+//!   autocorrelations of the complex orientation field `V = C·e^{2jO}`;
+//!
+//! and two of ours:
+//! - `verbatim`: fraction of output pixels whose 7 × 7 neighbourhood occurs verbatim in the sample;
+//! - `seam_visibility`: mean colour jump at a block method's seam bands over the mean jump
+//!   elsewhere (needs a [`SeamGrid`]).
+//!
+//! A metric that is undefined (a constant image for `acf_gray` / `kl_orientation`, an image too
+//! small for the offsets or the window, no seam grid) is `None`; nothing here panics on it.
+//! Everything is `f64` with a fixed summation order; no result depends on the number of threads.
+
+pub mod acf;
+pub mod histogram;
+pub mod orientation;
+pub mod seams;
+pub mod verbatim;
+
+use std::cell::OnceCell;
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::raster::RgbImage;
+use crate::seamgrid::SeamGrid;
+
+pub use acf::{
+    Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance,
+};
+pub use histogram::{KL_EPSILON, gray_counts, gray_level, kl_divergence, kl_divergence_eps, normalise};
+pub use orientation::{StructureTensor, orientation_bin, orientation_counts, structure_tensor};
+pub use seams::seam_visibility;
+pub use verbatim::{verbatim, verbatim_fraction};
+
+/// Every metric name [`evaluate`] accepts, in report order.
+pub const METRIC_NAMES: &[&str] =
+    &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
+
+/// The metrics' named parameters (§5.6 "Options"); record them in the manifest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MetricParams {
+    /// Offset radius of both ACFs: `|dx|, |dy| ≤ acf_radius` (16 → 33 × 33).
+    pub acf_radius: usize,
+    /// Gaussian `σ` of the structure tensor window (radius `floor(4σ + 0.5)`).
+    pub sigma: f64,
+    /// Number of orientation-histogram bins over 180°.
+    pub orientation_bins: usize,
+    /// `ε` of the KL divergence.
+    pub epsilon: f64,
+    /// Gray ACF as eq. 11 is printed: un-centred, `S / S(0,0)` (biased form) instead of the
+    /// overlap-mean form of the mean-subtracted plane.
+    pub acf_raw: bool,
+    /// Side of the verbatim neighbourhood.
+    pub verbatim_window: usize,
+}
+
+impl Default for MetricParams {
+    fn default() -> Self {
+        MetricParams {
+            acf_radius: 16,
+            sigma: 1.5,
+            orientation_bins: 180,
+            epsilon: KL_EPSILON,
+            acf_raw: false,
+            verbatim_window: verbatim::VERBATIM_WINDOW,
+        }
+    }
+}
+
+impl MetricParams {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.sigma > 0.0 && self.sigma.is_finite()) {
+            return Err(format!("metric parameter sigma must be positive and finite, got {}", self.sigma));
+        }
+        if self.orientation_bins == 0 {
+            return Err("metric parameter orientation_bins must be at least 1".into());
+        }
+        if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
+            return Err(format!("metric parameter epsilon must be ≥ 0 and finite, got {}", self.epsilon));
+        }
+        if self.verbatim_window == 0 {
+            return Err("metric parameter verbatim_window must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// Per-image quantities shared by several metrics, each computed at most once.
+struct Analysis<'a> {
+    img: &'a RgbImage,
+    params: &'a MetricParams,
+    tensor: OnceCell<StructureTensor>,
+}
+
+impl<'a> Analysis<'a> {
+    fn new(img: &'a RgbImage, params: &'a MetricParams) -> Self {
+        Analysis { img, params, tensor: OnceCell::new() }
+    }
+    fn dims(&self) -> (usize, usize) {
+        (self.img.width() as usize, self.img.height() as usize)
+    }
+    fn tensor(&self) -> &StructureTensor {
+        self.tensor.get_or_init(|| {
+            let (w, h) = self.dims();
+            structure_tensor(&self.img.gray_unit(), w, h, self.params.sigma)
+        })
+    }
+    fn orientation_histogram(&self) -> Vec<f64> {
+        normalise(&orientation_counts(self.tensor(), self.params.orientation_bins))
+    }
+    fn orientation_acf(&self) -> Option<Acf<f64>> {
+        let (w, h) = self.dims();
+        let r = self.params.acf_radius;
+        let v = self.tensor().complex_orientation();
+        let acf = autocorrelation_complex(&v, w, h, r, r, AcfForm::RawOverlapMean).ok()?;
+        Some(acf.map(|c| c.norm()))
+    }
+}
+
+/// The gray plane `(R+G+B)/(3·255)` minus its mean, row-major.
+///
+/// Centred in integers first: with `s = R+G+B`, each value is `(s − mean(s)) / 765`, where
+/// `Σ s` is an exact integer; so a constant image gives an exactly zero plane (an undefined ACF)
+/// rather than rounding noise.
+pub fn centred_gray(img: &RgbImage) -> Vec<f64> {
+    let sums: Vec<u32> = img.as_raw().chunks_exact(3).map(|p| p[0] as u32 + p[1] as u32 + p[2] as u32).collect();
+    if sums.is_empty() {
+        return Vec::new();
+    }
+    let total: u64 = sums.iter().map(|&s| s as u64).sum();
+    let mean = total as f64 / sums.len() as f64;
+    sums.iter().map(|&s| (s as f64 - mean) / 765.0).collect()
+}
+
+/// Normalised 256-bin gray-level histogram (§5.6 item 1).
+pub fn gray_histogram(img: &RgbImage) -> Vec<f64> {
+    normalise(&gray_counts(img))
+}
+
+/// Normalised local-orientation histogram (§5.6 item 2): all zero for an image without a valid
+/// pixel.
+pub fn orientation_histogram(img: &RgbImage, params: &MetricParams) -> Vec<f64> {
+    Analysis::new(img, params).orientation_histogram()
+}
+
+/// The gray ACF `c(dx, dy)` of §5.6 item 3 (`None` for a constant image, or with `acf_raw` a black
+/// one, and for an image not larger than the offset radius).
+pub fn gray_acf(img: &RgbImage, params: &MetricParams) -> Option<Acf<f64>> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let r = params.acf_radius;
+    if params.acf_raw {
+        autocorrelation(&img.gray_unit(), w, h, r, r, AcfForm::Biased).ok()
+    } else {
+        autocorrelation(&centred_gray(img), w, h, r, r, AcfForm::OverlapMean).ok()
+    }
+}
+
+/// The orientation ACF `A_v(dx, dy) = |S/N|` of `V` (§5.6 item 4; `None` only for an image not
+/// larger than the offset radius).
+pub fn orientation_acf(img: &RgbImage, params: &MetricParams) -> Option<Acf<f64>> {
+    Analysis::new(img, params).orientation_acf()
+}
+
+fn defined(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+fn kl_gray_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
+    defined(kl_divergence_eps(&gray_histogram(p.img), &gray_histogram(q.img), p.params.epsilon))
+}
+fn kl_orientation_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
+    defined(kl_divergence_eps(&p.orientation_histogram(), &q.orientation_histogram(), p.params.epsilon))
+}
+fn acf_gray_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
+    let a = gray_acf(p.img, p.params)?;
+    let b = gray_acf(q.img, q.params)?;
+    defined(euclidean_distance(a.values(), b.values()))
+}
+fn acf_orientation_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
+    let a = p.orientation_acf()?;
+    let b = q.orientation_acf()?;
+    defined(euclidean_distance(a.values(), b.values()))
+}
+
+/// Gray-level histogram KL, `D_KL(sample‖output)` (§5.6 item 1).
+pub fn kl_gray(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
+    kl_gray_with(sample, output, &MetricParams::default())
+}
+pub fn kl_gray_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
+    kl_gray_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+}
+
+/// Local-orientation histogram KL (§5.6 item 2); `None` when either image has no valid pixel.
+pub fn kl_orientation(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
+    kl_orientation_with(sample, output, &MetricParams::default())
+}
+pub fn kl_orientation_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
+    kl_orientation_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+}
+
+/// Gray autocorrelation distance (§5.6 item 3); `None` when either image is constant.
+pub fn acf_gray(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
+    acf_gray_with(sample, output, &MetricParams::default())
+}
+pub fn acf_gray_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
+    acf_gray_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+}
+
+/// Orientation autocorrelation distance (§5.6 item 4).
+pub fn acf_orientation(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
+    acf_orientation_with(sample, output, &MetricParams::default())
+}
+pub fn acf_orientation_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
+    acf_orientation_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+}
+
+/// Evaluates the named metrics with the default parameters: each name maps to `Some(value)` or to
+/// `None` when the metric is undefined for these images. `Err` for an unknown name (the message
+/// lists the valid ones).
+pub fn evaluate(
+    names: &[&str],
+    sample: &RgbImage,
+    output: &RgbImage,
+    grid: Option<&SeamGrid>,
+) -> Result<BTreeMap<String, Option<f64>>, String> {
+    evaluate_with(names, sample, output, grid, &MetricParams::default())
+}
+
+/// [`evaluate`] with explicit parameters (`Err` also for invalid parameters).
+pub fn evaluate_with(
+    names: &[&str],
+    sample: &RgbImage,
+    output: &RgbImage,
+    grid: Option<&SeamGrid>,
+    params: &MetricParams,
+) -> Result<BTreeMap<String, Option<f64>>, String> {
+    if let Some(bad) = names.iter().find(|n| !METRIC_NAMES.contains(n)) {
+        return Err(format!("unknown metric `{bad}`; valid metrics: {}", METRIC_NAMES.join(", ")));
+    }
+    params.validate()?;
+    let p = Analysis::new(sample, params);
+    let q = Analysis::new(output, params);
+    let mut out = BTreeMap::new();
+    for &name in names {
+        let value = match name {
+            "kl_gray" => kl_gray_impl(&p, &q),
+            "kl_orientation" => kl_orientation_impl(&p, &q),
+            "acf_gray" => acf_gray_impl(&p, &q),
+            "acf_orientation" => acf_orientation_impl(&p, &q),
+            "verbatim" => verbatim_fraction(sample, output, params.verbatim_window),
+            "seam_visibility" => grid.and_then(|g| seam_visibility(output, g)),
+            _ => unreachable!("names were checked above"),
+        };
+        out.insert(name.to_string(), value);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests;
