@@ -19,6 +19,7 @@ pub mod params;
 pub mod primitives;
 pub mod progress;
 pub mod raster;
+pub mod report;
 pub mod rng;
 pub mod runner;
 pub mod seamgrid;

@@ -65,7 +65,24 @@ enum Command {
     Golden(GoldenCommand),
     /// List the methods, their parameters, defaults and ranges.
     Methods,
+    /// Tables (Markdown, CSV), contact sheets, a plot and an HTML page from a manifest.
+    #[command(after_help = REPORT_HELP)]
+    Report {
+        manifest: PathBuf,
+        /// Report directory (index.html, tables.md, tables/, sheets/, plots/, images/).
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Table columns: comma-separated keys among method, param:NAME, size, seed.
+        #[arg(long, default_value = "method")]
+        group_by: texsyn::report::GroupBy,
+    },
 }
+
+const REPORT_HELP: &str = "\
+Exit codes:
+  0    report written
+  1    report written, but some images were missing or differ from the manifest (listed)
+  2    usage error, unreadable manifest, or the report directory cannot be written";
 
 #[derive(Subcommand)]
 enum GoldenCommand {
@@ -207,6 +224,27 @@ fn main() -> ExitCode {
                         eprintln!("error: {e}");
                         ExitCode::from(2)
                     }
+                }
+            }
+        }
+        Command::Report { manifest, out, group_by } => {
+            match texsyn::report::report(&texsyn::report::ReportOptions { manifest, out, group_by }) {
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+                Ok(s) => {
+                    for p in &s.problems {
+                        eprintln!("warning: {p}");
+                    }
+                    eprintln!(
+                        "texsyn report: {} jobs counted, {} not counted, {} files; open {}",
+                        s.counted,
+                        s.excluded,
+                        s.files.len(),
+                        s.index.display()
+                    );
+                    if s.problems.is_empty() { ExitCode::SUCCESS } else { ExitCode::from(1) }
                 }
             }
         }

@@ -1,0 +1,398 @@
+//! The report page: one static `index.html` that shows the tables, plot and images and keeps the
+//! provenance one click away, readable offline and from any copy of the report directory.
+//!
+//! It references only files written beside it (no network, no CDN). Every number carries its
+//! exact value in `data-*` attributes, and a small script records on `<body>` whether every image
+//! decoded, so a headless browser can check the page as a reader would see it.
+
+use super::fmt::{self, html as h};
+use super::model::Model;
+use super::tables::{Stat, TIME, Table};
+use crate::manifest::Manifest;
+
+/// Where an image of the report lives (relative to the page), or why it could not be shown.
+pub type ImageRef = Result<(String, u32, u32), String>;
+
+/// One group's output shown for a sample.
+pub struct Shown {
+    pub group: usize,
+    /// The entry (job) whose output is shown.
+    pub entry: usize,
+    pub image: ImageRef,
+}
+
+/// Everything the page links to, already written or about to be.
+pub struct Assets {
+    pub samples: Vec<ImageRef>,
+    /// Per sample, the shown output of each group that ran on it.
+    pub shown: Vec<Vec<Shown>>,
+    pub sheets: Vec<String>,
+    pub overview: Option<String>,
+    pub plot: String,
+    pub markdown: String,
+    pub csvs: Vec<(String, String)>,
+    pub csv_all: String,
+    pub jobs_csv: String,
+}
+
+const STYLE: &str = "
+body{font-family:'DejaVu Sans',Verdana,sans-serif;margin:1.5em 2em;color:#222;line-height:1.4}
+h1{margin-bottom:0.2em}
+code{font-size:0.9em}
+table{border-collapse:collapse;margin:0.4em 0 1.4em}
+th,td{border:1px solid #ccc;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums;vertical-align:top}
+th{background:#f3f3f3}
+th:first-child,td:first-child,td.text{text-align:left}
+tr.mean td{font-weight:bold;border-top:2px solid #777}
+.sd{color:#666;font-size:0.85em}
+figure{display:inline-block;vertical-align:top;margin:0 14px 14px 0}
+figcaption{font-size:0.85em;color:#444;max-width:420px;overflow-wrap:anywhere}
+figcaption b{color:#111}
+.missing{display:inline-block;background:#ddd;color:#900;padding:8px;box-sizing:border-box}
+img.sheet{max-width:100%;height:auto;border:1px solid #ddd}
+details{margin:0.6em 0 1.2em}
+summary{cursor:pointer}
+.problems{background:#fff3f3;border:1px solid #e99;padding:0.5em 1em}
+.digest{font-family:monospace;font-size:0.85em;overflow-wrap:anywhere}
+";
+
+const SCRIPT: &str = "
+window.addEventListener('load', function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  var ok = imgs.filter(function (i) { return i.complete && i.naturalWidth > 0; });
+  var bad = imgs.filter(function (i) { return !(i.complete && i.naturalWidth > 0); });
+  document.body.setAttribute('data-images-ok', ok.length + '/' + imgs.length);
+  document.body.setAttribute('data-images-failed', bad.map(function (i) { return i.getAttribute('src'); }).join(' '));
+});
+";
+
+fn img(r: &ImageRef, alt: &str) -> String {
+    match r {
+        Ok((src, w, hgt)) => format!("<img src=\"{}\" width=\"{w}\" height=\"{hgt}\" alt=\"{}\">", h(src), h(alt)),
+        Err(why) => format!("<span class=\"missing\">image unavailable: {}</span>", h(why)),
+    }
+}
+
+fn opt_attr(name: &str, v: Option<f64>) -> String {
+    v.map(|x| format!(" {name}=\"{}\"", fmt::full(x))).unwrap_or_default()
+}
+
+fn stat_cell(model: &Model, t: &Table, s: usize, g: usize, c: &Option<Stat>) -> String {
+    let common = format!(
+        "data-metric=\"{}\" data-sample=\"{}\" data-group=\"{}\"",
+        h(&t.measure),
+        h(&model.samples[s].key),
+        h(&model.groups[g].label)
+    );
+    match c {
+        None => format!("<td {common} data-n=\"0\">not run</td>"),
+        Some(st) => {
+            let shown = match (st.mean, st.sd) {
+                (None, _) => "—".to_string(),
+                (Some(m), Some(sd)) => format!("{} <span class=\"sd\">± {} (n={})</span>", fmt::sig(m), fmt::sig(sd), st.n),
+                (Some(m), None) => fmt::sig(m),
+            };
+            let undefined =
+                if st.undefined > 0 { format!(" <span class=\"sd\">({} undefined)</span>", st.undefined) } else { String::new() };
+            format!(
+                "<td {common}{}{} data-n=\"{}\" data-undefined=\"{}\">{shown}{undefined}</td>",
+                opt_attr("data-value", st.mean),
+                opt_attr("data-sd", st.sd),
+                st.n,
+                st.undefined
+            )
+        }
+    }
+}
+
+fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
+    let mut out = String::from("<section id=\"tables\">\n<h2>Tables</h2>\n");
+    out.push_str(&format!(
+        "<p>One row per sample, one column per <code>{}</code>. A cell is the mean over the jobs that share its sample and \
+         column, with the sample standard deviation and the count where there are several (a seed sweep). The mean row \
+         averages the per-sample means. Also as <a href=\"{}\">Markdown</a>, <a href=\"{}\">one CSV</a> and \
+         <a href=\"{}\">per-job CSV</a>.</p>\n",
+        h(&model.group_by.to_string()),
+        h(&assets.markdown),
+        h(&assets.csv_all),
+        h(&assets.jobs_csv)
+    ));
+    for t in tables {
+        let csv = assets.csvs.iter().find(|(m, _)| *m == t.measure).map(|(_, p)| p.as_str()).unwrap_or("");
+        out.push_str(&format!("<h3>{} <small>(<a href=\"{}\">CSV</a>)</small></h3>\n", h(&t.title), h(csv)));
+        let time = t.measure == TIME;
+        out.push_str(&format!("<table class=\"measure\" data-measure=\"{}\">\n<thead><tr><th>sample</th>", h(&t.measure)));
+        if time {
+            out.push_str("<th>sample size</th><th>output size</th>");
+        }
+        for g in &model.groups {
+            out.push_str(&format!("<th data-group=\"{}\">{}</th>", h(&g.label), h(&g.label)));
+        }
+        out.push_str("</tr></thead>\n<tbody>\n");
+        for (s, row) in t.cells.iter().enumerate() {
+            let info = &model.samples[s];
+            out.push_str(&format!("<tr data-sample=\"{}\"><td><a href=\"#sample-{s}\">{}</a></td>", h(&info.key), h(&info.key)));
+            if time {
+                let mut sizes: Vec<(u64, String)> = model
+                    .entries
+                    .iter()
+                    .filter(|e| e.sample == s)
+                    .filter_map(|e| e.output.as_ref().map(|o| (o.width as u64 * o.height as u64, format!("{}×{}", o.width, o.height))))
+                    .collect();
+                sizes.sort();
+                sizes.dedup();
+                let sizes: Vec<String> = sizes.into_iter().map(|x| x.1).collect();
+                out.push_str(&format!("<td>{}×{}</td><td>{}</td>", info.width, info.height, h(&sizes.join(", "))));
+            }
+            for (g, c) in row.iter().enumerate() {
+                out.push_str(&stat_cell(model, t, s, g, c));
+            }
+            out.push_str("</tr>\n");
+        }
+        out.push_str("<tr class=\"mean\"><td>mean</td>");
+        if time {
+            out.push_str("<td></td><td></td>");
+        }
+        for (g, m) in t.mean.iter().enumerate() {
+            out.push_str(&format!(
+                "<td data-metric=\"{}\" data-group=\"{}\" data-row=\"mean\"{} data-samples=\"{}\">{}</td>",
+                h(&t.measure),
+                h(&model.groups[g].label),
+                opt_attr("data-value", m.mean),
+                m.samples,
+                h(&m.text(model.samples.len()))
+            ));
+        }
+        out.push_str("</tr>\n</tbody></table>\n");
+    }
+    out.push_str("</section>\n");
+    out
+}
+
+fn images_html(model: &Model, assets: &Assets) -> String {
+    let mut out = String::from("<section id=\"images\">\n<h2>Images</h2>\n");
+    out.push_str("<p>Each sample, then the output of each column at the same scale (the first seed where a column ran several).</p>\n");
+    if let Some(o) = &assets.overview {
+        out.push_str(&format!(
+            "<details open><summary>Overview contact sheet (<a href=\"{}\">PNG</a>)</summary><img class=\"sheet\" src=\"{}\" alt=\"overview contact sheet\"></details>\n",
+            h(o),
+            h(o)
+        ));
+    }
+    for (s, info) in model.samples.iter().enumerate() {
+        out.push_str(&format!("<h3 id=\"sample-{s}\" data-sample=\"{}\">{}</h3>\n<div class=\"row\">", h(&info.key), h(&info.key)));
+        out.push_str(&format!(
+            "<figure data-role=\"sample\">{}<figcaption><b>sample {}</b><br>{}×{} · <code>{}</code></figcaption></figure>",
+            img(&assets.samples[s], &format!("sample {}", info.key)),
+            h(&info.key),
+            info.width,
+            info.height,
+            h(&info.recorded_path)
+        ));
+        for shown in &assets.shown[s] {
+            let e = &model.entries[shown.entry];
+            let g = &model.groups[shown.group];
+            let n = model.entries_of(s, shown.group).count();
+            let size = e.output.as_ref().map(|o| format!("{}×{}", o.width, o.height)).unwrap_or_default();
+            out.push_str(&format!(
+                "<figure data-group=\"{}\" data-job=\"{}\">{}<figcaption><b>{}</b><br>{}<br>{}{} · {}</figcaption></figure>",
+                h(&g.label),
+                h(&e.job_id),
+                img(&shown.image, &format!("{} on {}", g.label, info.key)),
+                h(&g.label),
+                h(&g.params_label),
+                e.seed.map(|x| format!("seed {x}")).unwrap_or_default(),
+                if n > 1 { format!(" (1 of {n} jobs)") } else { String::new() },
+                size
+            ));
+        }
+        out.push_str("</div>\n");
+        if let Some(sheet) = assets.sheets.get(s) {
+            out.push_str(&format!(
+                "<details><summary>Contact sheet (<a href=\"{}\">PNG</a>)</summary><img class=\"sheet\" src=\"{}\" alt=\"contact sheet {}\"></details>\n",
+                h(sheet),
+                h(sheet),
+                h(&info.key)
+            ));
+        }
+    }
+    out.push_str("</section>\n");
+    out
+}
+
+fn jobs_html(model: &Model) -> String {
+    let mut out = format!(
+        "<section id=\"jobs\">\n<h2>Per-job values</h2>\n<details><summary>{} counted jobs: every metric and the time of each</summary>\n<table class=\"jobs\"><thead><tr><th>job</th><th>sample</th><th>column</th><th>seed</th>",
+        model.entries.len()
+    );
+    for m in &model.metric_names {
+        out.push_str(&format!("<th>{}</th>", h(m)));
+    }
+    out.push_str(&format!("<th>{TIME}</th></tr></thead>\n<tbody>\n"));
+    for e in &model.entries {
+        out.push_str(&format!(
+            "<tr data-job=\"{}\"><td class=\"text\">{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td><td>{}</td>",
+            h(&e.job_id),
+            h(&e.job_id),
+            h(&model.samples[e.sample].key),
+            h(&model.groups[e.group].label),
+            e.seed.map(|s| s.to_string()).unwrap_or_default()
+        ));
+        let cell = |name: &str, v: Option<Option<f64>>| match v {
+            Some(Some(x)) => format!(
+                "<td data-job=\"{}\" data-metric=\"{}\" data-value=\"{}\">{}</td>",
+                h(&e.job_id),
+                h(name),
+                fmt::full(x),
+                fmt::sig(x)
+            ),
+            Some(None) => format!("<td data-job=\"{}\" data-metric=\"{}\" data-undefined=\"1\">undefined</td>", h(&e.job_id), h(name)),
+            None => format!("<td data-job=\"{}\" data-metric=\"{}\" data-absent=\"1\">—</td>", h(&e.job_id), h(name)),
+        };
+        for m in &model.metric_names {
+            out.push_str(&cell(m, e.metrics.get(m).copied()));
+        }
+        out.push_str(&cell(TIME, e.synthesis_seconds.map(Some)));
+        out.push_str("</tr>\n");
+    }
+    out.push_str("</tbody></table>\n</details>\n</section>\n");
+    out
+}
+
+fn excluded_html(model: &Model) -> String {
+    if model.excluded.is_empty() {
+        return String::new();
+    }
+    let mut out = format!(
+        "<section id=\"excluded\">\n<h2>Jobs not counted ({})</h2>\n<p>Only jobs with status ok or up-to-date enter the tables.</p>\n\
+         <table><thead><tr><th>job</th><th>status</th><th>reason</th></tr></thead><tbody>\n",
+        model.excluded.len()
+    );
+    for x in &model.excluded {
+        out.push_str(&format!(
+            "<tr data-job=\"{}\" data-status=\"{}\"><td>{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td></tr>\n",
+            h(&x.job_id),
+            h(&x.status),
+            h(&x.job_id),
+            h(&x.status),
+            h(&x.reason)
+        ));
+    }
+    out.push_str("</tbody></table>\n</section>\n");
+    out
+}
+
+fn provenance_html(manifest: &Manifest, digest_ok: bool) -> String {
+    let r = &manifest.run;
+    let mut out = format!(
+        "<section id=\"provenance\">\n<h2>Provenance</h2>\n<details data-role=\"provenance\"><summary>{} {} (commit <code>{}</code>), \
+         {} jobs, deterministic digest <code>{}</code></summary>\n<table class=\"facts\"><tbody>\n",
+        h(&manifest.tool.name),
+        h(&manifest.tool.version),
+        h(&manifest.tool.commit.chars().take(12).collect::<String>()),
+        manifest.jobs.len(),
+        h(&manifest.deterministic_digest.sha256.chars().take(16).collect::<String>())
+    );
+    let mut row = |k: &str, v: String| out.push_str(&format!("<tr><th>{}</th><td class=\"text\">{v}</td></tr>\n", h(k)));
+    row("tool", format!("{} {}", h(&manifest.tool.name), h(&manifest.tool.version)));
+    row("commit", format!("<span class=\"digest\" data-commit=\"{0}\">{0}</span>", h(&manifest.tool.commit)));
+    row("manifest format", h(&manifest.format));
+    row(
+        "deterministic digest",
+        format!(
+            "<span class=\"digest\" data-digest=\"{0}\">sha256 {0}</span> — {1}",
+            h(&manifest.deterministic_digest.sha256),
+            if digest_ok {
+                "recomputed from the manifest: matches"
+            } else {
+                "recomputed from the manifest: DOES NOT MATCH (the manifest was edited after the run)"
+            }
+        ),
+    );
+    row("host", h(&r.host));
+    row("command", format!("<code>{}</code>", h(&r.argv.join(" "))));
+    row("threads", r.threads.to_string());
+    row("started / finished (Unix s)", format!("{} / {}", r.started_at, r.finished_at));
+    row("wall time (s)", fmt::sig(r.wall_seconds));
+    row("jobs ran / up to date / failed / invalid", format!("{} / {} / {} / {}", r.ran, r.up_to_date, r.failed, r.invalid));
+    out.push_str("</tbody></table>\n<table class=\"provenance\"><thead><tr><th>job</th><th>status</th><th>method</th><th>params</th>\
+        <th>seed</th><th>sample</th><th>sample pixels sha256</th><th>output</th><th>output pixels sha256</th><th>output file sha256</th>\
+        <th>content key</th></tr></thead><tbody>\n");
+    for j in &manifest.jobs {
+        let sample = j.sample.as_ref();
+        let output = j.outputs.first();
+        out.push_str(&format!(
+            "<tr data-job=\"{}\"><td class=\"text\">{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td><td class=\"text\"><code>{}</code></td>\
+             <td data-seed=\"{}\">{}</td><td class=\"text\">{}</td><td class=\"digest\">{}</td><td class=\"text\">{}</td>\
+             <td class=\"digest\" data-pixel-digest=\"{}\">{}</td><td class=\"digest\">{}</td><td class=\"digest\">{}</td></tr>\n",
+            h(&j.id),
+            h(&j.id),
+            j.status.name(),
+            h(j.method.as_deref().unwrap_or("")),
+            h(&j.params.as_ref().map(|p| p.to_string()).unwrap_or_default()),
+            j.seed.map(|s| s.to_string()).unwrap_or_default(),
+            j.seed.map(|s| s.to_string()).unwrap_or_default(),
+            h(sample.map_or("", |s| s.path.as_str())),
+            h(sample.map_or("", |s| s.pixel_digest.sha256.as_str())),
+            h(&output.map(|o| format!("{} ({} {}-bit, {}×{})", o.path, o.format, o.bit_depth, o.width, o.height)).unwrap_or_default()),
+            h(output.map_or("", |o| o.pixel_digest.sha256.as_str())),
+            h(output.map_or("", |o| o.pixel_digest.sha256.as_str())),
+            h(output.map_or("", |o| o.file_digest.sha256.as_str())),
+            h(j.content_key.as_ref().map_or("", |d| d.sha256.as_str())),
+        ));
+    }
+    out.push_str("</tbody></table>\n</details>\n</section>\n");
+    out
+}
+
+/// The whole page.
+#[allow(clippy::too_many_arguments)]
+pub fn page(
+    model: &Model,
+    tables: &[Table],
+    assets: &Assets,
+    manifest: &Manifest,
+    source: &str,
+    digest_ok: bool,
+    problems: &[String],
+) -> String {
+    let mut out = format!(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
+         <title>texsyn report: {}</title>\n<style>{STYLE}</style>\n</head>\n<body data-images-ok=\"pending\" data-jobs-counted=\"{}\" data-jobs-excluded=\"{}\">\n\
+         <h1>texsyn report</h1>\n<p>Manifest <code>{}</code> — {} jobs counted (ok or up-to-date), {} not counted; columns grouped by \
+         <code>{}</code>. Written by {} {} (commit <code>{}</code>); details under <a href=\"#provenance\">Provenance</a>.</p>\n",
+        h(source),
+        model.entries.len(),
+        model.excluded.len(),
+        h(source),
+        model.entries.len(),
+        model.excluded.len(),
+        h(&model.group_by.to_string()),
+        h(&manifest.tool.name),
+        h(&manifest.tool.version),
+        h(&manifest.tool.commit.chars().take(12).collect::<String>())
+    );
+    if !problems.is_empty() {
+        out.push_str("<div class=\"problems\" id=\"problems\"><b>Problems while building this report:</b><ul>");
+        for p in problems {
+            out.push_str(&format!("<li>{}</li>", h(p)));
+        }
+        out.push_str("</ul></div>\n");
+    }
+    if model.metric_names.is_empty() {
+        out.push_str("<p>No job recorded metrics (a job file asks for them with <code>metrics = true</code>); only the time table is shown.</p>\n");
+    }
+    out.push_str(&excluded_html(model));
+    out.push_str(&tables_html(model, tables, assets));
+    out.push_str(&format!(
+        "<section id=\"plots\">\n<h2>Plots</h2>\n<figure><img src=\"{0}\" width=\"720\" height=\"440\" alt=\"synthesis time vs output size\">\
+         <figcaption>Synthesis time against output size (pixels), one colour per column; lines join each column's mean time per size. \
+         (<a href=\"{0}\">SVG</a>)</figcaption></figure>\n</section>\n",
+        h(&assets.plot)
+    ));
+    out.push_str(&images_html(model, assets));
+    out.push_str(&jobs_html(model));
+    out.push_str(&provenance_html(manifest, digest_ok));
+    out.push_str(&format!("<script>{SCRIPT}</script>\n</body>\n</html>\n"));
+    out
+}
