@@ -16,7 +16,7 @@ use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep"];
+pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics"];
 /// The keys of the `[output]` table.
 pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth"];
 /// Largest output side accepted.
@@ -90,6 +90,8 @@ pub struct Job {
     pub seed: u64,
     pub params: Params,
     pub output: OutputSpec,
+    /// Metrics to compute after synthesis (`metrics = true` or a list); empty for none.
+    pub metrics: Vec<String>,
     /// Line and column of each key, to point errors found later (e.g. by `Method::check`) at it.
     pub positions: BTreeMap<String, (usize, usize)>,
 }
@@ -330,6 +332,7 @@ struct Raw<'a> {
     height: Option<u32>,
     bit_depth: Option<(i64, std::ops::Range<usize>)>,
     params: Vec<(String, ParamValue)>,
+    metrics: Vec<String>,
     sweep: Vec<(String, Vec<(ParamValue, std::ops::Range<usize>)>)>,
     _src: std::marker::PhantomData<&'a ()>,
 }
@@ -344,6 +347,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         height: None,
         bit_depth: None,
         params: Vec::new(),
+        metrics: Vec::new(),
         sweep: Vec::new(),
         _src: std::marker::PhantomData,
     };
@@ -387,6 +391,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
                 DeValue::Table(_) => sweep_table = Some(v),
                 other => ctx.err(Some(v.span()), Some("sweep"), format!("expected a table ([sweep]), found {}", type_name(other))),
             },
+            "metrics" => read_metrics(ctx, v, &mut raw),
             other => ctx.err(Some(k.span()), Some(other), params::unknown_key_message(other, TOP_KEYS)),
         }
     }
@@ -555,10 +560,41 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             seed,
             params,
             output: OutputSpec { path, width, height, format, bit_depth },
+            metrics: raw.metrics.clone(),
             positions,
         });
     }
     jobs
+}
+
+/// `metrics = true` (all), `false` (none) or a list of metric names.
+fn read_metrics(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
+    let names = crate::metrics::METRIC_NAMES;
+    match v.get_ref() {
+        DeValue::Boolean(true) => raw.metrics = names.iter().map(|s| s.to_string()).collect(),
+        DeValue::Boolean(false) => raw.metrics.clear(),
+        DeValue::Array(items) => {
+            for item in items {
+                match item.get_ref() {
+                    DeValue::String(s) if names.contains(&s.as_ref()) => {
+                        if !raw.metrics.iter().any(|m| m == s.as_ref()) {
+                            raw.metrics.push(s.to_string());
+                        }
+                    }
+                    DeValue::String(s) => {
+                        let hint = params::nearest(s, names).map(|n| format!(" (did you mean `{n}`?)")).unwrap_or_default();
+                        ctx.err(Some(item.span()), Some("metrics"), format!("unknown metric `{s}`{hint}; available: {}", names.join(", ")));
+                    }
+                    other => ctx.err(Some(item.span()), Some("metrics"), format!("expected a metric name, found {}", type_name(other))),
+                }
+            }
+        }
+        other => ctx.err(
+            Some(v.span()),
+            Some("metrics"),
+            format!("expected true, false or a list of metric names, found {}", type_name(other)),
+        ),
+    }
 }
 
 fn read_output(ctx: &mut Ctx, t: &DeTable, raw: &mut Raw) {
@@ -851,6 +887,20 @@ mod tests {
         assert!(all.contains("`output.width`: 0 is out of range"), "{all}");
         assert!(all.contains("missing.png` does not exist"), "{all}");
         assert!(all.contains("blok") && all.contains("did you mean `block`"), "{all}");
+    }
+
+    #[test]
+    fn metrics_key_accepts_true_or_a_list_and_rejects_unknown_names() {
+        let d = tmpdir("metrics");
+        let head = "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"o.png\"\nwidth = 60\nheight = 60\n";
+        let all = write(&d, "all.toml", &format!("metrics = true\n{head}"));
+        let some = write(&d, "some.toml", &format!("metrics = [\"kl_gray\", \"verbatim\"]\n{head}").replace("o.png", "p.png"));
+        let bad = write(&d, "bad.toml", &format!("metrics = [\"kl_grey\"]\n{head}").replace("o.png", "q.png"));
+        let plan = plan(&[all, some, bad]);
+        assert_eq!(plan.jobs[0].metrics.len(), crate::metrics::METRIC_NAMES.len());
+        assert_eq!(plan.jobs[1].metrics, vec!["kl_gray", "verbatim"]);
+        let msg = plan.invalid[0].errors[0].to_string();
+        assert!(msg.contains("bad.toml:1:12: `metrics`: unknown metric `kl_grey` (did you mean `kl_gray`?)"), "{msg}");
     }
 
     #[test]

@@ -65,6 +65,18 @@ enum Command {
     Golden(GoldenCommand),
     /// List the methods, their parameters, defaults and ranges.
     Methods,
+    /// Score any image against a sample with the metrics texsyn records (paper 003's four
+    /// measures, the verbatim-copy fraction; seam visibility needs a method's grid and is undefined here).
+    Eval {
+        sample: PathBuf,
+        output: PathBuf,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+        /// Comma-separated metric names (default: all).
+        #[arg(long, value_delimiter = ',')]
+        metrics: Option<Vec<String>>,
+    },
     /// Tables (Markdown, CSV), contact sheets, a plot and an HTML page from a manifest.
     #[command(after_help = REPORT_HELP)]
     Report {
@@ -224,6 +236,41 @@ fn main() -> ExitCode {
                         eprintln!("error: {e}");
                         ExitCode::from(2)
                     }
+                }
+            }
+        }
+        Command::Eval { sample, output, json, metrics } => {
+            let names: Vec<String> = metrics.unwrap_or_else(|| texsyn::metrics::METRIC_NAMES.iter().map(|s| s.to_string()).collect());
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            let (s, o) = match (runner::load_sample(&sample), runner::load_sample(&output)) {
+                (Ok(s), Ok(o)) => (s, o),
+                (Err(e), _) | (_, Err(e)) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            match texsyn::metrics::evaluate(&names, &s.image, &o.image, None) {
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+                Ok(values) => {
+                    if json {
+                        let v = serde_json::json!({
+                            "sample": sample.display().to_string(),
+                            "output": output.display().to_string(),
+                            "metrics": values,
+                        });
+                        println!("{v}");
+                    } else {
+                        for (k, v) in &values {
+                            match v {
+                                Some(x) => println!("{k:<16} {x:.6}"),
+                                None => println!("{k:<16} undefined"),
+                            }
+                        }
+                    }
+                    ExitCode::SUCCESS
                 }
             }
         }

@@ -93,6 +93,9 @@ pub struct OutputRecord {
 pub struct Timing {
     /// The method's synthesis call only (no decoding or encoding).
     pub synthesis_seconds: f64,
+    /// Computing the requested metrics (0 when none were requested).
+    #[serde(default)]
+    pub metrics_seconds: f64,
     /// Everything for this job, including encoding and writing.
     pub total_seconds: f64,
     /// When it ran, seconds since the Unix epoch.
@@ -132,6 +135,9 @@ pub struct JobRecord {
     pub seams: Option<SeamGrid>,
     #[serde(default, skip_serializing_if = "Value::is_null")]
     pub diagnostics: Value,
+    /// Requested metrics of the output against the sample (`null` where undefined).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<std::collections::BTreeMap<String, Option<f64>>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub timing: Option<Timing>,
 }
@@ -276,7 +282,8 @@ mod tests {
             outputs: vec![],
             seams: None,
             diagnostics: Value::Null,
-            timing: Some(Timing { synthesis_seconds: 1.0, total_seconds: 2.0, finished_at: 5 }),
+            metrics: None,
+            timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, total_seconds: 2.0, finished_at: 5 }),
         }
     }
 

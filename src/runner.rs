@@ -135,7 +135,6 @@ fn now_unix() -> u64 {
 struct Prepared<'a> {
     job: &'a Job,
     sample: Arc<LoadedSample>,
-    params_json: serde_json::Value,
     content_key: Digest,
     base: JobRecord,
 }
@@ -158,6 +157,7 @@ fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         outputs: Vec::new(),
         seams: None,
         diagnostics: serde_json::Value::Null,
+        metrics: None,
         timing: None,
     }
 }
@@ -236,9 +236,10 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions) -> Result<Summary, String> {
             outputs: Vec::new(),
             seams: None,
             diagnostics: serde_json::Value::Null,
+            metrics: None,
             timing: None,
         };
-        prepared.push(Prepared { job, sample, params_json, content_key, base });
+        prepared.push(Prepared { job, sample, content_key, base });
     }
     plan.invalid.sort_by(|a, b| a.id.cmp(&b.id));
 
@@ -254,6 +255,7 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions) -> Result<Summary, String> {
                 None => Some("not in the manifest".into()),
                 Some(prev) if !prev.status.is_success() => Some(format!("previous run {}", prev.status.name())),
                 Some(prev) if prev.content_key.as_ref() != Some(&p.content_key) => Some("inputs changed (content key differs)".into()),
+                Some(prev) if !metrics_recorded(prev, &p.job.metrics) => Some("requested metrics are not recorded".into()),
                 Some(prev) => match outputs_intact(&opts.out, prev) {
                     Ok(()) => None,
                     Err(why) => Some(why),
@@ -359,11 +361,17 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions) -> Result<Summary, String> {
             let job_started = Instant::now();
             let mut rec = p.base.clone();
             match execute(p, &out) {
-                Ok((outputs, synthesis, seconds)) => {
+                Ok((outputs, synthesis, seconds, metrics, metrics_seconds)) => {
                     rec.outputs = outputs;
                     rec.seams = synthesis.seams;
                     rec.diagnostics = synthesis.diagnostics;
-                    rec.timing = Some(Timing { synthesis_seconds: seconds, total_seconds: job_started.elapsed().as_secs_f64(), finished_at: now_unix() });
+                    rec.metrics = metrics;
+                    rec.timing = Some(Timing {
+                        synthesis_seconds: seconds,
+                        metrics_seconds,
+                        total_seconds: job_started.elapsed().as_secs_f64(),
+                        finished_at: now_unix(),
+                    });
                 }
                 Err(e) => {
                     rec.status = Status::Failed;
@@ -418,10 +426,22 @@ fn write_manifest(out: &OutDir, records: &BTreeMap<String, JobRecord>, facts: Ru
     crate::outdir::write_atomic(&out.root().join(manifest::FILE_NAME), &m.to_bytes())
 }
 
-fn execute(p: &Prepared, out: &OutDir) -> Result<(Vec<OutputRecord>, Synthesis, f64), String> {
+type Metrics = Option<BTreeMap<String, Option<f64>>>;
+
+fn execute(p: &Prepared, out: &OutDir) -> Result<(Vec<OutputRecord>, Synthesis, f64, Metrics, f64), String> {
     let job = p.job;
-    let _ = &p.params_json;
     let (synthesis, encoded, seconds) = synthesize_and_encode(job.method, &p.sample.image, &job.params, job.seed, &job.output)?;
+    let metrics_started = Instant::now();
+    let metrics = if job.metrics.is_empty() {
+        None
+    } else {
+        let names: Vec<&str> = job.metrics.iter().map(String::as_str).collect();
+        Some(
+            crate::metrics::evaluate(&names, &p.sample.image, &synthesis.image, synthesis.seams.as_ref())
+                .map_err(|e| format!("metrics: {e}"))?,
+        )
+    };
+    let metrics_seconds = metrics_started.elapsed().as_secs_f64();
     out.write(&job.output.path, &encoded.bytes)?;
     let record = OutputRecord {
         path: job.output.path.clone(),
@@ -432,7 +452,12 @@ fn execute(p: &Prepared, out: &OutDir) -> Result<(Vec<OutputRecord>, Synthesis, 
         file_digest: Digest::of_bytes(&encoded.bytes),
         pixel_digest: encoded.pixels.pixel_digest(),
     };
-    Ok((vec![record], synthesis, seconds))
+    Ok((vec![record], synthesis, seconds, metrics, metrics_seconds))
+}
+
+/// Whether every metric the job now asks for is in the record.
+fn metrics_recorded(rec: &JobRecord, wanted: &[String]) -> bool {
+    wanted.is_empty() || rec.metrics.as_ref().is_some_and(|m| wanted.iter().all(|w| m.contains_key(w)))
 }
 
 /// Whether every recorded output of `rec` is still on disk with the recorded bytes.

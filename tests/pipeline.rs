@@ -314,3 +314,39 @@ fn help_documents_exit_codes() {
     let usage = texsyn().arg("run").output().unwrap();
     assert_eq!(usage.status.code(), Some(2));
 }
+
+#[test]
+fn metrics_are_recorded_with_synthesis_time_and_eval_agrees() {
+    let d = scratch("metrics");
+    let jobs = small_job_dir(&d, 1);
+    let body = std::fs::read_to_string(jobs.join("exr.toml")).unwrap().replace("seed = 3", "seed = 3\nmetrics = true");
+    std::fs::write(jobs.join("exr.toml"), body).unwrap();
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("-q"));
+    let m = manifest(&out);
+    let job = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "exr.toml").unwrap();
+    let metrics = job["metrics"].as_object().expect("metrics recorded");
+    for name in ["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"] {
+        assert!(metrics[name].is_number(), "{name}: {:?}", metrics[name]);
+    }
+    assert!(job["timing"]["synthesis_seconds"].as_f64().unwrap() > 0.0);
+    let sweep = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "sweep.toml#seed=1").unwrap();
+    assert!(sweep.get("metrics").is_none(), "metrics only when asked");
+
+    // `eval` computes the same numbers for the same pair (seam visibility needs the grid).
+    let r = run_ok(texsyn().arg("eval").arg(jobs.join("bricks.png")).arg(out.join("e.exr")).arg("--json"));
+    let v: Value = serde_json::from_slice(&r.stdout).unwrap();
+    for name in ["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim"] {
+        assert_eq!(v["metrics"][name], metrics[name], "{name}");
+    }
+    assert!(v["metrics"]["seam_visibility"].is_null());
+    // Identical images score zero on the paper's four measures.
+    let same = run_ok(texsyn().arg("eval").arg(jobs.join("bricks.png")).arg(jobs.join("bricks.png")).arg("--json"));
+    let v: Value = serde_json::from_slice(&same.stdout).unwrap();
+    for name in ["kl_gray", "kl_orientation", "acf_gray", "acf_orientation"] {
+        assert_eq!(v["metrics"][name].as_f64(), Some(0.0), "{name}");
+    }
+    let bad = texsyn().arg("eval").arg(jobs.join("bricks.png")).arg(jobs.join("missing.png")).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("missing.png"));
+}
