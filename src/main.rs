@@ -84,8 +84,9 @@ enum Command {
         /// Report directory (index.html, tables.md, tables/, sheets/, plots/, images/).
         #[arg(short, long)]
         out: PathBuf,
-        /// Table columns: comma-separated keys among method, param:NAME, size, seed.
-        #[arg(long, default_value = "method")]
+        /// Table columns: `auto` (the method plus the parameters that vary among its jobs), or
+        /// comma-separated keys among method, param:NAME, size, seed.
+        #[arg(long, default_value = "auto")]
         group_by: texsyn::report::GroupBy,
     },
 }

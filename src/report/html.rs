@@ -112,7 +112,7 @@ fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
          column, with the sample standard deviation and the count where there are several (a seed sweep). The mean row \
          averages the per-sample means. Also as <a href=\"{}\">Markdown</a>, <a href=\"{}\">one CSV</a> and \
          <a href=\"{}\">per-job CSV</a>.</p>\n",
-        h(&model.group_by.to_string()),
+        h(&model.grouping),
         h(&assets.markdown),
         h(&assets.csv_all),
         h(&assets.jobs_csv)
@@ -367,7 +367,7 @@ pub fn page(
         h(source),
         model.entries.len(),
         model.excluded.len(),
-        h(&model.group_by.to_string()),
+        h(&model.grouping),
         h(&manifest.tool.name),
         h(&manifest.tool.version),
         h(&manifest.tool.commit.chars().take(12).collect::<String>())

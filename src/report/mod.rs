@@ -186,7 +186,7 @@ fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages,
         overview.push(Some((pic, vec![group.label.clone()])));
         shown.push(Shown { group: g, entry: ei, image });
     }
-    let title = format!("{}: the sample, then one output per column ({}), all at 1:1 pixels", info.key, m.group_by);
+    let title = format!("{}: the sample, then one output per column, all at 1:1 pixels. Columns: {}", info.key, m.grouping);
     let sheet_img = sheet::compose(&title, &sheet::flow(cells, SHEET_MAX_WIDTH), false);
     let sheet = (format!("sheets/{stem}.png"), png(&sheet_img)?);
     Ok(SampleImages { sample: sample_ref, shown, sheet, files, overview, problems })
@@ -233,7 +233,7 @@ fn overview_sheet(m: &model::Model, rows: Vec<Vec<Option<(Picture, Vec<String>)>
         })
         .collect();
     let scale = if k == 1 { "1:1 pixels".to_string() } else { format!("every image reduced 1:{k}") };
-    let title = format!("Overview: one row per sample, the sample then one output per column ({}); {scale}", m.group_by);
+    let title = format!("Overview: one row per sample, the sample then one output per column; {scale}. Columns: {}", m.grouping);
     png(&sheet::compose(&title, &cells, true))
 }
 
@@ -241,13 +241,9 @@ fn overview_sheet(m: &model::Model, rows: Vec<Vec<Option<(Picture, Vec<String>)>
 /// cannot be written; images that cannot be shown are `problems` in the summary instead.
 pub fn report(opts: &ReportOptions) -> Result<ReportSummary, String> {
     let manifest = Manifest::load(&opts.manifest)?;
-    let raw: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(&opts.manifest).map_err(|e| format!("{}: cannot read manifest: {e}", opts.manifest.display()))?,
-    )
-    .map_err(|e| format!("{}: not a texsyn manifest: {e}", opts.manifest.display()))?;
     let base = opts.manifest.parent().map(Path::to_path_buf).unwrap_or_default();
     let base = if base.as_os_str().is_empty() { PathBuf::from(".") } else { base };
-    let m = model::build(&manifest, &raw, &base, &opts.group_by).map_err(|e| format!("{}: {e}", opts.manifest.display()))?;
+    let m = model::build(&manifest, &base, &opts.group_by);
 
     let mut protected = BTreeSet::new();
     let mut protect = |p: PathBuf| {

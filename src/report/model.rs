@@ -21,20 +21,25 @@ pub enum GroupKey {
     Seed,
 }
 
-/// The column grouping, e.g. `method,param:block`. Jobs that agree on every key share a column;
-/// the rest of what distinguishes them (seeds, usually) becomes the spread of that column.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct GroupBy(pub Vec<GroupKey>);
-
-impl Default for GroupBy {
-    fn default() -> Self {
-        GroupBy(vec![GroupKey::Method])
-    }
+/// The column grouping. Jobs that agree on every key share a column; what else distinguishes
+/// them (seeds, usually) becomes the spread of that column.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub enum GroupBy {
+    /// The method plus every parameter that varies among that method's jobs (and the output size
+    /// where it varies on its own): one column per setting, so a seed sweep collapses into a
+    /// spread while a block-size sweep (paper 003's B = 50 and B = 100) stays apart.
+    #[default]
+    Auto,
+    /// Exactly these keys, e.g. `method,param:block`.
+    Keys(Vec<GroupKey>),
 }
 
 impl std::str::FromStr for GroupBy {
     type Err = String;
     fn from_str(s: &str) -> Result<GroupBy, String> {
+        if s.trim() == "auto" {
+            return Ok(GroupBy::Auto);
+        }
         let mut keys = Vec::new();
         for part in s.split(',').map(str::trim) {
             let key = match part {
@@ -44,7 +49,7 @@ impl std::str::FromStr for GroupBy {
                 p if p.starts_with("param:") && p.len() > "param:".len() => GroupKey::Param(p["param:".len()..].to_string()),
                 other => {
                     return Err(format!(
-                        "unknown grouping `{other}`: use a comma-separated list of method, param:NAME, size, seed"
+                        "unknown grouping `{other}`: use `auto` or a comma-separated list of method, param:NAME, size, seed"
                     ));
                 }
             };
@@ -53,14 +58,14 @@ impl std::str::FromStr for GroupBy {
             }
             keys.push(key);
         }
-        Ok(GroupBy(keys))
+        Ok(GroupBy::Keys(keys))
     }
 }
 
 impl std::fmt::Display for GroupBy {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let parts: Vec<String> = self
-            .0
+        let GroupBy::Keys(keys) = self else { return write!(f, "auto") };
+        let parts: Vec<String> = keys
             .iter()
             .map(|k| match k {
                 GroupKey::Method => "method".into(),
@@ -136,7 +141,6 @@ pub fn param_text(v: &Value) -> String {
 /// A table column.
 #[derive(Clone, Debug)]
 pub struct Group {
-    pub key: Vec<KeyValue>,
     /// `quilting`, `quilting block=50`.
     pub label: String,
     /// The parameters not in the key, each with its value(s) in this group (`overlap=8`, or
@@ -191,6 +195,8 @@ pub struct Excluded {
 #[derive(Clone, Debug)]
 pub struct Model {
     pub group_by: GroupBy,
+    /// What the columns are, in words (`auto` spelled out: `method + block, overlap`).
+    pub grouping: String,
     pub samples: Vec<SampleInfo>,
     pub groups: Vec<Group>,
     /// In manifest (job id) order, which fixes every summation order.
@@ -206,67 +212,76 @@ impl Model {
     }
 }
 
-/// The `metrics` object of every job in the raw manifest JSON, by job id. Read from the JSON
-/// rather than the typed record so the report accepts any manifest that carries the field.
-pub fn raw_metrics(raw: &Value) -> Result<BTreeMap<String, BTreeMap<String, Option<f64>>>, String> {
-    let mut out = BTreeMap::new();
-    let Some(jobs) = raw.get("jobs").and_then(Value::as_array) else { return Ok(out) };
-    for job in jobs {
-        let id = job.get("id").and_then(Value::as_str).unwrap_or_default().to_string();
-        match job.get("metrics") {
-            None | Some(Value::Null) => {}
-            Some(Value::Object(map)) => {
-                let mut m = BTreeMap::new();
-                for (name, v) in map {
-                    let value = match v {
-                        Value::Null => None,
-                        Value::Number(n) => Some(n.as_f64().ok_or_else(|| format!("job `{id}`: metric `{name}` is not a number"))?),
-                        _ => return Err(format!("job `{id}`: metric `{name}` must be a number or null, found {v}")),
-                    };
-                    m.insert(name.clone(), value);
-                }
-                out.insert(id, m);
-            }
-            Some(other) => return Err(format!("job `{id}`: `metrics` must be an object, found {other}")),
-        }
-    }
-    Ok(out)
-}
-
 fn resolve(base: &Path, recorded: &str) -> PathBuf {
     let p = Path::new(recorded);
     if p.is_absolute() { p.to_path_buf() } else { base.join(p) }
 }
 
-fn group_key(job: &JobRecord, by: &GroupBy) -> Vec<KeyValue> {
-    by.0.iter()
-        .map(|k| match k {
-            GroupKey::Method => job.method.as_deref().map_or(KeyValue::Missing, |m| KeyValue::Text(m.into())),
-            GroupKey::Param(p) => KeyValue::of_json(job.params.as_ref().and_then(|ps| ps.get(p))),
-            GroupKey::Size => job
-                .outputs
-                .first()
-                .map_or(KeyValue::Missing, |o| KeyValue::Num((o.width as u64 * o.height as u64) as f64, format!("{}×{}", o.width, o.height))),
-            GroupKey::Seed => job.seed.map_or(KeyValue::Missing, |s| KeyValue::Num(s as f64, s.to_string())),
+fn key_value(job: &JobRecord, k: &GroupKey) -> KeyValue {
+    match k {
+        GroupKey::Method => job.method.as_deref().map_or(KeyValue::Missing, |m| KeyValue::Text(m.into())),
+        GroupKey::Param(p) => KeyValue::of_json(job.params.as_ref().and_then(|ps| ps.get(p))),
+        GroupKey::Size => job
+            .outputs
+            .first()
+            .map_or(KeyValue::Missing, |o| KeyValue::Num((o.width as u64 * o.height as u64) as f64, format!("{}×{}", o.width, o.height))),
+        GroupKey::Seed => job.seed.map_or(KeyValue::Missing, |s| KeyValue::Num(s as f64, s.to_string())),
+    }
+}
+
+fn key_text(k: &GroupKey, v: &KeyValue) -> String {
+    match k {
+        GroupKey::Method | GroupKey::Size => v.text(),
+        GroupKey::Param(p) => format!("{p}={}", v.text()),
+        GroupKey::Seed => format!("seed={}", v.text()),
+    }
+}
+
+/// The keys each method's jobs are grouped by: the explicit list, or for `auto` the method, the
+/// parameters that take more than one value among its jobs, and the size if it still varies.
+fn keys_per_method(jobs: &[&JobRecord], by: &GroupBy) -> BTreeMap<Option<String>, Vec<GroupKey>> {
+    let mut per_method: BTreeMap<Option<String>, Vec<&JobRecord>> = BTreeMap::new();
+    for j in jobs {
+        per_method.entry(j.method.clone()).or_default().push(j);
+    }
+    per_method
+        .into_iter()
+        .map(|(method, js)| {
+            let keys = match by {
+                GroupBy::Keys(k) => k.clone(),
+                GroupBy::Auto => {
+                    let mut names: BTreeSet<String> = BTreeSet::new();
+                    for j in &js {
+                        if let Some(Value::Object(ps)) = &j.params {
+                            names.extend(ps.keys().cloned());
+                        }
+                    }
+                    let mut keys = vec![GroupKey::Method];
+                    for n in names {
+                        let k = GroupKey::Param(n);
+                        let values: BTreeSet<KeyValue> = js.iter().map(|j| key_value(j, &k)).collect();
+                        if values.len() > 1 {
+                            keys.push(k);
+                        }
+                    }
+                    let mut sizes: BTreeMap<Vec<KeyValue>, BTreeSet<KeyValue>> = BTreeMap::new();
+                    for j in &js {
+                        let setting = keys.iter().map(|k| key_value(j, k)).collect();
+                        sizes.entry(setting).or_default().insert(key_value(j, &GroupKey::Size));
+                    }
+                    if sizes.values().any(|s| s.len() > 1) {
+                        keys.push(GroupKey::Size);
+                    }
+                    keys
+                }
+            };
+            (method, keys)
         })
         .collect()
 }
 
-fn group_label(by: &GroupBy, key: &[KeyValue]) -> String {
-    by.0.iter()
-        .zip(key)
-        .map(|(k, v)| match k {
-            GroupKey::Method | GroupKey::Size => v.text(),
-            GroupKey::Param(p) => format!("{p}={}", v.text()),
-            GroupKey::Seed => format!("seed={}", v.text()),
-        })
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
 /// Builds the view. `base` is the manifest's directory, against which recorded paths resolve.
-pub fn build(manifest: &Manifest, raw: &Value, base: &Path, group_by: &GroupBy) -> Result<Model, String> {
-    let metrics = raw_metrics(raw)?;
+pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
     let mut excluded = Vec::new();
     let mut counted = Vec::new();
     for job in &manifest.jobs {
@@ -315,18 +330,26 @@ pub fn build(manifest: &Manifest, raw: &Value, base: &Path, group_by: &GroupBy) 
         .collect();
     samples.sort_by(|a, b| a.key.cmp(&b.key).then_with(|| a.recorded_path.cmp(&b.recorded_path)));
 
-    let mut keys: BTreeSet<Vec<KeyValue>> = BTreeSet::new();
+    let method_keys = keys_per_method(&counted, group_by);
+    // A key is (grouping key, value) pairs, so auto keys of different methods compare sensibly.
+    let key_of = |job: &JobRecord| -> Vec<(String, KeyValue)> {
+        method_keys[&job.method].iter().map(|k| (format!("{k:?}"), key_value(job, k))).collect()
+    };
+    let label_of = |job: &JobRecord| -> String {
+        method_keys[&job.method].iter().map(|k| key_text(k, &key_value(job, k))).collect::<Vec<_>>().join(" ")
+    };
+    let mut keys: BTreeMap<Vec<(String, KeyValue)>, String> = BTreeMap::new();
     for job in &counted {
-        keys.insert(group_key(job, group_by));
+        keys.entry(key_of(job)).or_insert_with(|| label_of(job));
     }
-    let keys: Vec<Vec<KeyValue>> = keys.into_iter().collect();
+    let keys: Vec<(Vec<(String, KeyValue)>, String)> = keys.into_iter().collect();
 
     let mut entries = Vec::new();
     for job in &counted {
         let s = job.sample.as_ref().expect("counted jobs have a sample");
         let sample = samples.iter().position(|x| x.recorded_path == s.path).expect("every sample has a row");
-        let key = group_key(job, group_by);
-        let group = keys.iter().position(|k| *k == key).expect("every key has a column");
+        let key = key_of(job);
+        let group = keys.iter().position(|(k, _)| *k == key).expect("every key has a column");
         let output = job.outputs.first().map(|o| OutputInfo {
             recorded_path: o.path.clone(),
             path: resolve(base, &o.path),
@@ -339,7 +362,7 @@ pub fn build(manifest: &Manifest, raw: &Value, base: &Path, group_by: &GroupBy) 
             sample,
             group,
             seed: job.seed,
-            metrics: metrics.get(&job.id).cloned().unwrap_or_default(),
+            metrics: job.metrics.clone().unwrap_or_default(),
             synthesis_seconds: job.timing.as_ref().map(|t| t.synthesis_seconds),
             output,
         });
@@ -348,9 +371,10 @@ pub fn build(manifest: &Manifest, raw: &Value, base: &Path, group_by: &GroupBy) 
     let groups = keys
         .iter()
         .enumerate()
-        .map(|(gi, key)| {
+        .map(|(gi, (_, label))| {
             let jobs: Vec<&JobRecord> = counted.iter().zip(&entries).filter(|(_, e)| e.group == gi).map(|(j, _)| *j).collect();
-            Group { key: key.clone(), label: group_label(group_by, key), params_label: params_label(&jobs, group_by) }
+            let in_key = jobs.first().map(|j| method_keys[&j.method].clone()).unwrap_or_default();
+            Group { label: label.clone(), params_label: params_label(&jobs, &in_key) }
         })
         .collect();
 
@@ -362,15 +386,29 @@ pub fn build(manifest: &Manifest, raw: &Value, base: &Path, group_by: &GroupBy) 
         crate::metrics::METRIC_NAMES.iter().filter(|n| names.contains(*n)).map(|n| n.to_string()).collect();
     metric_names.extend(names.iter().filter(|n| !crate::metrics::METRIC_NAMES.contains(n)).map(|n| n.to_string()));
 
-    Ok(Model { group_by: group_by.clone(), samples, groups, entries, excluded, metric_names })
+    let grouping = match group_by {
+        GroupBy::Keys(_) => group_by.to_string(),
+        GroupBy::Auto => {
+            let parts: Vec<String> = method_keys
+                .iter()
+                .map(|(m, keys)| {
+                    let extra: Vec<String> = keys[1..].iter().map(|k| GroupBy::Keys(vec![k.clone()]).to_string()).collect();
+                    let m = m.as_deref().unwrap_or("no method");
+                    if extra.is_empty() { m.to_string() } else { format!("{m} by {}", extra.join(", ")) }
+                })
+                .collect();
+            format!("auto: method and the settings that vary ({})", parts.join("; "))
+        }
+    };
+    Model { group_by: group_by.clone(), grouping, samples, groups, entries, excluded, metric_names }
 }
 
-fn params_label(jobs: &[&JobRecord], by: &GroupBy) -> String {
+fn params_label(jobs: &[&JobRecord], in_key: &[GroupKey]) -> String {
     let mut values: BTreeMap<String, BTreeSet<KeyValue>> = BTreeMap::new();
     for job in jobs {
         if let Some(Value::Object(ps)) = &job.params {
             for (name, v) in ps {
-                if by.0.contains(&GroupKey::Param(name.clone())) {
+                if in_key.contains(&GroupKey::Param(name.clone())) {
                     continue;
                 }
                 values.entry(name.clone()).or_default().insert(KeyValue::of_json(Some(v)));
@@ -391,8 +429,9 @@ mod tests {
     #[test]
     fn group_by_parses_combinations_and_refuses_nonsense() {
         let g: GroupBy = "method,param:block".parse().unwrap();
-        assert_eq!(g, GroupBy(vec![GroupKey::Method, GroupKey::Param("block".into())]));
+        assert_eq!(g, GroupBy::Keys(vec![GroupKey::Method, GroupKey::Param("block".into())]));
         assert_eq!(g.to_string(), "method,param:block");
+        assert_eq!("auto".parse::<GroupBy>().unwrap(), GroupBy::Auto);
         assert!("param:".parse::<GroupBy>().is_err());
         assert!("colour".parse::<GroupBy>().is_err());
         assert!("method,method".parse::<GroupBy>().is_err());
@@ -411,17 +450,58 @@ mod tests {
         assert_eq!(texts, ["none", "50", "100", "dp"]);
     }
 
+
+    fn manifest(jobs: Vec<Value>) -> Manifest {
+        let d = serde_json::json!({"sha256": "00"});
+        let jobs: Vec<Value> = jobs
+            .into_iter()
+            .map(|mut j| {
+                let o = j.as_object_mut().unwrap();
+                o.insert("job_file".into(), serde_json::json!({"path": "j.toml", "digest": d}));
+                o.entry("status").or_insert("ok".into());
+                o.insert(
+                    "sample".into(),
+                    serde_json::json!({"path": "s/bricks.png", "file_digest": d, "pixel_digest": d, "width": 64, "height": 64}),
+                );
+                j
+            })
+            .collect();
+        serde_json::from_value(serde_json::json!({
+            "format": crate::manifest::FORMAT,
+            "tool": {"name": "texsyn", "version": "0", "commit": "x"},
+            "deterministic_digest": d,
+            "jobs": jobs,
+            "run": crate::manifest::RunFacts::default(),
+        }))
+        .unwrap()
+    }
+
+    fn job(id: &str, method: &str, block: u32, seed: u64) -> Value {
+        serde_json::json!({"id": id, "method": method, "seed": seed, "params": {"block": block, "cut": "dp"},
+            "metrics": {"kl_gray": seed as f64, "acf_gray": null}})
+    }
+
     #[test]
-    fn raw_metrics_accepts_numbers_and_nulls_only() {
-        let raw = serde_json::json!({"jobs": [
-            {"id": "a", "metrics": {"kl_gray": 0.5, "acf_gray": null}},
-            {"id": "b"}
-        ]});
-        let m = raw_metrics(&raw).unwrap();
-        assert_eq!(m["a"]["kl_gray"], Some(0.5));
-        assert_eq!(m["a"]["acf_gray"], None);
-        assert!(!m.contains_key("b"));
-        let bad = serde_json::json!({"jobs": [{"id": "a", "metrics": {"kl_gray": "high"}}]});
-        assert!(raw_metrics(&bad).unwrap_err().contains("kl_gray"));
+    fn auto_grouping_separates_settings_and_pools_seeds() {
+        let m = manifest(vec![
+            job("a", "quilting", 50, 1),
+            job("b", "quilting", 50, 2),
+            job("c", "quilting", 100, 1),
+            job("d", "other", 7, 1),
+            serde_json::json!({"id": "e", "status": "failed", "error": "boom"}),
+        ]);
+        let model = build(&m, Path::new("."), &GroupBy::Auto);
+        let labels: Vec<&str> = model.groups.iter().map(|g| g.label.as_str()).collect();
+        assert_eq!(labels, ["other", "quilting block=50", "quilting block=100"]);
+        assert_eq!(model.entries_of(0, 1).count(), 2, "two seeds share a column");
+        assert_eq!(model.groups[1].params_label, "cut=dp");
+        assert_eq!(model.excluded.len(), 1);
+        assert_eq!(model.excluded[0].reason, "boom");
+        assert_eq!(model.metric_names, ["kl_gray", "acf_gray"]);
+        assert_eq!(model.entries[0].metrics["acf_gray"], None);
+        let by_method = build(&m, Path::new("."), &"method".parse().unwrap());
+        let labels: Vec<&str> = by_method.groups.iter().map(|g| g.label.as_str()).collect();
+        assert_eq!(labels, ["other", "quilting"]);
+        assert_eq!(by_method.groups[1].params_label, "block=50|100 cut=dp");
     }
 }

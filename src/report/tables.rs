@@ -145,9 +145,9 @@ impl MeanCell {
 /// All tables as one Markdown document.
 pub fn markdown(model: &Model, tables: &[Table], source: &str) -> String {
     let mut out = format!(
-        "# texsyn report\n\nFrom `{source}`; columns grouped by `{}`. Cells: mean ± sample standard deviation (n) over the jobs \
+        "# texsyn report\n\nFrom `{source}`; columns: {}. Cells: mean ± sample standard deviation (n) over the jobs \
          sharing a sample and a column.\n\n",
-        model.group_by
+        model.grouping
     );
     let esc = |s: &str| s.replace('|', "\\|");
     for t in tables {
