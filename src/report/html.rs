@@ -108,7 +108,7 @@ fn stat_cell(model: &Model, t: &Table, s: usize, g: usize, c: &Option<Stat>) -> 
 fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
     let mut out = String::from("<section id=\"tables\">\n<h2>Tables</h2>\n");
     out.push_str(&format!(
-        "<p>One row per sample, one column per <code>{}</code>. A cell is the mean over the jobs that share its sample and \
+        "<p>One row per sample; columns: <code>{}</code>. A cell is the mean over the jobs that share its sample and \
          column, with the sample standard deviation and the count where there are several (a seed sweep). The mean row \
          averages the per-sample means. Also as <a href=\"{}\">Markdown</a>, <a href=\"{}\">one CSV</a> and \
          <a href=\"{}\">per-job CSV</a>.</p>\n",
@@ -359,7 +359,7 @@ pub fn page(
     let mut out = format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
          <title>texsyn report: {}</title>\n<style>{STYLE}</style>\n</head>\n<body data-images-ok=\"pending\" data-jobs-counted=\"{}\" data-jobs-excluded=\"{}\">\n\
-         <h1>texsyn report</h1>\n<p>Manifest <code>{}</code> — {} jobs counted (ok or up-to-date), {} not counted; columns grouped by \
+         <h1>texsyn report</h1>\n<p>Manifest <code>{}</code> — {} jobs counted (ok or up-to-date), {} not counted; columns: \
          <code>{}</code>. Written by {} {} (commit <code>{}</code>); details under <a href=\"#provenance\">Provenance</a>.</p>\n",
         h(source),
         model.entries.len(),

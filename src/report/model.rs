@@ -392,12 +392,18 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
             let parts: Vec<String> = method_keys
                 .iter()
                 .map(|(m, keys)| {
-                    let extra: Vec<String> = keys[1..].iter().map(|k| GroupBy::Keys(vec![k.clone()]).to_string()).collect();
+                    let extra: Vec<String> = keys[1..]
+                        .iter()
+                        .map(|k| match k {
+                            GroupKey::Param(p) => p.clone(),
+                            other => GroupBy::Keys(vec![other.clone()]).to_string(),
+                        })
+                        .collect();
                     let m = m.as_deref().unwrap_or("no method");
                     if extra.is_empty() { m.to_string() } else { format!("{m} by {}", extra.join(", ")) }
                 })
                 .collect();
-            format!("auto: method and the settings that vary ({})", parts.join("; "))
+            format!("auto ({})", parts.join("; "))
         }
     };
     Model { group_by: group_by.clone(), grouping, samples, groups, entries, excluded, metric_names }
