@@ -362,26 +362,66 @@ fn score_all(
                 let st = &stats[li][row_index * nx..(row_index + 1) * nx];
                 let mut cross = [vec![0.0; nx], vec![0.0; nx], vec![0.0; nx]];
                 let mut mismatches = vec![0u32; nx];
-                // Line pixels in index order (the Pearson sums' fixed order), candidates inner.
-                for (i, &(c, r)) in line.iter().enumerate() {
-                    let base = ((y + r) * w + x0 + c) as usize;
-                    for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
-                        let ci = o.centred[k][i];
-                        let row = &plane[base..base + nx];
-                        let acc = &mut cross[k];
-                        if k == 0 && s.circular {
-                            for ((a, v), stx) in acc.iter_mut().zip(row).zip(st) {
-                                *a += ci * (TAU * v - stx[0]).sin();
-                            }
-                        } else {
-                            for ((a, v), stx) in acc.iter_mut().zip(row).zip(st) {
-                                *a += ci * (v - stx[2 * k]);
+                if s.circular {
+                    // Slow path: a sine per pixel.
+                    for (i, &(c, r)) in line.iter().enumerate() {
+                        let base = ((y + r) * w + x0 + c) as usize;
+                        for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                            let ci = o.centred[k][i];
+                            let row = &plane[base..base + nx];
+                            for ((a, v), stx) in cross[k].iter_mut().zip(row).zip(st) {
+                                *a += if k == 0 { ci * (TAU * v - stx[0]).sin() } else { ci * (v - stx[2 * k]) };
                             }
                         }
+                        let e1 = o.edges[i];
+                        for (m, e2) in mismatches.iter_mut().zip(&prep.edges[base..base + nx]) {
+                            *m += u32::from(e1 != *e2);
+                        }
                     }
-                    let e1 = o.edges[i];
-                    for (m, e2) in mismatches.iter_mut().zip(&prep.edges[base..base + nx]) {
-                        *m += u32::from(e1 != *e2);
+                } else {
+                    // Candidates in register blocks of LANES, line pixels in index order inside:
+                    // the same sums in the same order as the two-pass formula, without
+                    // round-tripping accumulators through memory for every pixel.
+                    const LANES: usize = 8;
+                    let offsets: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x0 + c) as usize).collect();
+                    let mut x = 0;
+                    while x < nx {
+                        let lanes = LANES.min(nx - x);
+                        let mut m2 = [[0.0f64; LANES]; 3];
+                        for l in 0..lanes {
+                            for k in 0..3 {
+                                m2[k][l] = st[x + l][2 * k];
+                            }
+                        }
+                        let mut acc = [[0.0f64; LANES]; 3];
+                        let mut mism = [0u32; LANES];
+                        for (i, &base) in offsets.iter().enumerate() {
+                            let b = base + x;
+                            for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                                let ci = o.centred[k][i];
+                                if lanes == LANES {
+                                    let v: &[f64; LANES] = plane[b..b + LANES].try_into().expect("lanes");
+                                    for l in 0..LANES {
+                                        acc[k][l] += ci * (v[l] - m2[k][l]);
+                                    }
+                                } else {
+                                    for l in 0..lanes {
+                                        acc[k][l] += ci * (plane[b + l] - m2[k][l]);
+                                    }
+                                }
+                            }
+                            let e1 = o.edges[i];
+                            for l in 0..lanes {
+                                mism[l] += u32::from(e1 != prep.edges[b + l]);
+                            }
+                        }
+                        for l in 0..lanes {
+                            for k in 0..3 {
+                                cross[k][x + l] = acc[k][l];
+                            }
+                            mismatches[x + l] = mism[l];
+                        }
+                        x += lanes;
                     }
                 }
                 let n = line.len() as f64;
