@@ -31,11 +31,14 @@ pub struct Synthesis {
     /// Method-specific diagnostics worth recording in the manifest (`null` when none). Must be
     /// deterministic: it is part of the reproducible record.
     pub diagnostics: serde_json::Value,
+    /// Wall-clock seconds of named phases (e.g. table building vs iterations), for papers that
+    /// report them separately. Not reproducible, so recorded with the job's timing, not its result.
+    pub phases: Vec<(String, f64)>,
 }
 
 impl Synthesis {
     pub fn new(image: RgbImage) -> Synthesis {
-        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null }
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new() }
     }
 }
 
