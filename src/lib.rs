@@ -11,6 +11,7 @@ pub mod digest;
 pub mod golden;
 pub mod imageio;
 pub mod job;
+pub mod lattice;
 pub mod manifest;
 pub mod methods;
 pub mod metrics;

@@ -65,6 +65,16 @@ enum Command {
     Golden(GoldenCommand),
     /// List the methods, their parameters, defaults and ranges.
     Methods,
+    /// Find the translation vectors t1, t2 of a near-regular sample (exit 0), or say why there
+    /// are none (exit 1).
+    Lattice {
+        sample: PathBuf,
+        /// Also write the sample with the lattice drawn over it.
+        #[arg(long)]
+        overlay: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Score any image against a sample with the metrics texsyn records (paper 003's four
     /// measures, the verbatim-copy fraction; seam visibility needs a method's grid and is undefined here).
     Eval {
@@ -270,6 +280,41 @@ fn main() -> ExitCode {
                                 None => println!("{k:<16} undefined"),
                             }
                         }
+                    }
+                    ExitCode::SUCCESS
+                }
+            }
+        }
+        Command::Lattice { sample, overlay, json } => {
+            let loaded = match runner::load_sample(&sample) {
+                Ok(l) => l,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            match texsyn::lattice::extract(&loaded.image, &texsyn::lattice::LatticeOptions::default()) {
+                Err(e) => {
+                    if json {
+                        println!("{}", serde_json::json!({"sample": sample.display().to_string(), "lattice": null, "error": e}));
+                    }
+                    eprintln!("{}: {e}", sample.display());
+                    ExitCode::from(1)
+                }
+                Ok(l) => {
+                    if let Some(path) = overlay {
+                        let img = texsyn::lattice::overlay(&loaded.image, &l);
+                        let enc = texsyn::imageio::encode(&img, texsyn::imageio::Encoding { format: texsyn::imageio::Format::Png, bit_depth: 8 });
+                        if let Err(e) = enc.and_then(|e| texsyn::outdir::write_atomic(&path, &e.bytes)) {
+                            eprintln!("error: {e}");
+                            return ExitCode::from(2);
+                        }
+                    }
+                    if json {
+                        println!("{}", serde_json::json!({"sample": sample.display().to_string(), "lattice": l}));
+                    } else {
+                        println!("t1 = ({}, {})\nt2 = ({}, {})", l.t1.0, l.t1.1, l.t2.0, l.t2.1);
+                        println!("texel area {} px, peaks A(t1) = {:.3}, A(t2) = {:.3}, {}/{} dominant peaks explained", l.determinant(), l.peak1, l.peak2, l.explained, l.candidates);
                     }
                     ExitCode::SUCCESS
                 }

@@ -96,6 +96,9 @@ pub struct Timing {
     /// Computing the requested metrics (0 when none were requested).
     #[serde(default)]
     pub metrics_seconds: f64,
+    /// Named phases of the synthesis call, when the method reports them.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub phases: std::collections::BTreeMap<String, f64>,
     /// Everything for this job, including encoding and writing.
     pub total_seconds: f64,
     /// When it ran, seconds since the Unix epoch.
@@ -283,7 +286,7 @@ mod tests {
             seams: None,
             diagnostics: Value::Null,
             metrics: None,
-            timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, total_seconds: 2.0, finished_at: 5 }),
+            timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 2.0, finished_at: 5 }),
         }
     }
 

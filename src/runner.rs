@@ -363,12 +363,13 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions) -> Result<Summary, String> {
             match execute(p, &out) {
                 Ok((outputs, synthesis, seconds, metrics, metrics_seconds)) => {
                     rec.outputs = outputs;
-                    rec.seams = synthesis.seams;
-                    rec.diagnostics = synthesis.diagnostics;
+                    rec.seams = synthesis.seams.clone();
+                    rec.diagnostics = synthesis.diagnostics.clone();
                     rec.metrics = metrics;
                     rec.timing = Some(Timing {
                         synthesis_seconds: seconds,
                         metrics_seconds,
+                        phases: synthesis.phases.iter().cloned().collect(),
                         total_seconds: job_started.elapsed().as_secs_f64(),
                         finished_at: now_unix(),
                     });

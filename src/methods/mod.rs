@@ -5,6 +5,7 @@
 //! re-run results from the manifest alone. Adding a method means adding a file here and one line
 //! in [`registry`]; the job model, scheduler and manifest do not change.
 
+pub mod double_seam;
 pub mod quilting;
 
 use crate::params::{ParamError, ParamSpec, Params};
@@ -30,11 +31,14 @@ pub struct Synthesis {
     /// Method-specific diagnostics worth recording in the manifest (`null` when none). Must be
     /// deterministic: it is part of the reproducible record.
     pub diagnostics: serde_json::Value,
+    /// Wall-clock seconds of named phases (e.g. table building vs iterations), for papers that
+    /// report them separately. Not reproducible, so recorded with the job's timing, not its result.
+    pub phases: Vec<(String, f64)>,
 }
 
 impl Synthesis {
     pub fn new(image: RgbImage) -> Synthesis {
-        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null }
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new() }
     }
 }
 
@@ -60,7 +64,7 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting]
+    &[&quilting::Quilting, &double_seam::DoubleSeam]
 }
 
 /// The method called `name`.

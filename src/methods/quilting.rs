@@ -42,6 +42,12 @@ const PARAMS: &[ParamSpec] = &[
         doc: "candidates within (1 + tolerance) x the best overlap error; one is picked at random",
     },
     ParamSpec {
+        name: "search",
+        kind: ParamKind::Choice(&["fft", "direct"]),
+        default: Default::Str("fft"),
+        doc: "how the exact exhaustive search is computed: fft (FFT correlation + exact re-check) or direct sums; same pixels",
+    },
+    ParamSpec {
         name: "cut",
         kind: ParamKind::Choice(&["dp", "none"]),
         default: Default::Str("dp"),
@@ -121,6 +127,7 @@ impl Method for Quilting {
         let tolerance = req.params.float("tolerance");
         let use_cut = req.params.str("cut") == "dp";
         let feather = req.params.str("blend") == "feather";
+        let direct = req.params.str("search") == "direct";
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
             return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
@@ -149,7 +156,11 @@ impl Method for Quilting {
                         let x0 = if bj > 0 { overlap } else { 0 };
                         regions.push(Rect::new(x0, 0, block - x0, overlap));
                     }
-                    let c = search.candidates(&canvas, (ox, oy), &regions, tolerance);
+                    let c = if direct {
+                        search.candidates_direct(&canvas, (ox, oy), &regions, tolerance)
+                    } else {
+                        search.candidates(&canvas, (ox, oy), &regions, tolerance)
+                    };
                     candidate_counts.push(c.members.len());
                     let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
                     let pick = c.members[s.below_usize(c.members.len())];
@@ -166,7 +177,7 @@ impl Method for Quilting {
                 candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
             },
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
     }
 }
 
@@ -271,6 +282,16 @@ mod tests {
         assert_eq!(a.image, b.image);
         let other = Quilting.synthesize(&Request { seed: 4, ..req }).unwrap();
         assert_ne!(a.image, other.image);
+    }
+
+    #[test]
+    fn fft_and_direct_search_give_the_same_pixels() {
+        let s = sample();
+        let fft = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3))]);
+        let direct = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
+        let a = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9 }).unwrap();
+        let b = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9 }).unwrap();
+        assert_eq!(a.image, b.image);
     }
 
     #[test]
