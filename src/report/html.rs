@@ -88,18 +88,25 @@ fn stat_cell(model: &Model, t: &Table, s: usize, g: usize, c: &Option<Stat>) -> 
         None => format!("<td {common} data-n=\"0\">not run</td>"),
         Some(st) => {
             let shown = match (st.mean, st.sd) {
+                (None, _) if st.undefined == 0 => "not recorded".to_string(),
                 (None, _) => "—".to_string(),
                 (Some(m), Some(sd)) => format!("{} <span class=\"sd\">± {} (n={})</span>", fmt::sig(m), fmt::sig(sd), st.n),
                 (Some(m), None) => fmt::sig(m),
             };
-            let undefined =
-                if st.undefined > 0 { format!(" <span class=\"sd\">({} undefined)</span>", st.undefined) } else { String::new() };
+            let mut notes = String::new();
+            if st.undefined > 0 {
+                notes.push_str(&format!(" <span class=\"sd\">({} undefined)</span>", st.undefined));
+            }
+            if st.missing > 0 && st.n + st.undefined > 0 {
+                notes.push_str(&format!(" <span class=\"sd\">({} not recorded)</span>", st.missing));
+            }
             format!(
-                "<td {common}{}{} data-n=\"{}\" data-undefined=\"{}\">{shown}{undefined}</td>",
+                "<td {common}{}{} data-n=\"{}\" data-undefined=\"{}\" data-not-recorded=\"{}\">{shown}{notes}</td>",
                 opt_attr("data-value", st.mean),
                 opt_attr("data-sd", st.sd),
                 st.n,
-                st.undefined
+                st.undefined,
+                st.missing
             )
         }
     }

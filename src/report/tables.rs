@@ -19,33 +19,41 @@ pub struct Stat {
     pub sd: Option<f64>,
     /// Defined values.
     pub n: usize,
-    /// Jobs whose value is undefined.
+    /// Jobs whose value is undefined (`null`: the metric has no value for that pair of images).
     pub undefined: usize,
+    /// Jobs that did not record the measure at all (they did not ask for metrics).
+    pub missing: usize,
 }
 
 impl Stat {
-    /// In the order given (the manifest's), so results do not depend on anything else.
-    pub fn of(values: &[Option<f64>]) -> Stat {
-        let defined: Vec<f64> = values.iter().flatten().copied().collect();
+    /// In the order given (the manifest's), so results do not depend on anything else. The outer
+    /// `None` is a job that did not record the measure, the inner one an undefined value.
+    pub fn of(values: &[Option<Option<f64>>]) -> Stat {
+        let defined: Vec<f64> = values.iter().flatten().flatten().copied().collect();
         let n = defined.len();
-        let undefined = values.len() - n;
+        let missing = values.iter().filter(|v| v.is_none()).count();
+        let undefined = values.len() - n - missing;
         if n == 0 {
-            return Stat { mean: None, sd: None, n, undefined };
+            return Stat { mean: None, sd: None, n, undefined, missing };
         }
         let mean = defined.iter().sum::<f64>() / n as f64;
         let sd = (n >= 2).then(|| (defined.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt());
-        Stat { mean: Some(mean), sd, n, undefined }
+        Stat { mean: Some(mean), sd, n, undefined, missing }
     }
 
     /// `0.01235 ± 0.0005600 (n=3)`; `—` when nothing is defined.
     pub fn text(&self) -> String {
         let mut s = match (self.mean, self.sd) {
+            (None, _) if self.undefined == 0 => return "not recorded".into(),
             (None, _) => "—".to_string(),
             (Some(m), Some(sd)) => format!("{} ± {} (n={})", fmt::sig(m), fmt::sig(sd), self.n),
             (Some(m), None) => fmt::sig(m),
         };
         if self.undefined > 0 {
             s.push_str(&format!(" ({} undefined)", self.undefined));
+        }
+        if self.missing > 0 {
+            s.push_str(&format!(" ({} not recorded)", self.missing));
         }
         s
     }
@@ -99,8 +107,7 @@ pub fn build(model: &Model) -> Vec<Table> {
                 .map(|s| {
                     (0..model.groups.len())
                         .map(|g| {
-                            let values: Vec<Option<f64>> =
-                                model.entries_of(s, g).map(|e| value(e, measure).unwrap_or(None)).collect();
+                            let values: Vec<Option<Option<f64>>> = model.entries_of(s, g).map(|e| value(e, measure)).collect();
                             (!values.is_empty()).then(|| Stat::of(&values))
                         })
                         .collect()
@@ -190,15 +197,18 @@ fn opt(x: Option<f64>) -> String {
     x.map(fmt::full).unwrap_or_default()
 }
 
-fn stat_fields(c: &Option<Stat>) -> [String; 4] {
+fn stat_fields(c: &Option<Stat>) -> [String; 5] {
     match c {
         None => Default::default(),
-        Some(s) => [opt(s.mean), opt(s.sd), s.n.to_string(), s.undefined.to_string()],
+        Some(s) => [opt(s.mean), opt(s.sd), s.n.to_string(), s.undefined.to_string(), s.missing.to_string()],
     }
 }
 
-/// One measure's table as CSV: `sample`, then `mean`, `sd`, `n`, `undefined` per group; the last
-/// row is the mean row (`n` there counts samples). Numbers are exact.
+/// The columns each group gets in the CSV files.
+const STAT_FIELDS: [&str; 5] = ["mean", "sd", "n", "undefined", "not_recorded"];
+
+/// One measure's table as CSV: `sample`, then `mean`, `sd`, `n`, `undefined`, `not_recorded` per
+/// group; the last row is the mean row (`n` there counts samples). Numbers are exact.
 pub fn csv(model: &Model, t: &Table) -> String {
     let mut header = vec!["sample".to_string()];
     let time = t.measure == TIME;
@@ -206,7 +216,7 @@ pub fn csv(model: &Model, t: &Table) -> String {
         header.extend(["sample_size".into(), "output_size".into()]);
     }
     for g in &model.groups {
-        for f in ["mean", "sd", "n", "undefined"] {
+        for f in STAT_FIELDS {
             header.push(fmt::csv(&format!("{}:{f}", g.label)));
         }
     }
@@ -228,7 +238,7 @@ pub fn csv(model: &Model, t: &Table) -> String {
         cols.extend([String::new(), String::new()]);
     }
     for m in &t.mean {
-        cols.extend([opt(m.mean), String::new(), m.samples.to_string(), String::new()]);
+        cols.extend([opt(m.mean), String::new(), m.samples.to_string(), String::new(), String::new()]);
     }
     out.push_str(&(cols.join(",") + "\n"));
     out
@@ -239,7 +249,7 @@ pub fn csv_all(model: &Model, tables: &[Table]) -> String {
     let mut header = vec!["sample".to_string()];
     for t in tables {
         for g in &model.groups {
-            for f in ["mean", "sd", "n", "undefined"] {
+            for f in STAT_FIELDS {
                 header.push(fmt::csv(&format!("{}:{}:{f}", t.measure, g.label)));
             }
         }
@@ -257,7 +267,7 @@ pub fn csv_all(model: &Model, tables: &[Table]) -> String {
     let mut cols = vec!["mean".to_string()];
     for t in tables {
         for m in &t.mean {
-            cols.extend([opt(m.mean), String::new(), m.samples.to_string(), String::new()]);
+            cols.extend([opt(m.mean), String::new(), m.samples.to_string(), String::new(), String::new()]);
         }
     }
     out.push_str(&(cols.join(",") + "\n"));
@@ -292,16 +302,17 @@ mod tests {
 
     #[test]
     fn stat_is_mean_sample_sd_and_count_of_defined_values() {
-        let s = Stat::of(&[Some(1.0), None, Some(2.0), Some(3.0)]);
+        let s = Stat::of(&[Some(Some(1.0)), Some(None), Some(Some(2.0)), None, Some(Some(3.0))]);
         assert_eq!(s.mean, Some(2.0));
         assert_eq!(s.sd, Some(1.0));
-        assert_eq!((s.n, s.undefined), (3, 1));
-        assert_eq!(s.text(), "2.000 ± 1.000 (n=3) (1 undefined)");
-        let one = Stat::of(&[Some(0.25)]);
+        assert_eq!((s.n, s.undefined, s.missing), (3, 1, 1));
+        assert_eq!(s.text(), "2.000 ± 1.000 (n=3) (1 undefined) (1 not recorded)");
+        let one = Stat::of(&[Some(Some(0.25))]);
         assert_eq!((one.mean, one.sd), (Some(0.25), None));
         assert_eq!(one.text(), "0.2500");
-        let none = Stat::of(&[None, None]);
+        let none = Stat::of(&[Some(None), Some(None)]);
         assert_eq!(none.mean, None);
         assert_eq!(none.text(), "— (2 undefined)");
+        assert_eq!(Stat::of(&[None, None]).text(), "not recorded");
     }
 }
