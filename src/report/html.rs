@@ -29,6 +29,8 @@ pub struct Assets {
     pub sheets: Vec<String>,
     pub overview: Option<String>,
     pub plot: String,
+    /// Width and height of the plot in CSS pixels.
+    pub plot_size: (f64, f64),
     pub markdown: String,
     pub csvs: Vec<(String, String)>,
     pub csv_all: String,
@@ -392,10 +394,12 @@ pub fn page(
     out.push_str(&excluded_html(model));
     out.push_str(&tables_html(model, tables, assets));
     out.push_str(&format!(
-        "<section id=\"plots\">\n<h2>Plots</h2>\n<figure><img src=\"{0}\" width=\"720\" height=\"440\" alt=\"synthesis time vs output size\">\
+        "<section id=\"plots\">\n<h2>Plots</h2>\n<figure><img src=\"{0}\" width=\"{1}\" height=\"{2}\" alt=\"synthesis time vs output size\">\
          <figcaption>Synthesis time against output size (pixels), one colour per column; lines join each column's mean time per size. \
          (<a href=\"{0}\">SVG</a>)</figcaption></figure>\n</section>\n",
-        h(&assets.plot)
+        h(&assets.plot),
+        assets.plot_size.0,
+        assets.plot_size.1
     ));
     out.push_str(&images_html(model, assets));
     out.push_str(&jobs_html(model));

@@ -273,6 +273,7 @@ pub fn report(opts: &ReportOptions) -> Result<ReportSummary, String> {
         sheets: Vec::new(),
         overview: None,
         plot: "plots/time_vs_pixels.svg".into(),
+        plot_size: (0.0, 0.0),
         markdown: "tables.md".into(),
         csvs: Vec::new(),
         csv_all: "tables/all.csv".into(),
@@ -295,7 +296,9 @@ pub fn report(opts: &ReportOptions) -> Result<ReportSummary, String> {
         w.put("sheets/overview.png", &bytes)?;
         assets.overview = Some("sheets/overview.png".into());
     }
-    w.put(&assets.plot.clone(), plot::time_vs_pixels(&m).as_bytes())?;
+    let svg = plot::time_vs_pixels(&m);
+    assets.plot_size = (svg.width, svg.height);
+    w.put(&assets.plot.clone(), svg.text.as_bytes())?;
 
     let source = opts.manifest.display().to_string();
     let tables = tables::build(&m);

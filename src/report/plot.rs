@@ -7,12 +7,22 @@
 use super::fmt;
 use super::model::Model;
 
-const W: f64 = 720.0;
-const H: f64 = 440.0;
+/// The plotting area; the legend goes underneath, one line per group, so long labels (a method
+/// with several varying parameters) never get cut off.
+const PLOT_W: f64 = 600.0;
+const PLOT_H: f64 = 340.0;
 const LEFT: f64 = 70.0;
-const RIGHT: f64 = 200.0;
+const RIGHT: f64 = 30.0;
 const TOP: f64 = 40.0;
 const BOTTOM: f64 = 56.0;
+const LEGEND_LINE: f64 = 20.0;
+
+/// An SVG document and its size in CSS pixels (for the page's `<img>`).
+pub struct Svg {
+    pub text: String,
+    pub width: f64,
+    pub height: f64,
+}
 
 /// Colour-blind-friendly palette (Okabe–Ito), cycled.
 const PALETTE: [&str; 8] = ["#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000"];
@@ -48,7 +58,7 @@ fn tick_label(v: f64) -> String {
 
 /// Time (s) vs output pixels for every counted job that has both, plus each group's mean per
 /// output size joined by a line.
-pub fn time_vs_pixels(model: &Model) -> String {
+pub fn time_vs_pixels(model: &Model) -> Svg {
     let points: Vec<(usize, &str, u64, f64)> = model
         .entries
         .iter()
@@ -62,14 +72,19 @@ pub fn time_vs_pixels(model: &Model) -> String {
     // Headroom, so the largest point does not sit on the frame.
     let (xt, yt) = (ticks(xmax * 1.05), ticks(ymax * 1.05));
     let (xend, yend) = (*xt.last().unwrap(), *yt.last().unwrap());
-    let (pw, ph) = (W - LEFT - RIGHT, H - TOP - BOTTOM);
+    let (pw, ph) = (PLOT_W, PLOT_H);
+    // A generous estimate of the legend's text width (12 px font), so it always fits.
+    let legend_w = model.groups.iter().map(|g| g.label.chars().count() as f64 * 7.5 + 30.0).fold(0.0, f64::max);
+    let width = (LEFT + pw + RIGHT).max(LEFT + legend_w + RIGHT).ceil();
+    let height = TOP + ph + BOTTOM + LEGEND_LINE * model.groups.len() as f64 + 10.0;
+    let legend_top = TOP + ph + BOTTOM;
     let sx = |x: f64| LEFT + x / xend * pw;
     let sy = |y: f64| TOP + ph - y / yend * ph;
 
     let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" \
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" viewBox=\"0 0 {width} {height}\" \
          font-family=\"DejaVu Sans, Verdana, sans-serif\" font-size=\"12\" data-plot=\"time_vs_pixels\">\n\
-         <rect width=\"{W}\" height=\"{H}\" fill=\"white\"/>\n\
+         <rect width=\"{width}\" height=\"{height}\" fill=\"white\"/>\n\
          <text x=\"{LEFT}\" y=\"24\" font-size=\"15\">Synthesis time vs output size</text>\n"
     );
     for &v in &xt {
@@ -98,7 +113,7 @@ pub fn time_vs_pixels(model: &Model) -> String {
          <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">output size (pixels)</text>\n\
          <text transform=\"translate(18 {:.1}) rotate(-90)\" text-anchor=\"middle\">synthesis time (s)</text>\n",
         LEFT + pw / 2.0,
-        H - 12.0,
+        TOP + ph + 40.0,
         TOP + ph / 2.0
     ));
     if points.is_empty() {
@@ -146,8 +161,8 @@ pub fn time_vs_pixels(model: &Model) -> String {
                 fmt::sig(p.3)
             ));
         }
-        let ly = TOP + 8.0 + g as f64 * 20.0;
-        let lx = LEFT + pw + 16.0;
+        let ly = legend_top + 6.0 + g as f64 * LEGEND_LINE;
+        let lx = LEFT + 6.0;
         s.push_str(&format!(
             "<circle cx=\"{lx:.1}\" cy=\"{ly:.1}\" r=\"5\" fill=\"{}\"/><text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n",
             colour(g),
@@ -157,7 +172,7 @@ pub fn time_vs_pixels(model: &Model) -> String {
         ));
     }
     s.push_str("</svg>\n");
-    s
+    Svg { text: s, width, height }
 }
 
 #[cfg(test)]
