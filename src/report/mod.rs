@@ -97,19 +97,17 @@ struct Writer {
 impl Writer {
     fn put(&mut self, rel: &str, bytes: &[u8]) -> Result<(), String> {
         let path = self.dir.resolve(rel)?;
-        if let Ok(canonical) = path.canonicalize() {
-            if self.protected.contains(&canonical) {
-                return Err(format!(
-                    "{} is a file the manifest refers to; write the report to a directory of its own",
-                    path.display()
-                ));
-            }
+        if path.canonicalize().is_ok_and(|c| self.protected.contains(&c)) {
+            return Err(format!("{} is a file the manifest refers to; write the report to a directory of its own", path.display()));
         }
         crate::outdir::write_atomic(&path, bytes)?;
         self.written.push(rel.to_string());
         Ok(())
     }
 }
+
+/// One overview row: a captioned picture per column, `None` where the group did not run on the sample.
+type OverviewRow = Vec<Option<(Picture, Vec<String>)>>;
 
 /// Per-sample results of the image stage, computed in parallel.
 struct SampleImages {
@@ -118,7 +116,7 @@ struct SampleImages {
     sheet: (String, Vec<u8>),
     files: Vec<(String, Vec<u8>)>,
     /// For the overview: the pictures in column order (sample, then every group).
-    overview: Vec<Option<(Picture, Vec<String>)>>,
+    overview: OverviewRow,
     problems: Vec<String>,
 }
 
@@ -143,7 +141,7 @@ fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages,
     };
     let sample_caption = vec![format!("sample {}", info.key), format!("{}×{}", info.width, info.height)];
     let mut cells = vec![Cell { picture: clone_picture(&sample_pic), caption: sample_caption.clone() }];
-    let mut overview: Vec<Option<(Picture, Vec<String>)>> = vec![Some((sample_pic, vec![info.key.clone(), format!("{}×{}", info.width, info.height)]))];
+    let mut overview: OverviewRow = vec![Some((sample_pic, vec![info.key.clone(), format!("{}×{}", info.width, info.height)]))];
     let mut shown = Vec::new();
     for (g, group) in m.groups.iter().enumerate() {
         // The lowest seed stands for the column (job id breaks ties), so reruns pick the same one.
@@ -199,7 +197,7 @@ fn clone_picture(p: &Picture) -> Picture {
     }
 }
 
-fn overview_sheet(m: &model::Model, rows: Vec<Vec<Option<(Picture, Vec<String>)>>>) -> Result<Vec<u8>, String> {
+fn overview_sheet(m: &model::Model, rows: Vec<OverviewRow>) -> Result<Vec<u8>, String> {
     let ncols = m.groups.len() + 1;
     let widths: Vec<u32> = (0..ncols)
         .map(|c| {

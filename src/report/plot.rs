@@ -33,7 +33,7 @@ pub fn colour(group: usize) -> &'static str {
 
 /// Round tick steps (1, 2, 5 × 10^k) covering `0..=max` with about five intervals.
 pub fn ticks(max: f64) -> Vec<f64> {
-    if !(max > 0.0) || !max.is_finite() {
+    if max.is_nan() || max <= 0.0 || !max.is_finite() {
         return vec![0.0, 1.0];
     }
     let raw = max / 5.0;
