@@ -8,6 +8,7 @@
 pub mod coevolution;
 pub mod double_seam;
 pub mod quilting;
+pub mod tes;
 
 use crate::params::{ParamError, ParamSpec, Params};
 use crate::seamgrid::SeamGrid;
@@ -65,7 +66,7 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting, &double_seam::DoubleSeam, &coevolution::Coevolution]
+    &[&quilting::Quilting, &double_seam::DoubleSeam, &coevolution::Coevolution, &tes::Tes]
 }
 
 /// The method called `name`.
