@@ -5,8 +5,10 @@
 //! re-run results from the manifest alone. Adding a method means adding a file here and one line
 //! in [`registry`]; the job model, scheduler and manifest do not change.
 
+pub mod coevolution;
 pub mod double_seam;
 pub mod quilting;
+pub mod tes;
 
 use crate::params::{ParamError, ParamSpec, Params};
 use crate::seamgrid::SeamGrid;
@@ -64,7 +66,7 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting, &double_seam::DoubleSeam]
+    &[&quilting::Quilting, &double_seam::DoubleSeam, &coevolution::Coevolution, &tes::Tes]
 }
 
 /// The method called `name`.
