@@ -224,7 +224,7 @@ impl Method for DoubleSeam {
             "mean_candidates": set_sizes.iter().sum::<usize>() as f64 / n,
             "mean_f_max": f_max_sum / n,
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, timings: Vec::new() })
     }
 }
 

@@ -7,6 +7,8 @@
 
 pub mod double_seam;
 pub mod quilting;
+pub mod rw_tiles;
+pub mod wang_tiles;
 
 use crate::params::{ParamError, ParamSpec, Params};
 use crate::seamgrid::SeamGrid;
@@ -31,11 +33,14 @@ pub struct Synthesis {
     /// Method-specific diagnostics worth recording in the manifest (`null` when none). Must be
     /// deterministic: it is part of the reproducible record.
     pub diagnostics: serde_json::Value,
+    /// Wall-clock seconds of named phases (e.g. tile building vs filling), for the manifest's
+    /// `timing`; never part of the reproducible record. Empty when the method has no phases.
+    pub timings: Vec<(String, f64)>,
 }
 
 impl Synthesis {
     pub fn new(image: RgbImage) -> Synthesis {
-        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null }
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, timings: Vec::new() }
     }
 }
 
@@ -61,7 +66,7 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting, &double_seam::DoubleSeam]
+    &[&quilting::Quilting, &double_seam::DoubleSeam, &wang_tiles::WangTiles, &rw_tiles::RwTiles]
 }
 
 /// The method called `name`.

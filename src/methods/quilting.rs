@@ -177,7 +177,7 @@ impl Method for Quilting {
                 candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
             },
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, timings: Vec::new() })
     }
 }
 
