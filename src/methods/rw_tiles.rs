@@ -195,6 +195,25 @@ pub struct RwTileSet {
     pub tiles: Vec<RwTile>,
 }
 
+/// Colours for block labels in [`RwTileSet::label_image`] (B1..B4, outside `R`).
+const LABEL_COLOURS: [[u8; 3]; 5] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [0, 0, 0]];
+
+impl RwTileSet {
+    /// Tile `k` as an image: its `f × f` framework with the pixels outside the rhombus black
+    /// (the building block for a tile-set export).
+    pub fn tile_image(&self, k: usize) -> RgbImage {
+        let f = self.geometry.f as u32;
+        RgbImage::from_raw(f, f, self.tiles[k].raster.clone()).expect("f × f raster")
+    }
+
+    /// Tile `k`'s block labels as colours (B1 red, B2 green, B3 blue, B4 yellow), for inspection.
+    pub fn label_image(&self, k: usize) -> RgbImage {
+        let f = self.geometry.f as u32;
+        let labels = &self.tiles[k].labels;
+        RgbImage::from_fn(f, f, |x, y| LABEL_COLOURS[(labels[(y * f + x) as usize] as usize).min(4)])
+    }
+}
+
 /// The strips of §3.3: (x range, y range, side A, side B, path label, start rule, target line).
 struct Strip {
     xs: (i32, i32),
@@ -600,6 +619,27 @@ mod tests {
     /// A textured sample whose every pixel is distinct, so a pixel's colour tells where it came from.
     fn coded(w: u32, h: u32) -> RgbImage {
         RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
+    }
+
+    /// Writes tiles and their label maps as PPM files for inspection:
+    /// `TEXSYN_DUMP=dir SAMPLE=path cargo test --release --lib dump_rw_tiles -- --ignored`.
+    #[test]
+    #[ignore]
+    fn dump_rw_tiles() {
+        let dir = std::path::PathBuf::from(std::env::var("TEXSYN_DUMP").unwrap());
+        let path = std::env::var("SAMPLE").unwrap();
+        let (sample, _) = crate::imageio::read_rgb8(std::path::Path::new(&path), crate::imageio::DecodeLimits::default()).unwrap();
+        let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+        let set = build_tile_set(&sample, 64, 8, TileSet::Minimal, PixelError::Squared, seed).unwrap();
+        let ppm = |img: &RgbImage, name: String| {
+            let mut bytes = format!("P6\n{} {}\n255\n", img.width(), img.height()).into_bytes();
+            bytes.extend_from_slice(img.as_raw());
+            std::fs::write(dir.join(name), bytes).unwrap();
+        };
+        for k in 0..set.tiles.len() {
+            ppm(&set.tile_image(k), format!("rw_tile{k}.ppm"));
+            ppm(&set.label_image(k), format!("rw_labels{k}.ppm"));
+        }
     }
 
     #[test]

@@ -149,6 +149,21 @@ pub struct WangTileSet {
     pub tiles: Vec<WangTile>,
 }
 
+impl WangTileSet {
+    /// Tile `k` as a `t × t` image (the building block for a tile-set export).
+    pub fn tile_image(&self, k: usize) -> RgbImage {
+        let t = self.geometry.t as u32;
+        RgbImage::from_raw(t, t, self.tiles[k].raster.clone()).expect("t × t raster")
+    }
+
+    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow), for inspection.
+    pub fn label_image(&self, k: usize) -> RgbImage {
+        const COLOURS: [[u8; 3]; 4] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40]];
+        let t = self.geometry.t as u32;
+        RgbImage::from_fn(t, t, |x, y| COLOURS[self.tiles[k].labels[(y * t + x) as usize] as usize])
+    }
+}
+
 /// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
 /// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
 pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, String> {
@@ -456,6 +471,28 @@ mod tests {
 
     fn coded(w: u32, h: u32) -> RgbImage {
         RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
+    }
+
+    /// Writes tiles and their label maps as PPM files for inspection:
+    /// `TEXSYN_DUMP=dir SAMPLE=path CUT=dp cargo test --release --lib dump_wang_tiles -- --ignored`.
+    #[test]
+    #[ignore]
+    fn dump_wang_tiles() {
+        let dir = std::path::PathBuf::from(std::env::var("TEXSYN_DUMP").unwrap());
+        let path = std::env::var("SAMPLE").unwrap();
+        let (sample, _) = crate::imageio::read_rgb8(std::path::Path::new(&path), crate::imageio::DecodeLimits::default()).unwrap();
+        let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+        let cut = if std::env::var("CUT").as_deref() == Ok("shortest_path") { Cut::ShortestPath } else { Cut::Dp };
+        let set = build_tile_set(&sample, 64, 8, TileSet::Minimal, cut, PixelError::Squared, seed).unwrap();
+        let ppm = |img: &RgbImage, name: String| {
+            let mut bytes = format!("P6\n{} {}\n255\n", img.width(), img.height()).into_bytes();
+            bytes.extend_from_slice(img.as_raw());
+            std::fs::write(dir.join(name), bytes).unwrap();
+        };
+        for k in 0..set.tiles.len() {
+            ppm(&set.tile_image(k), format!("wang_tile{k}.ppm"));
+            ppm(&set.label_image(k), format!("wang_labels{k}.ppm"));
+        }
     }
 
     #[test]
