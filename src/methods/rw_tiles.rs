@@ -13,7 +13,7 @@
 //! exactly a crop of a larger one with the same seed.
 
 use super::{Method, Request, Synthesis};
-use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::primitives::overlap::pixel_error;
 use crate::primitives::shortest_path::{flood4, shortest_path};
 use crate::primitives::wang::{TileSet, Tiling, TilingOrder, tile_rect};
@@ -609,7 +609,7 @@ impl Method for RwTiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::params::resolve;
+    use crate::params::{ParamValue, resolve};
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();

@@ -11,7 +11,7 @@
 
 use super::rw_tiles::PixelError;
 use super::{Method, Request, Synthesis};
-use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::primitives::shortest_path::{flood4, shortest_path};
 use crate::primitives::wang::{TileSet, Tiling, TilingOrder, tile_rect};
 use crate::rng::Stream;
@@ -462,7 +462,7 @@ impl Method for WangTiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::params::resolve;
+    use crate::params::{ParamValue, resolve};
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
