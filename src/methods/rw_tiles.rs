@@ -51,6 +51,12 @@ const PARAMS: &[ParamSpec] = &[
         doc: "per-pixel cut cost: squared RGB distance (eq. 3) or its square root (the paper's prose), in fixed point",
     },
     ParamSpec {
+        name: "patch_candidates",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: Default::Int(1),
+        doc: "1: the four patches are drawn at random (paper); N > 1: N random patch choices are built and, among those whose patches all have at least half the sample's contrast, the one with the smallest total seam cost is kept (not in the paper; helps structured samples)",
+    },
+    ParamSpec {
         name: "tiling",
         kind: ParamKind::Choice(&["keyed", "scanline"]),
         default: Default::Str("keyed"),
@@ -225,6 +231,61 @@ struct Strip {
 
 /// Builds the tile set (§3.2–3.5). Patch corners come from stream `rwtiles/patches`.
 pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: PixelError, seed: u64) -> Result<RwTileSet, String> {
+    build_tile_set_searched(sample, tile, ov, set, err, seed, 1).map(|(s, _)| s)
+}
+
+/// Total seam cost of a tile set: every strip and pocket path cost, summed over the tiles.
+pub fn seam_cost(set: &RwTileSet) -> u64 {
+    set.tiles.iter().map(|t| t.strip_costs.iter().sum::<u64>() + t.pocket_costs.iter().sum::<u64>()).sum()
+}
+
+/// Mean squared deviation from the mean colour (summed over R, G, B) of the `w × h` rectangle at
+/// `(x, y)`: its contrast, in the units of B1's pixel error. Exact integer sums.
+pub fn contrast(sample: &RgbImage, (x, y): (u32, u32), w: u32, h: u32) -> f64 {
+    let n = (w as u64 * h as u64) as f64;
+    let mut sum = [0u64; 3];
+    let mut sq = [0u64; 3];
+    for yy in y..y + h {
+        for xx in x..x + w {
+            let p = sample.get(xx, yy);
+            for c in 0..3 {
+                sum[c] += p[c] as u64;
+                sq[c] += p[c] as u64 * p[c] as u64;
+            }
+        }
+    }
+    (0..3).map(|c| sq[c] as f64 / n - (sum[c] as f64 / n) * (sum[c] as f64 / n)).sum()
+}
+
+/// Whether every patch of a candidate is representative for `patch_candidates`: its contrast is
+/// at least half the whole sample's. Without this rule the cheapest seams come from flat patches
+/// (nothing to cut through), which turns a brick wall into plain bricks.
+pub fn representative(sample: &RgbImage, corners: &[(u32, u32)], side: u32) -> bool {
+    let whole = contrast(sample, (0, 0), sample.width(), sample.height());
+    corners.iter().all(|&p| contrast(sample, p, side, side) >= 0.5 * whole)
+}
+
+/// The candidate kept by `patch_candidates`: the smallest seam cost among the representative
+/// candidates (all candidates if none is), ties to the earliest.
+pub fn pick_candidate(costs: &[u64], representative: &[bool]) -> usize {
+    let any = representative.iter().any(|&r| r);
+    (0..costs.len()).filter(|&c| !any || representative[c]).min_by_key(|&c| (costs[c], c)).expect("at least one candidate")
+}
+
+/// Builds the tile set from `candidates` patch choices and keeps the one chosen by
+/// [`pick_candidate`] [not in the paper: `patch_candidates`]. Candidate `c`'s four
+/// patches are draws `8c .. 8c + 8` of stream `rwtiles/patches` (in the order `PA[0], PA[1],
+/// PB[0], PB[1]`, `x` then `y`), so with one candidate this is the paper's random choice. Returns
+/// the set and the index of the chosen candidate.
+pub fn build_tile_set_searched(
+    sample: &RgbImage,
+    tile: i32,
+    ov: i32,
+    set: TileSet,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+) -> Result<(RwTileSet, usize), String> {
     let g = Geometry::new(tile, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if g.s > sw || g.s > sh {
@@ -236,20 +297,29 @@ pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: 
         let y = st.below((sh - g.s + 1) as u64) as u32;
         (x, y)
     };
-    let pa = [draw(), draw()];
-    let pb = [draw(), draw()];
+    let choices: Vec<([(u32, u32); 2], [(u32, u32); 2])> = (0..candidates.max(1)).map(|_| ([draw(), draw()], [draw(), draw()])).collect();
+    let built: Result<Vec<RwTileSet>, String> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+    let built = built?;
+    let costs: Vec<u64> = built.iter().map(seam_cost).collect();
+    let fit: Vec<bool> = choices.iter().map(|(pa, pb)| representative(sample, &[pa[0], pa[1], pb[0], pb[1]], g.s as u32)).collect();
+    let best = pick_candidate(&costs, &fit);
+    Ok((built.into_iter().nth(best).expect("index in range"), best))
+}
+
+/// Builds every tile of `set` from the given patch corners.
+pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: PixelError, pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> Result<RwTileSet, String> {
     let tiles: Result<Vec<RwTile>, String> = (0..set.len())
         .into_par_iter()
         .map(|t| {
             let c = set.colours(t);
             let patches = [pa[c[0] as usize], pb[c[1] as usize], pa[c[2] as usize], pb[c[3] as usize]];
-            build_tile(sample, &g, patches, err).map(|mut tile| {
+            build_tile(sample, g, patches, err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
         })
         .collect();
-    Ok(RwTileSet { geometry: g, set, pa, pb, tiles: tiles? })
+    Ok(RwTileSet { geometry: *g, set, pa, pb, tiles: tiles? })
 }
 
 /// Builds one tile from the sample patches used as `B1..B4` (§3.2–3.4).
@@ -578,7 +648,8 @@ impl Method for RwTiles {
         let err = PixelError::parse(p.str("pixel_error"));
         let order = TilingOrder::parse(p.str("tiling"));
         let t0 = Instant::now();
-        let tiles = build_tile_set(req.sample, tile, ov, set, err, req.seed)?;
+        let candidates = p.int("patch_candidates") as usize;
+        let (tiles, chosen) = build_tile_set_searched(req.sample, tile, ov, set, err, req.seed, candidates)?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
@@ -587,7 +658,7 @@ impl Method for RwTiles {
         let g = tiles.geometry;
         let diagnostics = serde_json::json!({
             "geometry": { "tile": g.tile(), "overlap": g.ov, "sub_block": g.s, "framework": g.f },
-            "patches": { "a": tiles.pa, "b": tiles.pb },
+            "patches": { "a": tiles.pa, "b": tiles.pb, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
             "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
                 "colours_nw_ne_se_sw": t.colours,
                 "centre_block": t.centre_block + 1,
@@ -784,6 +855,27 @@ mod tests {
         assert_eq!(e.len(), 1);
         assert!(e[0].message.contains("larger than the sample"), "{}", e[0].message);
         assert!(RwTiles.check(&params(&[]), (128, 128), (8192, 8192)).is_empty());
+    }
+
+    #[test]
+    fn patch_search_keeps_the_cheapest_candidate_and_starts_with_the_paper_draw() {
+        let sample = RgbImage::from_fn(96, 96, |x, y| {
+            let mortar = x % 24 < 3 || y % 16 < 3;
+            let v = if mortar { 200 } else { 90 + ((x * 7 + y * 13) % 23) as u8 };
+            [v, (v as u32 * 3 / 4) as u8, (v as u32 / 2) as u8]
+        });
+        let plain = build_tile_set(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4).unwrap();
+        let (one, c) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 1).unwrap();
+        assert_eq!((one.pa, one.pb, c), (plain.pa, plain.pb, 0));
+        let (best, _) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap();
+        let fit = |s: &RwTileSet| representative(&sample, &[s.pa[0], s.pa[1], s.pb[0], s.pb[1]], s.geometry.s as u32);
+        assert!(fit(&best) || !fit(&plain));
+        if fit(&plain) {
+            assert!(seam_cost(&best) <= seam_cost(&plain));
+        }
+        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let again = one_thread.install(|| build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap());
+        assert_eq!((again.0.pa, again.0.pb, again.1), (best.pa, best.pb, again.1));
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //! 8-neighbour shortest path of B4 (`cut = "shortest_path"`, the ablation that isolates RW-Tiles'
 //! geometry from its cut). Filling is B12's scanline tiling, keyed per row, and copying tile rows.
 
-use super::rw_tiles::PixelError;
+use super::rw_tiles::{PixelError, pick_candidate, representative};
 use super::{Method, Request, Synthesis};
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::primitives::shortest_path::{flood4, shortest_path};
@@ -52,6 +52,12 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Choice(&["squared", "euclidean"]),
         default: Default::Str("squared"),
         doc: "per-pixel cut cost: squared RGB distance or its square root (fixed point)",
+    },
+    ParamSpec {
+        name: "patch_candidates",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: Default::Int(1),
+        doc: "1: the four diamonds are drawn at random (Cohen); N > 1: N random choices are built and, among those whose diamonds all have at least half the sample's contrast, the one with the smallest total cut cost is kept (not in the paper)",
     },
     ParamSpec {
         name: "tiling",
@@ -167,6 +173,29 @@ impl WangTileSet {
 /// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
 /// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
 pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, String> {
+    build_tile_set_searched(sample, t, ov, set, cut, err, seed, 1).map(|(s, _)| s)
+}
+
+/// Total cut cost of a tile set (every cut of every tile).
+pub fn seam_cost(set: &WangTileSet) -> u64 {
+    set.tiles.iter().map(|t| t.cut_costs.iter().sum::<u64>()).sum()
+}
+
+/// Builds the tile set from `candidates` diamond choices (draws `8c .. 8c + 8` of `wang/patches`
+/// for candidate `c`) and keeps the one chosen by [`super::rw_tiles::pick_candidate`] (representative = every
+/// diamond's bounding square has at least half the sample's contrast)
+/// [not in Cohen et al.: `patch_candidates`]. Returns the set and the chosen candidate's index.
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_searched(
+    sample: &RgbImage,
+    t: i32,
+    ov: i32,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+) -> Result<(WangTileSet, usize), String> {
     let g = Geometry::new(t, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if 2 * g.a > sw || 2 * g.a > sh {
@@ -178,21 +207,42 @@ pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut
         let y = g.a as u32 + st.below((sh - 2 * g.a + 1) as u64) as u32;
         (x, y)
     };
-    let dn = [draw(), draw()];
-    let de = [draw(), draw()];
+    let choices: Vec<([(u32, u32); 2], [(u32, u32); 2])> = (0..candidates.max(1)).map(|_| ([draw(), draw()], [draw(), draw()])).collect();
+    let built: Result<Vec<WangTileSet>, String> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+    let built = built?;
+    let costs: Vec<u64> = built.iter().map(seam_cost).collect();
+    let a = g.a as u32;
+    let fit: Vec<bool> = choices
+        .iter()
+        .map(|(dn, de)| representative(sample, &[dn[0], dn[1], de[0], de[1]].map(|(x, y)| (x - a, y - a)), 2 * a))
+        .collect();
+    let best = pick_candidate(&costs, &fit);
+    Ok((built.into_iter().nth(best).expect("index in range"), best))
+}
+
+/// Builds every tile of `set` from the given diamond centres.
+pub fn build_from_diamonds(
+    sample: &RgbImage,
+    g: &Geometry,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    dn: [(u32, u32); 2],
+    de: [(u32, u32); 2],
+) -> Result<WangTileSet, String> {
     let tiles: Result<Vec<WangTile>, String> = (0..set.len())
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
             // [N, W, S, E] colours → diamonds in N, E, S, W order.
             let q = [dn[c[0] as usize], de[c[3] as usize], dn[c[2] as usize], de[c[1] as usize]];
-            build_tile(sample, &g, q, cut, err).map(|mut tile| {
+            build_tile(sample, g, q, cut, err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
         })
         .collect();
-    Ok(WangTileSet { geometry: g, set, dn, de, tiles: tiles? })
+    Ok(WangTileSet { geometry: *g, set, dn, de, tiles: tiles? })
 }
 
 /// DP staircase cut (§3.10) from `corner` to `centre` over `domain` (`t × t`, row-major).
@@ -432,7 +482,8 @@ impl Method for WangTiles {
         let err = PixelError::parse(p.str("pixel_error"));
         let order = TilingOrder::parse(p.str("tiling"));
         let t0 = Instant::now();
-        let tiles = build_tile_set(req.sample, t, ov, set, cut, err, req.seed)?;
+        let candidates = p.int("patch_candidates") as usize;
+        let (tiles, chosen) = build_tile_set_searched(req.sample, t, ov, set, cut, err, req.seed, candidates)?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
@@ -441,7 +492,7 @@ impl Method for WangTiles {
         let g = tiles.geometry;
         let diagnostics = serde_json::json!({
             "geometry": { "tile": g.t, "overlap": g.ov, "diamond_half_diagonal": g.a },
-            "diamond_centres": { "ns": tiles.dn, "ew": tiles.de },
+            "diamond_centres": { "ns": tiles.dn, "ew": tiles.de, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
             "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
                 "colours_n_w_s_e": t.colours,
                 "cut_costs": t.cut_costs,
@@ -600,6 +651,22 @@ mod tests {
             assert_eq!(single.image, big.image);
             assert_eq!(single.diagnostics, big.diagnostics);
         }
+    }
+
+    #[test]
+    fn patch_search_keeps_the_cheapest_candidate_and_starts_with_the_paper_draw() {
+        let sample = coded(100, 90);
+        let plain = build_tile_set(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2).unwrap();
+        let (best, c) = build_tile_set_searched(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2, 12).unwrap();
+        let a = best.geometry.a as u32;
+        let fit = |s: &WangTileSet| representative(&sample, &[s.dn[0], s.dn[1], s.de[0], s.de[1]].map(|(x, y)| (x - a, y - a)), 2 * a);
+        assert!(fit(&best) || !fit(&plain));
+        if fit(&plain) {
+            assert!(seam_cost(&best) <= seam_cost(&plain));
+        }
+        assert!(c < 12);
+        let (one, c1) = build_tile_set_searched(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2, 1).unwrap();
+        assert_eq!((one.dn, one.de, c1), (plain.dn, plain.de, 0));
     }
 
     #[test]
