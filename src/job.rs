@@ -149,14 +149,41 @@ pub fn discover(args: &[PathBuf]) -> Result<Vec<JobFile>, String> {
             walk(arg, &mut files).map_err(|e| format!("{}: {e}", arg.display()))?;
             for f in files {
                 let rel = slash_path(f.strip_prefix(arg).expect("walk stays under root"));
-                found.entry(rel.clone()).or_insert(JobFile { path: f, rel });
+                add(&mut found, JobFile { path: f, rel })?;
             }
         } else {
             let rel = arg.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            found.entry(rel.clone()).or_insert(JobFile { path: arg.clone(), rel });
+            add(&mut found, JobFile { path: arg.clone(), rel })?;
         }
     }
     Ok(found.into_values().collect())
+}
+
+/// Adds a job file unless it is already there; two *different* files with the same id (same path
+/// relative to their roots) would make ids, outputs and golden files ambiguous, so that is refused.
+fn add(found: &mut BTreeMap<String, JobFile>, f: JobFile) -> Result<(), String> {
+    match found.get(&f.rel) {
+        None => {
+            found.insert(f.rel.clone(), f);
+            Ok(())
+        }
+        Some(existing) => {
+            let same = match (existing.path.canonicalize(), f.path.canonicalize()) {
+                (Ok(a), Ok(b)) => a == b,
+                _ => existing.path == f.path,
+            };
+            if same {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{} and {} both have the job id `{}` (ids are paths relative to the directory given); run them from a common parent directory",
+                    existing.path.display(),
+                    f.path.display(),
+                    f.rel
+                ))
+            }
+        }
+    }
 }
 
 fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
@@ -911,6 +938,18 @@ mod tests {
         let e = &plan.invalid[0].errors[0];
         assert_eq!(e.position.unwrap().0, 2);
         assert!(e.message.contains("malformed TOML"), "{}", e.message);
+    }
+
+    #[test]
+    fn two_files_with_one_id_are_refused() {
+        let d = tmpdir("ids");
+        let a = write(&d, "x/same.toml", "");
+        let b = write(&d, "y/same.toml", "");
+        let err = discover(&[d.join("x"), d.join("y")]).unwrap_err();
+        assert!(err.contains("both have the job id `same.toml`"), "{err}");
+        // The same file named twice is fine.
+        assert_eq!(discover(&[a.path.clone(), a.path.clone(), d.join("x")]).unwrap().len(), 1);
+        let _ = b;
     }
 
     #[test]

@@ -8,7 +8,9 @@
 pub mod coevolution;
 pub mod double_seam;
 pub mod quilting;
+pub mod rw_tiles;
 pub mod tes;
+pub mod wang_tiles;
 
 use crate::params::{ParamError, ParamSpec, Params};
 use crate::seamgrid::SeamGrid;
@@ -66,7 +68,14 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting, &double_seam::DoubleSeam, &coevolution::Coevolution, &tes::Tes]
+    &[
+        &quilting::Quilting,
+        &double_seam::DoubleSeam,
+        &coevolution::Coevolution,
+        &tes::Tes,
+        &wang_tiles::WangTiles,
+        &rw_tiles::RwTiles,
+    ]
 }
 
 /// The method called `name`.

@@ -7,3 +7,5 @@ pub mod edges;
 pub mod feather;
 pub mod overlap;
 pub mod overlap_search;
+pub mod shortest_path;
+pub mod wang;
