@@ -524,28 +524,6 @@ mod tests {
         RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
     }
 
-    /// Writes tiles and their label maps as PPM files for inspection:
-    /// `TEXSYN_DUMP=dir SAMPLE=path CUT=dp cargo test --release --lib dump_wang_tiles -- --ignored`.
-    #[test]
-    #[ignore]
-    fn dump_wang_tiles() {
-        let dir = std::path::PathBuf::from(std::env::var("TEXSYN_DUMP").unwrap());
-        let path = std::env::var("SAMPLE").unwrap();
-        let (sample, _) = crate::imageio::read_rgb8(std::path::Path::new(&path), crate::imageio::DecodeLimits::default()).unwrap();
-        let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
-        let cut = if std::env::var("CUT").as_deref() == Ok("shortest_path") { Cut::ShortestPath } else { Cut::Dp };
-        let set = build_tile_set(&sample, 64, 8, TileSet::Minimal, cut, PixelError::Squared, seed).unwrap();
-        let ppm = |img: &RgbImage, name: String| {
-            let mut bytes = format!("P6\n{} {}\n255\n", img.width(), img.height()).into_bytes();
-            bytes.extend_from_slice(img.as_raw());
-            std::fs::write(dir.join(name), bytes).unwrap();
-        };
-        for k in 0..set.tiles.len() {
-            ppm(&set.tile_image(k), format!("wang_tile{k}.ppm"));
-            ppm(&set.label_image(k), format!("wang_labels{k}.ppm"));
-        }
-    }
-
     #[test]
     fn every_tile_pixel_is_in_its_diamond_and_edges_are_locked() {
         let sample = coded(100, 90);
