@@ -5,6 +5,7 @@
 //! re-run results from the manifest alone. Adding a method means adding a file here and one line
 //! in [`registry`]; the job model, scheduler and manifest do not change.
 
+pub mod patch_sampling;
 pub mod quilting;
 
 use crate::params::{ParamError, ParamSpec, Params};
@@ -60,7 +61,7 @@ pub trait Method: Send + Sync {
 
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
-    &[&quilting::Quilting]
+    &[&quilting::Quilting, &patch_sampling::PatchSampling]
 }
 
 /// The method called `name`.

@@ -4,3 +4,4 @@ pub mod boundary_cut;
 pub mod feather;
 pub mod overlap;
 pub mod overlap_search;
+pub mod pso;
