@@ -335,7 +335,12 @@ struct BlockResult {
     candidates: Option<usize>,
     /// The exhaustive optimum, when known.
     optimum: Option<u64>,
+    /// Positions within `NEAR_OPTIMUM` of the optimum, when recorded.
+    near_optimum: Option<usize>,
 }
+
+/// Paper 002's success band: a search succeeds if `d ≤ 1.03·d_opt`.
+const NEAR_OPTIMUM: f64 = 0.03;
 
 impl Method for PatchSampling {
     fn name(&self) -> &'static str {
@@ -434,6 +439,7 @@ impl Method for PatchSampling {
                     swarm: None,
                     candidates: None,
                     optimum: None,
+                    near_optimum: None,
                 }]
             } else if settings.search == Search::Exhaustive {
                 let s = search.as_mut().expect("exhaustive search prepared");
@@ -450,11 +456,13 @@ impl Method for PatchSampling {
             if settings.optimum {
                 let s = search.as_mut().expect("exhaustive search prepared");
                 for r in found.iter_mut().filter(|r| (r.bi, r.bj) != (0, 0)) {
-                    if r.optimum.is_none() {
-                        let regions = layout.zone(r.bi, r.bj);
-                        let origin = (r.bj * layout.stride(), r.bi * layout.stride());
-                        r.optimum = Some(s.candidates(&canvas, origin, &regions, 0.0).min_ssd);
-                    }
+                    // The optimum, and how many positions are within 3 % of it (paper 002's
+                    // success criterion, Table 2): how hard the block problem is for a swarm.
+                    let regions = layout.zone(r.bi, r.bj);
+                    let origin = (r.bj * layout.stride(), r.bi * layout.stride());
+                    let c = s.candidates(&canvas, origin, &regions, NEAR_OPTIMUM);
+                    r.optimum = Some(c.min_ssd);
+                    r.near_optimum = Some(c.members.len());
                 }
             }
             for r in &found {
@@ -540,6 +548,7 @@ fn swarm_block(
         swarm: Some(outcome),
         candidates: None,
         optimum: None,
+        near_optimum: None,
     }
 }
 
@@ -568,7 +577,7 @@ fn exhaustive_block(
     let regions = layout.zone(bi, bj);
     let origin = (bj * layout.stride(), bi * layout.stride());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
-    let mut result = BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None };
+    let mut result = BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
     let eps = settings.tolerance;
     let mut best: Option<Candidates> = None;
     let members: Vec<(u32, u32, u64)> = if eps <= 0.0 {
@@ -760,6 +769,7 @@ fn diagnostics(layout: &Layout, settings: &Settings, results: &[BlockResult]) ->
                 }
                 if settings.optimum {
                     o.insert("optimum".into(), json!(r.optimum));
+                    o.insert("positions_within_3pct".into(), json!(r.near_optimum));
                 }
                 b
             })
