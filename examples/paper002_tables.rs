@@ -47,7 +47,8 @@ fn file_of(job: &Value) -> String {
 
 fn table2(jobs: &[&Value]) {
     // (job file, search) → per-run (error, optimum, best_iteration, chaos searches, within 3 %).
-    let mut groups: BTreeMap<(String, String), Vec<(u64, u64, u64, u64, u64)>> = BTreeMap::new();
+    type Run = (u64, u64, u64, u64, u64);
+    let mut groups: BTreeMap<(String, String), Vec<Run>> = BTreeMap::new();
     for j in jobs {
         let d = &j["diagnostics"];
         let Some(blocks) = d["per_block"].as_array() else { continue };
@@ -72,7 +73,7 @@ fn table2(jobs: &[&Value]) {
     println!("| problem | algorithm | runs | mean iterations | successes | failures | success rate | runs with chaos | mean error / optimum | optimum (positions within 3 %) |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for ((file, search), runs) in &groups {
-        let ok: Vec<&(u64, u64, u64, u64, u64)> = runs.iter().filter(|r| (r.0 as f64) <= 1.03 * r.1 as f64).collect();
+        let ok: Vec<&Run> = runs.iter().filter(|r| (r.0 as f64) <= 1.03 * r.1 as f64).collect();
         let mean_it = if ok.is_empty() { "—".to_string() } else { format!("{:.1}", ok.iter().map(|r| r.2 as f64).sum::<f64>() / ok.len() as f64) };
         let ratio = runs.iter().map(|r| if r.1 == 0 { 1.0 } else { r.0 as f64 / r.1 as f64 }).sum::<f64>() / runs.len() as f64;
         let optima: std::collections::BTreeSet<(u64, u64)> = runs.iter().map(|r| (r.1, r.4)).collect();

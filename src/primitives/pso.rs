@@ -268,11 +268,11 @@ pub fn optimise(
             }
         }
         let g_before = gf;
-        if let Some((bf, bp)) = best_chaos {
-            if bf < gf {
-                gf = bf;
-                g = bp;
-            }
+        if let Some((bf, bp)) = best_chaos
+            && bf < gf
+        {
+            gf = bf;
+            g = bp;
         }
         if below_delta(gf) {
             out.best_iteration = t;
@@ -300,11 +300,11 @@ pub fn optimise(
                 p[i * d..(i + 1) * d].copy_from_slice(&x[i * d..(i + 1) * d]);
             }
             // g from the new positions, by the strict rule (ties: lowest index).
-            if let Some(&b) = restart.iter().min_by(|&&a, &&b| f[a].total_cmp(&f[b]).then(a.cmp(&b))) {
-                if f[b] < gf {
-                    gf = f[b];
-                    g.copy_from_slice(&x[b * d..(b + 1) * d]);
-                }
+            if let Some(&b) = restart.iter().min_by(|&&a, &&b| f[a].total_cmp(&f[b]).then(a.cmp(&b)))
+                && f[b] < gf
+            {
+                gf = f[b];
+                g.copy_from_slice(&x[b * d..(b + 1) * d]);
             }
             if params.trace {
                 out.trace.push((t, x.clone()));
