@@ -16,6 +16,23 @@
 //! The block is pasted with feathering over its zone (B5). The output is the top-left
 //! `width × height` of the grid.
 //!
+//! **Diagnostics** (the manifest's `diagnostics`, deterministic): always `search`, `blocks`
+//! (`cols`, `rows`), `searched_blocks`, `mean_rms_error` (RMS difference per channel over the
+//! zone, averaged over blocks); for swarms `mean_iterations`, `mean_evaluations`, `early_stops`,
+//! `chaos_blocks`, `chaos_searches`; for exhaustive `mean_candidates`. With `diagnostics = true`
+//! (or `record_optimum = true`) also `first` (`x`, `y`) and `per_block`: `bi`, `bj`, `x`, `y`,
+//! `error` (d, eq. 7), `zone_pixels` (A), and for swarms `iterations`, `best_iteration` (when the
+//! final best was first reached), `chaos_searches`, `first_chaos`, `evaluations`, `stopped_early`
+//! (and `swarm_error` with `polish_radius > 0`); for exhaustive `candidates`. `record_optimum`
+//! adds `optimum` (the exhaustive minimum of d) and `positions_within_3pct` per block, and
+//! `mean_rms_optimum`. Paper 002's Table 2 is computed from these (see `examples/paper002_tables.rs`).
+//!
+//! **Options that are not in the paper** (all off by default): `blend = "cut"` (the minimum-error
+//! boundary cut instead of feathering: feathering over a poor match ghosts, which shows as a faint
+//! grid or as bands along block rows on stochastic samples), `candidates = "near-best"` (Liang's
+//! tolerance is relative to the zone's intensity, so on bright low-contrast samples it admits almost
+//! every patch), `polish_radius` (a local exhaustive search around the swarm's best).
+//!
 //! **Threads.** A block depends only on blocks earlier in raster order that overlap its zone, so
 //! the blocks with the same `2·bi + bj` ("waves") never touch each other's pixels and the swarm
 //! searches of a wave run in parallel; every random draw comes from the block's own labelled
