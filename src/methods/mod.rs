@@ -7,6 +7,7 @@
 
 pub mod coevolution;
 pub mod double_seam;
+pub mod patch_sampling;
 pub mod quilting;
 pub mod rw_tiles;
 pub mod tes;
@@ -71,6 +72,7 @@ pub fn registry() -> &'static [&'static dyn Method] {
     &[
         &quilting::Quilting,
         &double_seam::DoubleSeam,
+        &patch_sampling::PatchSampling,
         &coevolution::Coevolution,
         &tes::Tes,
         &wang_tiles::WangTiles,

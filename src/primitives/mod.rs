@@ -7,5 +7,6 @@ pub mod edges;
 pub mod feather;
 pub mod overlap;
 pub mod overlap_search;
+pub mod pso;
 pub mod shortest_path;
 pub mod wang;
