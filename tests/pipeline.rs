@@ -49,10 +49,46 @@ fn pixel_digests(out: &Path) -> BTreeMap<String, String> {
         .collect()
 }
 
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), &target).unwrap();
+        }
+    }
+}
+
 #[test]
-fn bundled_jobs_match_golden_and_do_not_depend_on_threads_or_order() {
+fn bundled_jobs_reproduce_the_golden_digests() {
+    let d = scratch("golden-all");
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(repo().join("jobs")).arg("-o").arg(&out).arg("-q"));
+    let digests = pixel_digests(&out);
+    assert!(digests.len() >= 12, "every bundled sample has a job: {digests:?}");
+    assert!(digests.values().all(|d| d.len() == 64));
+    let r = run_ok(texsyn().args(["golden", "check"]).arg(repo().join("golden")).arg(out.join("manifest.json")));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("0 mismatched, 0 missing"));
+    // The bundle has a seed sweep, an EXR output and a 16-bit PNG output.
+    let m = manifest(&out);
+    let outputs: Vec<&Value> = m["jobs"].as_array().unwrap().iter().flat_map(|j| j["outputs"].as_array().unwrap()).collect();
+    assert!(outputs.iter().any(|o| o["format"] == "exr"));
+    assert!(outputs.iter().any(|o| o["format"] == "png" && o["bit_depth"] == 16));
+    assert!(m["jobs"].as_array().unwrap().iter().filter(|j| j["id"].as_str().unwrap().contains("#seed=")).count() >= 3);
+}
+
+#[test]
+fn bundled_method_jobs_do_not_depend_on_threads_or_order() {
+    // One directory per method family (the paper directories repeat the same methods at scale):
+    // run with 1 and 4 threads, and in reverse order on 2 pool threads with RAYON_NUM_THREADS=3.
     let d = scratch("determinism");
-    let jobs = repo().join("jobs");
+    let jobs = d.join("jobs");
+    for sub in ["samples", "quilting", "double_seam", "patch_sampling", "coevolution", "tes", "tiles"] {
+        copy_dir(&repo().join("jobs").join(sub), &jobs.join(sub));
+    }
     let one = d.join("one");
     let four = d.join("four");
     let rev = d.join("reversed");
@@ -60,21 +96,14 @@ fn bundled_jobs_match_golden_and_do_not_depend_on_threads_or_order() {
     run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&four).args(["-j", "4", "-q"]));
     run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&rev).args(["-j", "2", "-q", "--reverse"]).env("RAYON_NUM_THREADS", "3"));
     let a = pixel_digests(&one);
-    assert!(a.len() >= 12, "every bundled sample has a job: {a:?}");
-    assert!(a.values().all(|d| d.len() == 64));
+    let methods: std::collections::BTreeSet<String> =
+        manifest(&one)["jobs"].as_array().unwrap().iter().map(|j| j["method"].as_str().unwrap().to_string()).collect();
+    assert!(methods.len() >= 7, "every method is covered: {methods:?}");
     assert_eq!(a, pixel_digests(&four), "1 vs 4 threads");
     assert_eq!(a, pixel_digests(&rev), "forward vs reversed order");
-    // The deterministic part of the manifest is identical too.
     assert_eq!(manifest(&one)["deterministic_digest"], manifest(&four)["deterministic_digest"]);
-    // And the golden digests hold.
-    let out = run_ok(texsyn().args(["golden", "check"]).arg(repo().join("golden")).arg(one.join("manifest.json")));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("0 mismatched, 0 missing"));
-    // The bundle has a seed sweep, an EXR output and a 16-bit PNG output.
-    let m = manifest(&one);
-    let outputs: Vec<&Value> = m["jobs"].as_array().unwrap().iter().flat_map(|j| j["outputs"].as_array().unwrap()).collect();
-    assert!(outputs.iter().any(|o| o["format"] == "exr"));
-    assert!(outputs.iter().any(|o| o["format"] == "png" && o["bit_depth"] == 16));
-    assert!(m["jobs"].as_array().unwrap().iter().filter(|j| j["id"].as_str().unwrap().contains("#seed=")).count() >= 3);
+    // Same ids as in jobs/, so the single-threaded run is checked against golden/ too.
+    run_ok(texsyn().args(["golden", "check"]).arg(repo().join("golden")).arg(one.join("manifest.json")));
 }
 
 fn small_job_dir(d: &Path, seeds: u32) -> PathBuf {
