@@ -363,6 +363,15 @@ pub(crate) fn feather_strips(
     }
 }
 
+/// Termination test of paper 000 eq. 7 (shared with TES): the last `window` averages vary by at
+/// most `t_m` relative to their mean level, or the level is 0 (perfect fitness).
+pub(crate) fn converged(history: &[f64], window: usize, t_m: f64) -> bool {
+    let last = &history[history.len() - window..];
+    let spread = last.iter().copied().fold(f64::NEG_INFINITY, f64::max) - last.iter().copied().fold(f64::INFINITY, f64::min);
+    let level = (last.iter().sum::<f64>() / window as f64).abs();
+    level == 0.0 || t_m - spread / level >= 0.0
+}
+
 /// Degree-normalised fitness of sample `k` at `(r, c)` given the current assignment, and whether
 /// any term is a penalty.
 #[inline]
@@ -509,13 +518,8 @@ impl Method for Coevolution {
                 assign[i] = k;
             }
             history.push(mean_fitness(hv, &assign, rows, cols));
-            if iter > m_window {
-                let last = &history[history.len() - m_window..];
-                let spread = last.iter().copied().fold(f64::NEG_INFINITY, f64::max) - last.iter().copied().fold(f64::INFINITY, f64::min);
-                let level = (last.iter().sum::<f64>() / m_window as f64).abs();
-                if level == 0.0 || t_m - spread / level >= 0.0 {
-                    break;
-                }
+            if iter > m_window && converged(&history, m_window, t_m) {
+                break;
             }
         }
         let iter_seconds = iter_started.elapsed().as_secs_f64();

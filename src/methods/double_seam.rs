@@ -115,15 +115,9 @@ impl Method for DoubleSeam {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let mut errors = Vec::new();
         let (block, g, aux) = (p.int("block"), p.int("overlap"), p.int("aux_dist"));
         let smaller = sample.0.min(sample.1) as i64;
-        if block > smaller {
-            errors.push(ParamError::new("block", format!("block {block} is larger than the sample ({}x{}); use at most {smaller}", sample.0, sample.1)));
-        }
-        if g * 2 > block {
-            errors.push(ParamError::new("overlap", format!("overlap {g} is more than half the block ({block}); use at most {}", block / 2)));
-        }
+        let mut errors = super::check_block_and_overlap(block, g, sample);
         if aux > g {
             errors.push(ParamError::new("aux_dist", format!("aux_dist {aux} exceeds the overlap ({g}): the auxiliary line must lie in existing output")));
         }

@@ -67,6 +67,23 @@ pub trait Method: Send + Sync {
     fn synthesize(&self, request: &Request) -> Result<Synthesis, String>;
 }
 
+/// The checks every square-block method shares: the block fits in the sample and the overlap
+/// (real or virtual) is at most half the block.
+pub(crate) fn check_block_and_overlap(block: i64, overlap: i64, sample: (u32, u32)) -> Vec<ParamError> {
+    let mut errors = Vec::new();
+    let smaller = sample.0.min(sample.1) as i64;
+    if block > smaller {
+        errors.push(ParamError::new(
+            "block",
+            format!("block {block} is larger than the sample ({}x{}); use at most {smaller}", sample.0, sample.1),
+        ));
+    }
+    if overlap * 2 > block {
+        errors.push(ParamError::new("overlap", format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2)));
+    }
+    errors
+}
+
 /// Every available method, in listing order.
 pub fn registry() -> &'static [&'static dyn Method] {
     &[

@@ -99,22 +99,7 @@ impl Method for Quilting {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let mut errors = Vec::new();
-        let block = p.int("block");
-        let overlap = p.int("overlap");
-        let smaller = sample.0.min(sample.1) as i64;
-        if block > smaller {
-            errors.push(ParamError::new(
-                "block",
-                format!("block {block} is larger than the sample ({}x{}); use at most {smaller}", sample.0, sample.1),
-            ));
-        }
-        if overlap * 2 > block {
-            errors.push(ParamError::new(
-                "overlap",
-                format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2),
-            ));
-        }
+        let mut errors = super::check_block_and_overlap(p.int("block"), p.int("overlap"), sample);
         if p.str("blend") == "feather" && p.str("cut") != "none" {
             errors.push(ParamError::new("blend", "blend = \"feather\" replaces the boundary cut; also set cut = \"none\""));
         }

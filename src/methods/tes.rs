@@ -7,7 +7,7 @@
 //! which is the cost profile the co-evolution paper compares against. Final seams are
 //! Efros–Freeman cuts on the rectangular overlaps.
 
-use super::coevolution::{F_PEN, Geometry, LATTICE_PARAMS, check_lattice_params, lattice_vectors, texels};
+use super::coevolution::{F_PEN, Geometry, LATTICE_PARAMS, check_lattice_params, converged, lattice_vectors, texels};
 use super::{Method, Request, Synthesis};
 use crate::RgbImage;
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
@@ -251,13 +251,8 @@ impl Method for Tes {
                 }
             }
             history.push(grid.mean(&blocks).0);
-            if iter > m_window {
-                let last = &history[history.len() - m_window..];
-                let spread = last.iter().copied().fold(f64::NEG_INFINITY, f64::max) - last.iter().copied().fold(f64::INFINITY, f64::min);
-                let level = (last.iter().sum::<f64>() / m_window as f64).abs();
-                if level == 0.0 || t_m - spread / level >= 0.0 {
-                    break;
-                }
+            if iter > m_window && converged(&history, m_window, t_m) {
+                break;
             }
         }
         let iter_seconds = started.elapsed().as_secs_f64();

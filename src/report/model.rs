@@ -362,7 +362,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
             sample,
             group,
             seed: job.seed,
-            metrics: job.metrics.clone().unwrap_or_default(),
+            metrics: metrics_and_summary(job),
             synthesis_seconds: job.timing.as_ref().map(|t| t.synthesis_seconds),
             output,
         });
@@ -426,6 +426,22 @@ fn params_label(jobs: &[&JobRecord], in_key: &[GroupKey]) -> String {
         .map(|(name, vs)| format!("{name}={}", vs.iter().map(KeyValue::text).collect::<Vec<_>>().join("|")))
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// A job's metrics, plus the numbers its method put in `diagnostics.summary` as `diag.<name>`
+/// (`null` there means "not applicable to this run", e.g. iterations of a failed search): that is
+/// how a method gets per-run figures such as paper 002's search success into the tables without
+/// changes here.
+fn metrics_and_summary(job: &JobRecord) -> BTreeMap<String, Option<f64>> {
+    let mut m = job.metrics.clone().unwrap_or_default();
+    if let Some(summary) = job.diagnostics.get("summary").and_then(|v| v.as_object()) {
+        for (k, v) in summary {
+            if v.is_number() || v.is_null() {
+                m.insert(format!("diag.{k}"), v.as_f64());
+            }
+        }
+    }
+    m
 }
 
 #[cfg(test)]
@@ -509,5 +525,18 @@ mod tests {
         let labels: Vec<&str> = by_method.groups.iter().map(|g| g.label.as_str()).collect();
         assert_eq!(labels, ["other", "quilting"]);
         assert_eq!(by_method.groups[1].params_label, "block=50|100 cut=dp");
+    }
+
+    #[test]
+    fn a_methods_diagnostics_summary_becomes_columns() {
+        let mut a = job("a", "patch-sampling", 30, 1);
+        a["diagnostics"] = serde_json::json!({"summary": {"success": 1.0, "iterations_when_successful": 12.0}, "blocks": {"cols": 2}});
+        let mut b = job("b", "patch-sampling", 30, 2);
+        b["diagnostics"] = serde_json::json!({"summary": {"success": 0.0, "iterations_when_successful": null}});
+        let model = build(&manifest(vec![a, b]), Path::new("."), &GroupBy::Auto);
+        assert!(model.metric_names.contains(&"diag.success".to_string()), "{:?}", model.metric_names);
+        assert_eq!(model.entries[0].metrics["diag.success"], Some(1.0));
+        assert_eq!(model.entries[1].metrics["diag.iterations_when_successful"], None);
+        assert!(!model.metric_names.iter().any(|n| n.contains("blocks")), "only the summary object counts");
     }
 }
