@@ -10,6 +10,7 @@
 use super::{Method, Request, Synthesis};
 use crate::RgbImage;
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::primitives::block_grid::BlockGrid;
 use crate::primitives::color::HsiPlanes;
 use crate::primitives::correlation::pearson_from;
 use crate::primitives::edges::{otsu_edges, sobel4};
@@ -165,17 +166,17 @@ impl Method for DoubleSeam {
         let prep = Prepared { rgb: sample, w: sw as usize, planes, edges };
 
         let (block, g) = (s.block as u32, s.g as u32);
-        let stride = block - g;
-        let count = |len: u32| if len <= block { 1 } else { (len - g).div_ceil(stride) };
-        let (cols, rows) = (count(req.width), count(req.height));
-        let (cw, ch) = (cols * stride + g, rows * stride + g);
+        // The quilting grid; the overlap is only virtual here.
+        let grid = BlockGrid::new(block, g, req.width, req.height);
+        let (stride, cols, rows) = (grid.stride(), grid.cols, grid.rows);
+        let (cw, ch) = grid.canvas();
         let mut out = Canvas::new(cw, ch);
         let mut stats: Vec<(Case, [LineStats; 2])> = Vec::new();
         let mut set_sizes = Vec::new();
         let mut f_max_sum = 0.0;
         for bi in 0..rows {
             for bj in 0..cols {
-                let (ox, oy) = (bj * stride, bi * stride);
+                let (ox, oy) = grid.origin(bi, bj);
                 let (x, y) = if bi == 0 && bj == 0 {
                     let mut st = Stream::new(req.seed, "seam/first");
                     let x = st.below((sw - s.block + 1) as u64) as i32;

@@ -41,13 +41,11 @@
 
 use super::{Method, Request, Synthesis};
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
-use crate::primitives::boundary_cut::{horizontal_cut, vertical_cut};
-use crate::primitives::feather;
-use crate::primitives::overlap::{Rect, error_surface, rect_ssd};
+use crate::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
+use crate::primitives::overlap::{Rect, rect_ssd};
 use crate::primitives::overlap_search::{Candidates, OverlapSearch};
 use crate::primitives::pso::{self, ChaosParams, Outcome, Rediversify, SwarmParams, UpdateOrder};
 use crate::rng::Stream;
-use crate::seamgrid::{SeamBand, SeamGrid};
 use crate::RgbImage;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -212,52 +210,17 @@ const PARAMS: &[ParamSpec] = &[
     },
 ];
 
-/// Block layout covering at least `width × height` (methods.md §4.2 step 2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Layout {
-    block: u32,
-    overlap: u32,
-    cols: u32,
-    rows: u32,
-}
-
-impl Layout {
-    fn new(block: u32, overlap: u32, width: u32, height: u32) -> Layout {
-        let stride = block - overlap;
-        let count = |len: u32| if len <= block { 1 } else { (len - overlap).div_ceil(stride) };
-        Layout { block, overlap, cols: count(width), rows: count(height) }
-    }
-    fn stride(&self) -> u32 {
-        self.block - self.overlap
-    }
-    fn canvas(&self) -> (u32, u32) {
-        (self.cols * self.stride() + self.overlap, self.rows * self.stride() + self.overlap)
-    }
-    /// The boundary zone of block `(bi, bj)`, as disjoint rectangles relative to the block.
-    fn zone(&self, bi: u32, bj: u32) -> Vec<Rect> {
-        let (b, w) = (self.block, self.overlap);
-        let mut regions = Vec::with_capacity(2);
-        if bj > 0 {
-            regions.push(Rect::new(0, 0, w, b));
-        }
-        if bi > 0 {
-            let x0 = if bj > 0 { w } else { 0 };
-            regions.push(Rect::new(x0, 0, b - x0, w));
-        }
-        regions
-    }
-    /// Blocks in order of `2·bi + bj`: within a wave no two blocks overlap (needs `2·overlap ≤
-    /// block`), and every block a block's zone reads from is in an earlier wave.
-    fn waves(&self) -> Vec<Vec<(u32, u32)>> {
-        let last = 2 * (self.rows - 1) + (self.cols - 1);
-        (0..=last)
-            .map(|t| {
-                (0..self.rows)
-                    .filter_map(|bi| t.checked_sub(2 * bi).filter(|&bj| bj < self.cols).map(|bj| (bi, bj)))
-                    .collect()
-            })
-            .collect()
-    }
+/// Blocks in order of `2·bi + bj`: within a wave no two blocks overlap (needs `2·overlap ≤
+/// block`), and every block a block's zone reads from is in an earlier wave.
+fn waves(grid: &BlockGrid) -> Vec<Vec<(u32, u32)>> {
+    let last = 2 * (grid.rows - 1) + (grid.cols - 1);
+    (0..=last)
+        .map(|t| {
+            (0..grid.rows)
+                .filter_map(|bi| t.checked_sub(2 * bi).filter(|&bj| bj < grid.cols).map(|bj| (bi, bj)))
+                .collect()
+        })
+        .collect()
 }
 
 /// The resolved settings of one synthesis.
@@ -410,7 +373,7 @@ impl Method for PatchSampling {
             return Err(format!("overlap {overlap} must be in 1..={}", block / 2));
         }
         let settings = Settings::from(req.params);
-        let layout = Layout::new(block, overlap, req.width, req.height);
+        let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = RgbImage::new(cw, ch);
         let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
@@ -432,7 +395,7 @@ impl Method for PatchSampling {
         let mut search = needs_exhaustive.then(|| OverlapSearch::new(sample, block, block));
         let mut results: Vec<BlockResult> = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
-        for wave in layout.waves() {
+        for wave in waves(&layout) {
             let mut found: Vec<BlockResult> = if wave == [(0, 0)] {
                 vec![BlockResult {
                     bi: 0,
@@ -462,7 +425,7 @@ impl Method for PatchSampling {
                 for r in found.iter_mut().filter(|r| (r.bi, r.bj) != (0, 0)) {
                     // The optimum, and how many positions are within 3 % of it (paper 002's
                     // success criterion, Table 2): how hard the block problem is for a swarm.
-                    let regions = layout.zone(r.bi, r.bj);
+                    let regions = layout.overlap_regions(r.bi, r.bj);
                     let origin = (r.bj * layout.stride(), r.bi * layout.stride());
                     let c = s.candidates(&canvas, origin, &regions, NEAR_OPTIMUM);
                     r.optimum = Some(c.min_ssd);
@@ -471,13 +434,13 @@ impl Method for PatchSampling {
             }
             for r in &found {
                 let dst = (r.bj * layout.stride(), r.bi * layout.stride());
-                paste(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, settings.cut);
+                paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, if settings.cut { OverlapRule::Cut } else { OverlapRule::Feather });
             }
             results.extend(found);
         }
         results.sort_by_key(|r| (r.bi, r.bj));
         let image = canvas.crop(0, 0, req.width, req.height);
-        let seams = seam_grid(&layout, req.width, req.height);
+        let seams = layout.seam_grid(req.width, req.height);
         let diagnostics = diagnostics(&layout, &settings, &results);
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
     }
@@ -495,13 +458,13 @@ fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: 
 fn swarm_block(
     sample: &RgbImage,
     canvas: &RgbImage,
-    layout: &Layout,
+    layout: &BlockGrid,
     bi: u32,
     bj: u32,
     settings: &Settings,
     seed: u64,
 ) -> BlockResult {
-    let regions = layout.zone(bi, bj);
+    let regions = layout.overlap_regions(bi, bj);
     let origin = (bj * layout.stride(), bi * layout.stride());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
     let (nx, ny) = (sample.width() - layout.block + 1, sample.height() - layout.block + 1);
@@ -572,13 +535,13 @@ fn exhaustive_block(
     search: &mut OverlapSearch,
     sample: &RgbImage,
     canvas: &RgbImage,
-    layout: &Layout,
+    layout: &BlockGrid,
     bi: u32,
     bj: u32,
     settings: &Settings,
     seed: u64,
 ) -> BlockResult {
-    let regions = layout.zone(bi, bj);
+    let regions = layout.overlap_regions(bi, bj);
     let origin = (bj * layout.stride(), bi * layout.stride());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
     let mut result = BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
@@ -670,59 +633,8 @@ fn members_below(
         .collect()
 }
 
-/// Pastes the sample block at `src` onto the canvas at `dst`, feathering the zone (B5), or with
-/// `cut` along the minimum-error boundary cut (B3; L-shaped zones as quilting does them).
-#[allow(clippy::too_many_arguments)]
-fn paste(canvas: &mut RgbImage, sample: &RgbImage, src: (u32, u32), dst: (u32, u32), block: u32, overlap: u32, left: bool, top: bool, cut: bool) {
-    let (b, ov) = (block as usize, overlap as usize);
-    // With a cut: for each row, the first column taken from the new block; for each column, the first row.
-    let mut first_col = vec![0usize; b];
-    let mut first_row = vec![0usize; b];
-    if cut && left {
-        first_col = vertical_cut(&error_surface(sample, src, canvas, dst, overlap, block), b, ov);
-    }
-    if cut && top {
-        first_row = horizontal_cut(&error_surface(sample, src, canvas, dst, block, overlap), ov, b);
-    }
-    for y in 0..block {
-        for x in 0..block {
-            let new = sample.get(src.0 + x, src.1 + y);
-            let (cx, cy) = (dst.0 + x, dst.1 + y);
-            let in_left = left && x < overlap;
-            let in_top = top && y < overlap;
-            if cut {
-                if x as usize >= first_col[y as usize] && y as usize >= first_row[x as usize] {
-                    canvas.put(cx, cy, new);
-                }
-            } else if in_left || in_top {
-                let mut alpha: f64 = 1.0;
-                if in_left {
-                    alpha = alpha.min(feather::new_weight(x, overlap));
-                }
-                if in_top {
-                    alpha = alpha.min(feather::new_weight(y, overlap));
-                }
-                canvas.put(cx, cy, feather::blend(canvas.get(cx, cy), new, alpha));
-            } else {
-                canvas.put(cx, cy, new);
-            }
-        }
-    }
-}
-
-fn seam_grid(layout: &Layout, width: u32, height: u32) -> SeamGrid {
-    let bands = |count: u32, limit: u32| -> Vec<SeamBand> {
-        (1..count)
-            .map(|k| k * layout.stride())
-            .filter(|&start| start < limit)
-            .map(|start| SeamBand { start: start.max(1), len: (layout.overlap + 1).min(limit - start) })
-            .collect()
-    };
-    SeamGrid { columns: bands(layout.cols, width), rows: bands(layout.rows, height) }
-}
-
 /// The manifest's diagnostics: a summary always, every searched block with `diagnostics = true`.
-fn diagnostics(layout: &Layout, settings: &Settings, results: &[BlockResult]) -> Value {
+fn diagnostics(layout: &BlockGrid, settings: &Settings, results: &[BlockResult]) -> Value {
     let searched: Vec<&BlockResult> = results.iter().filter(|r| (r.bi, r.bj) != (0, 0)).collect();
     let n = searched.len();
     let mean = |f: &dyn Fn(&BlockResult) -> f64| if n == 0 { 0.0 } else { searched.iter().map(|r| f(r)).sum::<f64>() / n as f64 };
@@ -834,15 +746,15 @@ mod tests {
         assert_eq!((p.float("logistic_mu"), p.int("chaos_steps"), p.float("delta_rms")), (4.0, 200, 10.0));
         assert_eq!(p.str("search"), "cpso");
         // 256 px with B = 30, w_E = 5 needs 11 × 11 blocks (§4.2 step 2).
-        let l = Layout::new(30, 5, 256, 256);
+        let l = BlockGrid::new(30, 5, 256, 256);
         assert_eq!((l.cols, l.rows), (11, 11));
         assert_eq!(l.canvas(), (280, 280));
     }
 
     #[test]
     fn waves_cover_every_block_once_and_respect_dependencies() {
-        let l = Layout::new(30, 5, 200, 130);
-        let waves = l.waves();
+        let l = BlockGrid::new(30, 5, 200, 130);
+        let waves = waves(&l);
         let mut seen = std::collections::HashMap::new();
         for (t, wave) in waves.iter().enumerate() {
             for &b in wave {
@@ -902,18 +814,18 @@ mod tests {
         let s = texture(90, 90);
         let p = params(&[("block", ParamValue::Int(20)), ("search", ParamValue::Str("pso".into())), ("diagnostics", ParamValue::Bool(true))]);
         let out = run(&s, 130, 110, &p, 2);
-        let l = Layout::new(20, 3, 130, 110);
+        let l = BlockGrid::new(20, 3, 130, 110);
         let mut canvas = RgbImage::new(l.canvas().0, l.canvas().1);
         let d = &out.diagnostics;
         let first = (d["first"]["x"].as_u64().unwrap() as u32, d["first"]["y"].as_u64().unwrap() as u32);
-        paste(&mut canvas, &s, first, (0, 0), 20, 3, false, false, false);
+        paste_block(&mut canvas, &s, first, (0, 0), 20, 3, false, false, OverlapRule::Feather);
         for b in d["per_block"].as_array().unwrap() {
             let g = |k: &str| b[k].as_u64().unwrap() as u32;
             let (bi, bj) = (g("bi"), g("bj"));
             let dst = (bj * l.stride(), bi * l.stride());
             // The recorded error is the zone error against the raster-order canvas.
-            assert_eq!(zone_error(&s, &canvas, (g("x"), g("y")), dst, &l.zone(bi, bj)), b["error"].as_u64().unwrap());
-            paste(&mut canvas, &s, (g("x"), g("y")), dst, 20, 3, bj > 0, bi > 0, false);
+            assert_eq!(zone_error(&s, &canvas, (g("x"), g("y")), dst, &l.overlap_regions(bi, bj)), b["error"].as_u64().unwrap());
+            paste_block(&mut canvas, &s, (g("x"), g("y")), dst, 20, 3, bj > 0, bi > 0, OverlapRule::Feather);
         }
         assert_eq!(canvas.crop(0, 0, 130, 110), out.image);
     }

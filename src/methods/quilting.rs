@@ -9,12 +9,9 @@
 
 use super::{Method, Request, Synthesis};
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
-use crate::primitives::boundary_cut::{horizontal_cut, vertical_cut};
-use crate::primitives::feather;
-use crate::primitives::overlap::{Rect, error_surface};
+use crate::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
 use crate::primitives::overlap_search::OverlapSearch;
 use crate::rng::Stream;
-use crate::seamgrid::{SeamBand, SeamGrid};
 use crate::RgbImage;
 
 pub struct Quilting;
@@ -61,29 +58,6 @@ const PARAMS: &[ParamSpec] = &[
     },
 ];
 
-/// Block layout of a quilt covering at least `width × height`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Layout {
-    block: u32,
-    overlap: u32,
-    cols: u32,
-    rows: u32,
-}
-
-impl Layout {
-    fn new(block: u32, overlap: u32, width: u32, height: u32) -> Layout {
-        let stride = block - overlap;
-        let count = |len: u32| if len <= block { 1 } else { (len - overlap).div_ceil(stride) };
-        Layout { block, overlap, cols: count(width), rows: count(height) }
-    }
-    fn stride(&self) -> u32 {
-        self.block - self.overlap
-    }
-    fn canvas(&self) -> (u32, u32) {
-        (self.cols * self.stride() + self.overlap, self.rows * self.stride() + self.overlap)
-    }
-}
-
 impl Method for Quilting {
     fn name(&self) -> &'static str {
         "quilting"
@@ -110,37 +84,34 @@ impl Method for Quilting {
         let block = req.params.int("block") as u32;
         let overlap = req.params.int("overlap") as u32;
         let tolerance = req.params.float("tolerance");
-        let use_cut = req.params.str("cut") == "dp";
-        let feather = req.params.str("blend") == "feather";
+        let rule = if req.params.str("blend") == "feather" {
+            OverlapRule::Feather
+        } else if req.params.str("cut") == "dp" {
+            OverlapRule::Cut
+        } else {
+            OverlapRule::Overwrite
+        };
         let direct = req.params.str("search") == "direct";
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
             return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
         }
-        let layout = Layout::new(block, overlap, req.width, req.height);
+        let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = RgbImage::new(cw, ch);
         let mut search = OverlapSearch::new(sample, block, block);
-        let stride = layout.stride();
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
         for bi in 0..layout.rows {
             for bj in 0..layout.cols {
-                let (ox, oy) = (bj * stride, bi * stride);
+                let (ox, oy) = layout.origin(bi, bj);
                 let (sx, sy) = if bi == 0 && bj == 0 {
                     let mut s = Stream::new(req.seed, "quilt/first");
                     let x = s.below((sample.width() - block + 1) as u64) as u32;
                     let y = s.below((sample.height() - block + 1) as u64) as u32;
                     (x, y)
                 } else {
-                    let mut regions = Vec::with_capacity(2);
-                    if bj > 0 {
-                        regions.push(Rect::new(0, 0, overlap, block));
-                    }
-                    if bi > 0 {
-                        let x0 = if bj > 0 { overlap } else { 0 };
-                        regions.push(Rect::new(x0, 0, block - x0, overlap));
-                    }
+                    let regions = layout.overlap_regions(bi, bj);
                     let c = if direct {
                         search.candidates_direct(&canvas, (ox, oy), &regions, tolerance)
                     } else {
@@ -151,11 +122,11 @@ impl Method for Quilting {
                     let pick = c.members[s.below_usize(c.members.len())];
                     (pick.0, pick.1)
                 };
-                paste(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, use_cut, feather);
+                paste_block(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, rule);
             }
         }
         let image = canvas.crop(0, 0, req.width, req.height);
-        let seams = seam_grid(&layout, req.width, req.height);
+        let seams = layout.seam_grid(req.width, req.height);
         let diagnostics = serde_json::json!({
             "blocks": { "cols": layout.cols, "rows": layout.rows },
             "mean_candidates": if candidate_counts.is_empty() { 0.0 } else {
@@ -164,68 +135,6 @@ impl Method for Quilting {
         });
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
     }
-}
-
-/// Pastes the sample block at `src` onto the canvas at `dst`, resolving the overlaps with the
-/// boundary cut (B3), a feathered blend (B5) or a plain overwrite.
-#[allow(clippy::too_many_arguments)]
-fn paste(
-    canvas: &mut RgbImage,
-    sample: &RgbImage,
-    src: (u32, u32),
-    dst: (u32, u32),
-    block: u32,
-    overlap: u32,
-    left: bool,
-    top: bool,
-    use_cut: bool,
-    feather: bool,
-) {
-    let b = block as usize;
-    let ov = overlap as usize;
-    // For each row, the first column taken from the new block; for each column, the first row.
-    let mut first_col = vec![0usize; b];
-    let mut first_row = vec![0usize; b];
-    if use_cut && left {
-        let e = error_surface(sample, src, canvas, dst, overlap, block);
-        first_col = vertical_cut(&e, b, ov);
-    }
-    if use_cut && top {
-        let e = error_surface(sample, src, canvas, dst, block, overlap);
-        first_row = horizontal_cut(&e, ov, b);
-    }
-    for y in 0..block {
-        for x in 0..block {
-            let new = sample.get(src.0 + x, src.1 + y);
-            let (cx, cy) = (dst.0 + x, dst.1 + y);
-            let in_left = left && (x as usize) < ov;
-            let in_top = top && (y as usize) < ov;
-            if feather && (in_left || in_top) {
-                let mut alpha: f64 = 1.0;
-                if in_left {
-                    alpha = alpha.min(feather::new_weight(x, overlap));
-                }
-                if in_top {
-                    alpha = alpha.min(feather::new_weight(y, overlap));
-                }
-                let old = canvas.get(cx, cy);
-                canvas.put(cx, cy, feather::blend(old, new, alpha));
-            } else if x as usize >= first_col[y as usize] && y as usize >= first_row[x as usize] {
-                canvas.put(cx, cy, new);
-            }
-        }
-    }
-}
-
-fn seam_grid(layout: &Layout, width: u32, height: u32) -> SeamGrid {
-    let bands = |count: u32, limit: u32| -> Vec<SeamBand> {
-        (1..count)
-            .map(|k| k * layout.stride())
-            .filter(|&start| start < limit)
-            .map(|start| SeamBand { start: start.max(1), len: (layout.overlap + 1).min(limit - start) })
-            .collect()
-    };
-    SeamGrid { columns: bands(layout.cols, width), rows: bands(layout.rows, height) }
 }
 
 #[cfg(test)]
@@ -243,17 +152,6 @@ mod tests {
             let v = ((x / 8 + y / 8) % 2) as u8 * 120 + ((x * 7 + y * 3) % 13) as u8 * 5;
             [v, v / 2 + 20, 255 - v]
         })
-    }
-
-    #[test]
-    fn layout_covers_the_output_with_the_fewest_blocks() {
-        // 9 blocks of 50 with overlap 8 give 9·50 − 8·8 = 386 (paper 003's protocol).
-        let l = Layout::new(50, 8, 386, 386);
-        assert_eq!((l.cols, l.rows), (9, 9));
-        assert_eq!(l.canvas(), (386, 386));
-        let l = Layout::new(40, 10, 512, 100);
-        assert!(l.canvas().0 >= 512 && l.canvas().0 - 30 < 512);
-        assert_eq!(Layout::new(50, 8, 20, 50).cols, 1);
     }
 
     #[test]
@@ -315,11 +213,4 @@ mod tests {
         assert!(errs[0].message.contains("larger than the sample"));
     }
 
-    #[test]
-    fn seam_bands_follow_the_block_grid() {
-        let l = Layout::new(50, 8, 386, 386);
-        let g = seam_grid(&l, 386, 386);
-        assert_eq!(g.columns.len(), 8);
-        assert_eq!(g.columns[0], SeamBand { start: 42, len: 9 });
-    }
 }

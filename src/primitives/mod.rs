@@ -1,5 +1,6 @@
 //! Image building blocks shared by the methods (methods.md §1), written and tested once.
 
+pub mod block_grid;
 pub mod boundary_cut;
 pub mod color;
 pub mod correlation;
