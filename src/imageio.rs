@@ -173,6 +173,62 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
     })
 }
 
+/// Decodes an output file as stored, keeping an alpha channel (RGBA outputs such as exported
+/// tiles are recorded with 4 channels); everything else decodes as [`decode_native`] does.
+pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+    if bytes.starts_with(b"\x89PNG") {
+        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+        let mut l = image::Limits::default();
+        l.max_image_width = Some(limits.max_side);
+        l.max_image_height = Some(limits.max_side);
+        l.max_alloc = Some(limits.max_alloc_bytes);
+        reader.limits(l);
+        if let Ok(img) = reader.decode() {
+            let (w, h) = (img.width(), img.height());
+            check_size(w, h, limits)?;
+            match img {
+                image::DynamicImage::ImageRgba8(rgba) => {
+                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U8(rgba.into_raw()) });
+                }
+                image::DynamicImage::ImageRgba16(rgba) => {
+                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U16(rgba.into_raw()) });
+                }
+                _ => {}
+            }
+        }
+    }
+    decode_native(bytes, limits)
+}
+
+/// Reads an image file as 8-bit RGBA (`width`, `height`, samples); images without alpha are
+/// opaque. Errors say what is wrong with the file (callers add the path).
+pub fn decode_rgba8(bytes: &[u8], limits: DecodeLimits) -> Result<(u32, u32, Vec<u8>), String> {
+    let native = decode_output(bytes, limits)?;
+    let (w, h) = (native.width, native.height);
+    if native.channels == 4 {
+        let data = match native.samples {
+            Samples::U8(v) => v,
+            Samples::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
+            Samples::F32(_) => return Err("floating-point RGBA is not supported here".into()),
+        };
+        return Ok((w, h, data));
+    }
+    let rgb = native_to_rgb8(&native);
+    let data = rgb.as_raw().chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+    Ok((w, h, data))
+}
+
+/// Encodes 8-bit RGBA samples as PNG.
+pub fn encode_rgba8_png(width: u32, height: u32, data: &[u8]) -> Result<Encoded, String> {
+    if data.len() != width as usize * height as usize * 4 {
+        return Err(format!("RGBA data of {} bytes does not match {width}x{height}", data.len()));
+    }
+    let mut bytes = Vec::new();
+    image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), data, width, height, image::ExtendedColorType::Rgba8)
+        .map_err(|e| format!("PNG encoding failed: {e}"))?;
+    Ok(Encoded { bytes, pixels: NativeImage { width, height, channels: 4, samples: Samples::U8(data.to_vec()) } })
+}
+
 /// Whether an end-of-image marker (FF D9) follows the last start-of-scan marker (FF DA). Inside
 /// entropy-coded data 0xFF is always stuffed or a restart marker, so neither can occur there; an
 /// EXIF thumbnail's own markers come before the main scan.
@@ -366,6 +422,22 @@ mod tests {
         } else {
             panic!("EXR decoded to integers");
         }
+    }
+
+    #[test]
+    fn rgba_png_round_trips_with_its_alpha() {
+        let data: Vec<u8> = (0..5 * 3).flat_map(|i| [i as u8, 2 * i as u8, 3 * i as u8, if i % 2 == 0 { 255 } else { 0 }]).collect();
+        let e = encode_rgba8_png(5, 3, &data).unwrap();
+        let back = decode_output(&e.bytes, DecodeLimits::default()).unwrap();
+        assert_eq!(back, e.pixels);
+        assert_eq!(back.channels, 4);
+        assert_eq!(decode_rgba8(&e.bytes, DecodeLimits::default()).unwrap(), (5, 3, data));
+        // An RGB file reads as opaque RGBA, and its recorded pixels are still RGB.
+        let rgb = encode(&img(), Encoding { format: Format::Png, bit_depth: 8 }).unwrap();
+        assert_eq!(decode_output(&rgb.bytes, DecodeLimits::default()).unwrap().channels, 3);
+        let (_, _, opaque) = decode_rgba8(&rgb.bytes, DecodeLimits::default()).unwrap();
+        assert!(opaque.chunks_exact(4).all(|p| p[3] == 255));
+        assert!(encode_rgba8_png(5, 3, &[0; 7]).is_err());
     }
 
     #[test]

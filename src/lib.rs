@@ -24,6 +24,7 @@ pub mod report;
 pub mod rng;
 pub mod runner;
 pub mod seamgrid;
+pub mod tileset;
 pub mod verify;
 
 pub use raster::RgbImage;

@@ -87,6 +87,9 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         metrics: Option<Vec<String>>,
     },
+    /// Use a tile set exported by a wang-tiles or rw-tiles job (`export_tiles = true`).
+    #[command(subcommand)]
+    Tiles(TilesCommand),
     /// Tables (Markdown, CSV), contact sheets, a plot and an HTML page from a manifest.
     #[command(after_help = REPORT_HELP)]
     Report {
@@ -106,6 +109,31 @@ Exit codes:
   0    report written
   1    report written, but some images were missing or differ from the manifest (listed)
   2    usage error, unreadable manifest, or the report directory cannot be written";
+
+#[derive(Subcommand)]
+enum TilesCommand {
+    /// Render a texture of any size by copying tiles from an exported tile set. With no options
+    /// it reproduces the job's own output exactly; --seed, --width, --height give others.
+    Render {
+        /// The export's index.json (in `{output}.tiles/`).
+        index: PathBuf,
+        /// The image to write (.png or .exr).
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Output width (default: the job's).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Output height (default: the job's).
+        #[arg(long)]
+        height: Option<u32>,
+        /// Seed of the tile arrangement (default: the job's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// `keyed` or `scanline` (default: the job's).
+        #[arg(long)]
+        tiling: Option<String>,
+    },
+}
 
 #[derive(Subcommand)]
 enum GoldenCommand {
@@ -320,6 +348,18 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Command::Tiles(TilesCommand::Render { index, out, width, height, seed, tiling }) => {
+            match render_tiles(&index, &out, width, height, seed, tiling.as_deref()) {
+                Ok(msg) => {
+                    eprintln!("{msg}");
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Command::Report { manifest, out, group_by } => {
             match texsyn::report::report(&texsyn::report::ReportOptions { manifest, out, group_by }) {
                 Err(e) => {
@@ -352,4 +392,37 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
     }
+}
+
+/// `texsyn tiles render`.
+fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u32>, height: Option<u32>, seed: Option<u64>, tiling: Option<&str>) -> Result<String, String> {
+    use texsyn::imageio::{Encoding, Format};
+    use texsyn::primitives::wang::TilingOrder;
+    let loaded = texsyn::tileset::load(index)?;
+    let ix = loaded.index();
+    let (w, h) = (width.unwrap_or(ix.output[0]), height.unwrap_or(ix.output[1]));
+    const MAX_SIDE: u32 = 65_536;
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(format!("--width and --height must be 1..={MAX_SIDE} (got {w}x{h})"));
+    }
+    let order = match tiling.unwrap_or(&ix.tiling) {
+        "keyed" => TilingOrder::Keyed,
+        "scanline" => TilingOrder::Scanline,
+        other => return Err(format!("tiling `{other}` is not keyed or scanline")),
+    };
+    let format = Format::from_path(out).ok_or_else(|| format!("{}: the output must end in .png or .exr", out.display()))?;
+    let seed = seed.unwrap_or(ix.seed);
+    let started = std::time::Instant::now();
+    let img = loaded.render(w, h, seed, order);
+    let fill = started.elapsed().as_secs_f64();
+    let bit_depth = if format == Format::Exr { 32 } else { 8 };
+    let encoded = texsyn::imageio::encode(&img, Encoding { format, bit_depth })?;
+    texsyn::outdir::write_atomic(out, &encoded.bytes)?;
+    Ok(format!(
+        "{}: {w}x{h} from {} {} tiles (seed {seed}), filled in {fill:.3} s; pixels {}",
+        out.display(),
+        ix.tiles.len(),
+        ix.method,
+        encoded.pixels.pixel_digest().short()
+    ))
 }

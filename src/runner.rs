@@ -11,7 +11,7 @@ use crate::digest::Digest;
 use crate::imageio::{self, DecodeLimits, Encoded};
 use crate::job::{self, InvalidJob, Job, JobError, OutputSpec};
 use crate::manifest::{self, FileRef, JobRecord, Manifest, OutputRecord, RunFacts, SampleRecord, Status, Timing};
-use crate::methods::{Method, Request, Synthesis};
+use crate::methods::{ExtraContent, ExtraOutput, Method, Request, Synthesis};
 use crate::outdir::OutDir;
 use crate::params::Params;
 use crate::progress::Progress;
@@ -443,8 +443,7 @@ fn execute(p: &Prepared, out: &OutDir) -> Result<(Vec<OutputRecord>, Synthesis, 
         )
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
-    out.write(&job.output.path, &encoded.bytes)?;
-    let record = OutputRecord {
+    let mut records = vec![OutputRecord {
         path: job.output.path.clone(),
         format: job.output.format.name().to_string(),
         bit_depth: job.output.bit_depth,
@@ -452,8 +451,55 @@ fn execute(p: &Prepared, out: &OutDir) -> Result<(Vec<OutputRecord>, Synthesis, 
         height: job.output.height,
         file_digest: Digest::of_bytes(&encoded.bytes),
         pixel_digest: encoded.pixels.pixel_digest(),
-    };
-    Ok((vec![record], synthesis, seconds, metrics, metrics_seconds))
+    }];
+    // Extras first, the main output last: a job whose main output is in place is complete.
+    for extra in &synthesis.extras {
+        let (record, bytes) = encode_extra(&job.output.path, extra)?;
+        out.write(&record.path, &bytes)?;
+        records.push(record);
+    }
+    out.write(&job.output.path, &encoded.bytes)?;
+    Ok((records, synthesis, seconds, metrics, metrics_seconds))
+}
+
+/// Where an extra output of the job whose main output is `output_path` is stored:
+/// `{output_path without its extension}.{name}`.
+pub fn extra_path(output_path: &str, name: &str) -> Result<String, String> {
+    let bad = name.is_empty() || name.starts_with('/') || name.contains('\\') || name.split('/').any(|c| c.is_empty() || c == "." || c == "..");
+    if bad {
+        return Err(format!("extra output name `{name}` is not a plain relative path (a bug in the method)"));
+    }
+    let file_start = output_path.rfind('/').map_or(0, |i| i + 1);
+    let stem_end = output_path[file_start..].rfind('.').map_or(output_path.len(), |i| file_start + i);
+    Ok(format!("{}.{name}", &output_path[..stem_end]))
+}
+
+/// Encodes an extra output and describes it for the manifest. A JSON document's "pixel digest" is
+/// the digest of its bytes (it has no pixels; golden files compare it all the same).
+pub fn encode_extra(output_path: &str, extra: &ExtraOutput) -> Result<(OutputRecord, Vec<u8>), String> {
+    let path = extra_path(output_path, &extra.name)?;
+    match &extra.content {
+        ExtraContent::Rgba8 { width, height, data } => {
+            let encoded = imageio::encode_rgba8_png(*width, *height, data)?;
+            let record = OutputRecord {
+                path,
+                format: "png".into(),
+                bit_depth: 8,
+                width: *width,
+                height: *height,
+                file_digest: Digest::of_bytes(&encoded.bytes),
+                pixel_digest: encoded.pixels.pixel_digest(),
+            };
+            Ok((record, encoded.bytes))
+        }
+        ExtraContent::Json(value) => {
+            let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| format!("cannot encode `{}`: {e}", extra.name))?;
+            bytes.push(b'\n');
+            let digest = Digest::of_bytes(&bytes);
+            let record = OutputRecord { path, format: "json".into(), bit_depth: 0, width: 0, height: 0, file_digest: digest.clone(), pixel_digest: digest };
+            Ok((record, bytes))
+        }
+    }
 }
 
 /// Whether every metric the job now asks for is in the record.
@@ -482,4 +528,34 @@ fn hostname() -> String {
         .or_else(|_| std::fs::read_to_string("/etc/hostname"))
         .map(|s| s.trim().to_string())
         .unwrap_or_else(|_| "unknown".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extras_go_next_to_the_output_and_stay_inside_it() {
+        assert_eq!(extra_path("tiles/rw/bricks.png", "tiles/index.json").unwrap(), "tiles/rw/bricks.tiles/index.json");
+        assert_eq!(extra_path("a.b/out", "tiles/t.png").unwrap(), "a.b/out.tiles/t.png");
+        assert_eq!(extra_path("x.exr", "tiles/tile_00.png").unwrap(), "x.tiles/tile_00.png");
+        for bad in ["", "/etc/passwd", "../x", "tiles/../../x", "tiles//x", "a\\b", "./x"] {
+            assert!(extra_path("out.png", bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn json_extras_are_recorded_by_their_bytes() {
+        let extra = ExtraOutput { name: "tiles/index.json".into(), content: ExtraContent::Json(serde_json::json!({"b": 1, "a": [1, 2]})) };
+        let (rec, bytes) = encode_extra("o.png", &extra).unwrap();
+        assert_eq!(rec.path, "o.tiles/index.json");
+        assert_eq!((rec.format.as_str(), rec.width, rec.height), ("json", 0, 0));
+        assert_eq!(rec.pixel_digest, Digest::of_bytes(&bytes));
+        assert_eq!(serde_json::from_slice::<serde_json::Value>(&bytes).unwrap(), serde_json::json!({"a": [1, 2], "b": 1}));
+        let img = ExtraOutput { name: "tiles/t.png".into(), content: ExtraContent::Rgba8 { width: 2, height: 1, data: vec![1, 2, 3, 255, 4, 5, 6, 0] } };
+        let (rec, bytes) = encode_extra("o.png", &img).unwrap();
+        let back = imageio::decode_output(&bytes, DecodeLimits::default()).unwrap();
+        assert_eq!((rec.width, rec.height, back.channels), (2, 1, 4));
+        assert_eq!(back.pixel_digest(), rec.pixel_digest);
+    }
 }

@@ -112,7 +112,28 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
     }
     match runner::synthesize_and_encode(method, &loaded.image, &params, seed, &output) {
         Err(e) => problems.push(format!("re-run failed: {e}")),
-        Ok((_, encoded, _)) => {
+        Ok((synthesis, encoded, _)) => {
+            for extra in &synthesis.extras {
+                match runner::encode_extra(&output.path, extra) {
+                    Err(e) => problems.push(format!("re-run extra output `{}`: {e}", extra.name)),
+                    Ok((fresh, _)) => match rec.outputs.iter().find(|o| o.path == fresh.path) {
+                        None => problems.push(format!("the re-run also writes `{}`, which the record lacks", fresh.path)),
+                        Some(o) if o.pixel_digest != fresh.pixel_digest => problems.push(format!(
+                            "re-run differs from the record for `{}` (recorded {}, re-run {})",
+                            o.path,
+                            o.pixel_digest.short(),
+                            fresh.pixel_digest.short()
+                        )),
+                        Some(_) => {}
+                    },
+                }
+            }
+            let produced: Vec<String> = synthesis.extras.iter().filter_map(|e| runner::extra_path(&output.path, &e.name).ok()).collect();
+            for o in &rec.outputs {
+                if o.path != output.path && !produced.contains(&o.path) {
+                    problems.push(format!("the record lists `{}`, which a re-run does not produce", o.path));
+                }
+            }
             let fresh = encoded.pixels.pixel_digest();
             let scratch_file = scratch.join(crate::rng::fnv1a_64(&rec.id).to_string()).with_extension(output.format.name());
             let _ = std::fs::write(&scratch_file, &encoded.bytes);
@@ -135,7 +156,13 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
                 if Digest::of_bytes(&bytes) != o.file_digest {
                     problems.push(format!("output file `{}` differs from the recorded bytes", o.path));
                 }
-                match imageio::decode_native(&bytes, DecodeLimits::default()) {
+                if o.format == "json" {
+                    if Digest::of_bytes(&bytes) != o.pixel_digest {
+                        problems.push(format!("output file `{}` does not have the recorded content", o.path));
+                    }
+                    continue;
+                }
+                match imageio::decode_output(&bytes, DecodeLimits::default()) {
                     Ok(img) if img.pixel_digest() != o.pixel_digest => {
                         problems.push(format!("output file `{}` does not decode to the recorded pixels", o.path))
                     }

@@ -538,6 +538,7 @@ impl Method for Coevolution {
             seams: None,
             diagnostics,
             phases: vec![("tables".into(), tables_seconds), ("iterations".into(), iter_seconds)],
+            extras: Vec::new(),
         })
     }
 }

@@ -219,7 +219,7 @@ impl Method for DoubleSeam {
             "mean_candidates": set_sizes.iter().sum::<usize>() as f64 / n,
             "mean_f_max": f_max_sum / n,
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
     }
 }
 

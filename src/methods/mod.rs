@@ -39,12 +39,34 @@ pub struct Synthesis {
     /// Wall-clock seconds of named phases (e.g. table building vs iterations), for papers that
     /// report them separately. Not reproducible, so recorded with the job's timing, not its result.
     pub phases: Vec<(String, f64)>,
+    /// Further products a job asked for (e.g. an exported tile set), written next to the main
+    /// output and recorded, hashed and verified like it. Must be deterministic.
+    pub extras: Vec<ExtraOutput>,
 }
 
 impl Synthesis {
     pub fn new(image: RgbImage) -> Synthesis {
-        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new() }
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new(), extras: Vec::new() }
     }
+}
+
+/// A product besides the main image. The runner stores it at `{output path without its
+/// extension}.{name}`: for output `tiles/bricks.png` and name `tiles/index.json`, the file is
+/// `tiles/bricks.tiles/index.json`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtraOutput {
+    /// Relative name: `/`-separated, no `..`, no leading `/`.
+    pub name: String,
+    pub content: ExtraContent,
+}
+
+/// What an extra output holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ExtraContent {
+    /// An 8-bit RGBA image (`width × height × 4`, row-major), stored as PNG.
+    Rgba8 { width: u32, height: u32, data: Vec<u8> },
+    /// A JSON document, stored pretty-printed.
+    Json(serde_json::Value),
 }
 
 /// A synthesis method.

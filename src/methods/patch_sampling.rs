@@ -442,7 +442,7 @@ impl Method for PatchSampling {
         let image = canvas.crop(0, 0, req.width, req.height);
         let seams = layout.seam_grid(req.width, req.height);
         let diagnostics = diagnostics(&layout, &settings, &results);
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
     }
 }
 

@@ -133,7 +133,7 @@ impl Method for Quilting {
                 candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
             },
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
     }
 }
 

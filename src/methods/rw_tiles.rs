@@ -62,6 +62,12 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Str("keyed"),
         doc: "keyed: per-row streams from the tile column of pixel (0,0), so pixels do not depend on the output size; scanline: one stream over the output's lattice range (methods.md 3.6 as written)",
     },
+    ParamSpec {
+        name: "export_tiles",
+        kind: ParamKind::Bool,
+        default: Default::Bool(false),
+        doc: "also write the tile set next to the output: one RGBA PNG per tile and index.json (edge colours, placement), in `{output}.tiles/`; `texsyn tiles render` renders any size from it",
+    },
 ];
 
 /// Per-pixel cut cost (B1, or its square root for `pixel_error = "euclidean"`).
@@ -673,6 +679,7 @@ impl Method for RwTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
+            extras: if p.bool("export_tiles") { crate::tileset::export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }

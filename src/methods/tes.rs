@@ -265,7 +265,7 @@ impl Method for Tes {
             "iterations": iterations,
             "mean_fitness": history,
         });
-        Ok(Synthesis { image, seams: None, diagnostics, phases: vec![("iterations".into(), iter_seconds)] })
+        Ok(Synthesis { image, seams: None, diagnostics, phases: vec![("iterations".into(), iter_seconds)], extras: Vec::new() })
     }
 }
 

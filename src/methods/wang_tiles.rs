@@ -65,6 +65,12 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Str("keyed"),
         doc: "keyed: one stream per tile row, so pixels do not depend on the output size; scanline: one stream over all tiles (depends on the output width)",
     },
+    ParamSpec {
+        name: "export_tiles",
+        kind: ParamKind::Bool,
+        default: Default::Bool(false),
+        doc: "also write the tile set next to the output: one RGBA PNG per tile and index.json (edge colours, placement), in `{output}.tiles/`; `texsyn tiles render` renders any size from it",
+    },
 ];
 
 const UNSET: u8 = u8::MAX;
@@ -506,6 +512,7 @@ impl Method for WangTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
+            extras: if p.bool("export_tiles") { crate::tileset::export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }

@@ -431,9 +431,15 @@ fn params_label(jobs: &[&JobRecord], in_key: &[GroupKey]) -> String {
 /// A job's metrics, plus the numbers its method put in `diagnostics.summary` as `diag.<name>`
 /// (`null` there means "not applicable to this run", e.g. iterations of a failed search): that is
 /// how a method gets per-run figures such as paper 002's search success into the tables without
-/// changes here.
+/// changes here. The named phases of its synthesis time become `time.<phase>_seconds` (paper
+/// 001's tile-build and fill times, paper 000's iteration time).
 fn metrics_and_summary(job: &JobRecord) -> BTreeMap<String, Option<f64>> {
     let mut m = job.metrics.clone().unwrap_or_default();
+    if let Some(timing) = &job.timing {
+        for (phase, seconds) in &timing.phases {
+            m.insert(format!("time.{phase}_seconds"), Some(*seconds));
+        }
+    }
     if let Some(summary) = job.diagnostics.get("summary").and_then(|v| v.as_object()) {
         for (k, v) in summary {
             if v.is_number() || v.is_null() {
@@ -538,5 +544,17 @@ mod tests {
         assert_eq!(model.entries[0].metrics["diag.success"], Some(1.0));
         assert_eq!(model.entries[1].metrics["diag.iterations_when_successful"], None);
         assert!(!model.metric_names.iter().any(|n| n.contains("blocks")), "only the summary object counts");
+    }
+
+    #[test]
+    fn named_phases_become_time_columns() {
+        let mut a = job("a", "rw-tiles", 30, 1);
+        a["timing"] = serde_json::json!({"synthesis_seconds": 0.5, "metrics_seconds": 0.0, "phases": {"fill": 0.25, "tile_build": 0.125}, "total_seconds": 1.0, "finished_at": 1});
+        let b = job("b", "rw-tiles", 30, 2);
+        let model = build(&manifest(vec![a, b]), Path::new("."), &GroupBy::Auto);
+        assert_eq!(model.entries[0].metrics["time.tile_build_seconds"], Some(0.125));
+        assert_eq!(model.entries[0].metrics["time.fill_seconds"], Some(0.25));
+        assert!(!model.entries[1].metrics.contains_key("time.fill_seconds"));
+        assert!(model.metric_names.contains(&"time.fill_seconds".to_string()));
     }
 }
