@@ -101,6 +101,10 @@ enum Command {
         /// comma-separated keys among method, param:NAME, size, seed.
         #[arg(long, default_value = "auto")]
         group_by: texsyn::report::GroupBy,
+        /// Add speed-up tables: each group's time against this method's matching group (e.g.
+        /// `tes` for paper 000, `quilting` for paper 003).
+        #[arg(long)]
+        baseline: Option<String>,
     },
 }
 
@@ -360,8 +364,8 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::Report { manifest, out, group_by } => {
-            match texsyn::report::report(&texsyn::report::ReportOptions { manifest, out, group_by }) {
+        Command::Report { manifest, out, group_by, baseline } => {
+            match texsyn::report::report(&texsyn::report::ReportOptions { manifest, out, group_by, baseline }) {
                 Err(e) => {
                     eprintln!("error: {e}");
                     ExitCode::from(2)

@@ -39,6 +39,9 @@ pub struct ReportOptions {
     pub manifest: PathBuf,
     pub out: PathBuf,
     pub group_by: GroupBy,
+    /// A method to compare the others' times with (`tes` for paper 000's Table 2): adds speed-up
+    /// tables (`tables/speedup_*.csv` and a section of `tables.md`).
+    pub baseline: Option<String>,
 }
 
 /// What was written, and what could not be shown.
@@ -311,7 +314,19 @@ pub fn report(opts: &ReportOptions) -> Result<ReportSummary, String> {
     }
     w.put(&assets.csv_all.clone(), tables::csv_all(&m, &tables).as_bytes())?;
     w.put(&assets.jobs_csv.clone(), tables::jobs_csv(&m).as_bytes())?;
-    w.put(&assets.markdown.clone(), tables::markdown(&m, &tables, &source).as_bytes())?;
+    let mut markdown = tables::markdown(&m, &tables, &source);
+    if let Some(baseline) = &opts.baseline {
+        if !m.groups.iter().any(|g| g.method.as_deref() == Some(baseline.as_str())) {
+            problems.push(format!("--baseline {baseline}: no counted job of that method; no speed-up tables"));
+        }
+        let speedups = tables::speedups(&m, &tables, baseline);
+        for t in &speedups {
+            let rel = format!("tables/speedup_{}.csv", fmt::file_stem(&t.measure));
+            w.put(&rel, tables::speedup_csv(&m, t).as_bytes())?;
+        }
+        markdown.push_str(&tables::speedup_markdown(&m, &speedups));
+    }
+    w.put(&assets.markdown.clone(), markdown.as_bytes())?;
 
     let digest_ok = manifest.recompute_digest() == manifest.deterministic_digest;
     if !digest_ok {

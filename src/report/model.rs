@@ -143,6 +143,11 @@ pub fn param_text(v: &Value) -> String {
 pub struct Group {
     /// `quilting`, `quilting block=50`.
     pub label: String,
+    /// The jobs' method.
+    pub method: Option<String>,
+    /// The grouping keys other than the method, with this group's value of each
+    /// (`("param:block", "50")`), so groups of different methods can be paired.
+    pub key: Vec<(String, String)>,
     /// The parameters not in the key, each with its value(s) in this group (`overlap=8`, or
     /// `overlap=8|10` where they differ), for captions.
     pub params_label: String,
@@ -374,7 +379,18 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
         .map(|(gi, (_, label))| {
             let jobs: Vec<&JobRecord> = counted.iter().zip(&entries).filter(|(_, e)| e.group == gi).map(|(j, _)| *j).collect();
             let in_key = jobs.first().map(|j| method_keys[&j.method].clone()).unwrap_or_default();
-            Group { label: label.clone(), params_label: params_label(&jobs, &in_key) }
+            let key = jobs
+                .first()
+                .map(|j| {
+                    in_key
+                        .iter()
+                        .filter(|k| **k != GroupKey::Method)
+                        .map(|k| (GroupBy::Keys(vec![k.clone()]).to_string(), key_value(j, k).text()))
+                        .collect()
+                })
+                .unwrap_or_default();
+            let method = jobs.first().and_then(|j| j.method.clone());
+            Group { label: label.clone(), method, key, params_label: params_label(&jobs, &in_key) }
         })
         .collect();
 
@@ -544,6 +560,37 @@ mod tests {
         assert_eq!(model.entries[0].metrics["diag.success"], Some(1.0));
         assert_eq!(model.entries[1].metrics["diag.iterations_when_successful"], None);
         assert!(!model.metric_names.iter().any(|n| n.contains("blocks")), "only the summary object counts");
+    }
+
+    #[test]
+    fn speedups_pair_each_group_with_the_baselines_matching_group() {
+        let timed = |id: &str, method: &str, rows: u32, seed: u64, seconds: f64| {
+            let mut j = job(id, method, 30, seed);
+            j["params"] = serde_json::json!({"rows": rows, "c_tol": if method == "coevolution" { 0.05 } else { 0.0 }});
+            j["timing"] = serde_json::json!({"synthesis_seconds": seconds, "metrics_seconds": 0.0, "phases": {}, "total_seconds": seconds, "finished_at": 1});
+            j
+        };
+        let m = manifest(vec![
+            timed("c8a", "coevolution", 8, 1, 0.5),
+            timed("c8b", "coevolution", 8, 2, 1.5),
+            timed("c32", "coevolution", 32, 1, 2.0),
+            timed("t8", "tes", 8, 1, 4.0),
+            timed("t32", "tes", 32, 1, 20.0),
+            timed("t12", "tes", 12, 1, 7.0),
+        ]);
+        let model = build(&m, Path::new("."), &GroupBy::Auto);
+        let tables = crate::report::tables::build(&model);
+        let s = crate::report::tables::speedups(&model, &tables, "tes");
+        assert_eq!(s.len(), 1, "only the synthesis time is recorded");
+        let label = |g: usize| model.groups[g].label.clone();
+        let pairs: Vec<(String, String)> = s[0].pairs.iter().map(|&(g, b)| (label(g), label(b))).collect();
+        assert_eq!(pairs, [("coevolution rows=8".to_string(), "tes rows=8".to_string()), ("coevolution rows=32".into(), "tes rows=32".into())]);
+        // Ratio of the cells' means: 4.0 / mean(0.5, 1.5) and 20 / 2.
+        assert_eq!(s[0].cells[0], [Some(4.0), Some(10.0)]);
+        assert_eq!(s[0].mean[1], (Some(10.0), 1));
+        let md = crate::report::tables::speedup_markdown(&model, &s);
+        assert!(md.contains("| 4.000× | 10.00× |"), "{md}");
+        assert!(crate::report::tables::speedups(&model, &tables, "nonexistent").is_empty());
     }
 
     #[test]

@@ -127,6 +127,122 @@ pub fn build(model: &Model) -> Vec<Table> {
         .collect()
 }
 
+/// Speed-up of each group over a baseline method's matching group, for one time measure:
+/// `baseline mean / group mean` per sample (above 1: faster than the baseline).
+#[derive(Clone, Debug)]
+pub struct Speedup {
+    pub measure: String,
+    pub baseline: String,
+    pub title: String,
+    /// `(group, baseline group)`, one per column.
+    pub pairs: Vec<(usize, usize)>,
+    /// `cells[sample][pair]`; `None` where either side has no time for that sample.
+    pub cells: Vec<Vec<Option<f64>>>,
+    /// Mean over the samples with a ratio (and how many).
+    pub mean: Vec<(Option<f64>, usize)>,
+}
+
+/// Whether a measure is a time (the synthesis time or a named phase).
+pub fn is_time(measure: &str) -> bool {
+    measure == TIME || (measure.starts_with("time.") && measure.ends_with("_seconds"))
+}
+
+/// The baseline group a group is compared with: the one baseline group whose values agree with
+/// the group's on every grouping key both have (paper 000's `rows`/`cols`, paper 003's `block`).
+/// `None` when no or several baseline groups agree (the pairing would be a guess).
+fn baseline_group(model: &Model, g: usize, baseline: &str) -> Option<usize> {
+    let group = &model.groups[g];
+    let matches: Vec<usize> = (0..model.groups.len())
+        .filter(|&b| model.groups[b].method.as_deref() == Some(baseline))
+        .filter(|&b| {
+            model.groups[b].key.iter().all(|(name, value)| group.key.iter().all(|(n, v)| n != name || v == value))
+        })
+        .collect();
+    (matches.len() == 1).then(|| matches[0])
+}
+
+/// One speed-up table per time measure with at least one defined ratio.
+pub fn speedups(model: &Model, tables: &[Table], baseline: &str) -> Vec<Speedup> {
+    let pairs: Vec<(usize, usize)> = (0..model.groups.len())
+        .filter(|&g| model.groups[g].method.as_deref() != Some(baseline))
+        .filter_map(|g| baseline_group(model, g, baseline).map(|b| (g, b)))
+        .collect();
+    tables
+        .iter()
+        .filter(|t| is_time(&t.measure))
+        .filter_map(|t| {
+            let cells: Vec<Vec<Option<f64>>> = t
+                .cells
+                .iter()
+                .map(|row| {
+                    pairs
+                        .iter()
+                        .map(|&(g, b)| match (row[g].as_ref().and_then(|c| c.mean), row[b].as_ref().and_then(|c| c.mean)) {
+                            (Some(x), Some(base)) if x > 0.0 => Some(base / x),
+                            _ => None,
+                        })
+                        .collect()
+                })
+                .collect();
+            let mean: Vec<(Option<f64>, usize)> = (0..pairs.len())
+                .map(|i| {
+                    let v: Vec<f64> = cells.iter().filter_map(|row| row[i]).collect();
+                    ((!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64), v.len())
+                })
+                .collect();
+            mean.iter().any(|m| m.0.is_some()).then(|| Speedup {
+                measure: t.measure.clone(),
+                baseline: baseline.to_string(),
+                title: format!("Speed-up over {baseline} — {}: {baseline}'s mean time / the column's (above 1: faster)", t.measure),
+                pairs: pairs.clone(),
+                cells,
+                mean,
+            })
+        })
+        .collect()
+}
+
+/// The speed-up tables as Markdown, to append to the report's tables.
+pub fn speedup_markdown(model: &Model, speedups: &[Speedup]) -> String {
+    let esc = |s: &str| s.replace('|', "\\|");
+    let mut out = String::new();
+    for t in speedups {
+        out.push_str(&format!("## {}\n\n", t.title));
+        let mut header = vec!["sample".to_string()];
+        header.extend(t.pairs.iter().map(|&(g, b)| format!("{} (vs {})", esc(&model.groups[g].label), esc(&model.groups[b].label))));
+        out.push_str(&format!("| {} |\n|{}\n", header.join(" | "), "---|".repeat(header.len())));
+        for (s, row) in t.cells.iter().enumerate() {
+            let mut cols = vec![esc(&model.samples[s].key)];
+            cols.extend(row.iter().map(|c| c.map_or("—".into(), |r| format!("{}×", fmt::sig(r)))));
+            out.push_str(&format!("| {} |\n", cols.join(" | ")));
+        }
+        let mut cols = vec!["**mean**".to_string()];
+        cols.extend(t.mean.iter().map(|(m, n)| match m {
+            None => "—".into(),
+            Some(m) if *n == model.samples.len() => format!("**{}×**", fmt::sig(*m)),
+            Some(m) => format!("**{}×** ({n}/{} samples)", fmt::sig(*m), model.samples.len()),
+        }));
+        out.push_str(&format!("| {} |\n\n", cols.join(" | ")));
+    }
+    out
+}
+
+/// A speed-up table as CSV: `sample`, then one exact ratio column per pair; a mean row last.
+pub fn speedup_csv(model: &Model, t: &Speedup) -> String {
+    let mut header = vec!["sample".to_string()];
+    header.extend(t.pairs.iter().map(|&(g, b)| fmt::csv(&format!("{} vs {}", model.groups[g].label, model.groups[b].label))));
+    let mut out = header.join(",") + "\n";
+    for (s, row) in t.cells.iter().enumerate() {
+        let mut cols = vec![fmt::csv(&model.samples[s].key)];
+        cols.extend(row.iter().map(|c| opt(*c)));
+        out.push_str(&(cols.join(",") + "\n"));
+    }
+    let mut cols = vec!["mean".to_string()];
+    cols.extend(t.mean.iter().map(|(m, _)| opt(*m)));
+    out.push_str(&(cols.join(",") + "\n"));
+    out
+}
+
 fn sizes_of_outputs(model: &Model, sample: usize) -> String {
     let mut sizes: Vec<(u64, String)> = model
         .entries
