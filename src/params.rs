@@ -45,6 +45,10 @@ pub enum ParamKind {
     Float { min: f64, max: f64 },
     Bool,
     Choice(&'static [&'static str]),
+    /// An integer in `min..=max`, or the one word `word` for a value the method works out itself
+    /// (e.g. `rows = "cover"`: as many lattice rows as cover the output), so that a literal 0
+    /// never has to mean "automatic" and can be refused.
+    IntOr { min: i64, max: i64, word: &'static str },
 }
 
 impl ParamKind {
@@ -55,6 +59,7 @@ impl ParamKind {
             ParamKind::Float { min, max } => format!("float in [{}, {}]", fmt_f(*min), fmt_f(*max)),
             ParamKind::Bool => "boolean".into(),
             ParamKind::Choice(c) => format!("one of {}", c.join(" | ")),
+            ParamKind::IntOr { min, max, word } => format!("integer in {min}..={max} or {word:?}"),
         }
     }
 }
@@ -121,6 +126,20 @@ impl ParamSpec {
                 }
             }
             (ParamKind::Bool, ParamValue::Bool(_)) => Ok(value.clone()),
+            (ParamKind::IntOr { min, max, word }, ParamValue::Int(v)) => {
+                if v < min || v > max {
+                    Err(format!("{v} is out of range: allowed {min}..={max}, or {word:?}"))
+                } else {
+                    Ok(value.clone())
+                }
+            }
+            (ParamKind::IntOr { word, .. }, ParamValue::Str(s)) => {
+                if s == word {
+                    Ok(value.clone())
+                } else {
+                    Err(format!("{s:?} is not allowed: expected {}", self.kind.describe()))
+                }
+            }
             (ParamKind::Choice(choices), ParamValue::Str(s)) => {
                 if choices.contains(&s.as_str()) {
                     Ok(value.clone())
@@ -139,6 +158,7 @@ fn kind_noun(kind: &ParamKind) -> &'static str {
         ParamKind::Float { .. } => "a number",
         ParamKind::Bool => "a boolean (true or false)",
         ParamKind::Choice(_) => "a string",
+        ParamKind::IntOr { .. } => "an integer or a word",
     }
 }
 
@@ -179,6 +199,15 @@ impl Params {
             Some(ParamValue::Float(v)) => *v,
             Some(ParamValue::Int(v)) => *v as f64,
             other => panic!("parameter {name} is not a resolved float: {other:?}"),
+        }
+    }
+
+    /// An [`ParamKind::IntOr`] parameter: `Some(n)`, or `None` for its word.
+    pub fn int_or_word(&self, name: &str) -> Option<i64> {
+        match self.0.get(name) {
+            Some(ParamValue::Int(v)) => Some(*v),
+            Some(ParamValue::Str(_)) => None,
+            other => panic!("parameter {name} is not a resolved integer or word: {other:?}"),
         }
     }
 
@@ -350,6 +379,20 @@ mod tests {
         assert_eq!(errs[0].key, "overlap");
         assert!(errs[0].message.contains("(round(block / 6)) gives 1"), "{}", errs[0].message);
         assert!(errs[0].message.contains("set it explicitly"));
+    }
+
+    #[test]
+    fn int_or_word_takes_a_number_in_range_or_its_word_only() {
+        const S: &[ParamSpec] =
+            &[ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 64, word: "cover" }, default: Default::Str("cover"), doc: "" }];
+        assert_eq!(resolve(S, &[]).unwrap().int_or_word("rows"), None);
+        assert_eq!(resolve(S, &given(&[("rows", ParamValue::Int(8))])).unwrap().int_or_word("rows"), Some(8));
+        let zero = resolve(S, &given(&[("rows", ParamValue::Int(0))])).unwrap_err();
+        assert!(zero[0].message.contains("out of range: allowed 1..=64, or \"cover\""), "{}", zero[0].message);
+        let word = resolve(S, &given(&[("rows", ParamValue::Str("auto".into()))])).unwrap_err();
+        assert!(word[0].message.contains("integer in 1..=64 or \"cover\""), "{}", word[0].message);
+        let float = resolve(S, &given(&[("rows", ParamValue::Float(2.5))])).unwrap_err();
+        assert!(float[0].message.contains("expected an integer or a word"), "{}", float[0].message);
     }
 
     #[test]
