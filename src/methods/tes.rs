@@ -175,7 +175,7 @@ impl Method for Tes {
         1
     }
     fn summary(&self) -> &'static str {
-        "TES (reconstructed, methods.md §2.11): bounding-box blocks that settle, duel and die; the baseline of paper 000"
+        "TES (reconstructed): bounding-box blocks that settle, duel and die; the baseline of paper 000 (methods.md §2.11)"
     }
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS

@@ -234,9 +234,19 @@ fn key_value(job: &JobRecord, k: &GroupKey) -> KeyValue {
     }
 }
 
+/// How a method is shown to readers of a report: the job-file name, except that results of a
+/// baseline we had to reconstruct from an outline are marked as such (methods.md §2.11).
+pub fn method_label(name: &str) -> String {
+    match name {
+        "tes" => "TES (reconstructed)".into(),
+        other => other.into(),
+    }
+}
+
 fn key_text(k: &GroupKey, v: &KeyValue) -> String {
     match k {
-        GroupKey::Method | GroupKey::Size => v.text(),
+        GroupKey::Method => method_label(&v.text()),
+        GroupKey::Size => v.text(),
         GroupKey::Param(p) => format!("{p}={}", v.text()),
         GroupKey::Seed => format!("seed={}", v.text()),
     }
@@ -526,6 +536,14 @@ mod tests {
     }
 
     #[test]
+    fn reconstructed_baselines_are_labelled() {
+        let m = manifest(vec![job("a", "tes", 50, 1), job("b", "coevolution", 50, 1)]);
+        let model = build(&m, Path::new("."), &"method".parse().unwrap());
+        let labels: Vec<&str> = model.groups.iter().map(|g| g.label.as_str()).collect();
+        assert_eq!(labels, ["coevolution", "TES (reconstructed)"]);
+    }
+
+    #[test]
     fn auto_grouping_separates_settings_and_pools_seeds() {
         let m = manifest(vec![
             job("a", "quilting", 50, 1),
@@ -584,7 +602,11 @@ mod tests {
         assert_eq!(s.len(), 1, "only the synthesis time is recorded");
         let label = |g: usize| model.groups[g].label.clone();
         let pairs: Vec<(String, String)> = s[0].pairs.iter().map(|&(g, b)| (label(g), label(b))).collect();
-        assert_eq!(pairs, [("coevolution rows=8".to_string(), "tes rows=8".to_string()), ("coevolution rows=32".into(), "tes rows=32".into())]);
+        assert_eq!(
+            pairs,
+            [("coevolution rows=8".to_string(), "TES (reconstructed) rows=8".to_string()), ("coevolution rows=32".into(), "TES (reconstructed) rows=32".into())]
+        );
+        assert!(s[0].title.starts_with("Speed-up over TES (reconstructed) — "), "{}", s[0].title);
         // Ratio of the cells' means: 4.0 / mean(0.5, 1.5) and 20 / 2.
         assert_eq!(s[0].cells[0], [Some(4.0), Some(10.0)]);
         assert_eq!(s[0].mean[1], (Some(10.0), 1));

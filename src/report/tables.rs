@@ -193,7 +193,7 @@ pub fn speedups(model: &Model, tables: &[Table], baseline: &str) -> Vec<Speedup>
             mean.iter().any(|m| m.0.is_some()).then(|| Speedup {
                 measure: t.measure.clone(),
                 baseline: baseline.to_string(),
-                title: format!("Speed-up over {baseline} — {}: {baseline}'s mean time / the column's (above 1: faster)", t.measure),
+                title: format!("Speed-up over {shown} — {}: {shown}'s mean time / the column's (above 1: faster)", t.measure, shown = super::model::method_label(baseline)),
                 pairs: pairs.clone(),
                 cells,
                 mean,
