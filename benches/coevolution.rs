@@ -3,7 +3,7 @@
 //! jobs, and once more given explicitly to show the cost without the shared extraction) for output lattices of 8×8, 12×12, 20×20 and 32×32 texels, with the parameters of
 //! `jobs/papers/000/*.toml` (output 26·N px square, seed 1, defaults otherwise), on 1 and 2
 //! threads. For co-evolution the whole synthesis call ("total") is split with the method's
-//! `phases`: `tables` (lattice extraction, `E_I` and the `H`/`V` tables) and `iterations`
+//! `phases`: `lattice` (extraction, or nothing when given), `tables` (`E_I` and the `H`/`V` tables) and `iterations`
 //! (initialisation and evolution); rendering and feathering are the rest. The speed-up is TES time /
 //! co-evolution total time, as in the paper. Image quilting (block 27 ≈ the texel, its default
 //! overlap) at the 20×20 job's output size (520×520) gives the "vs image quilting" ratios.
@@ -39,14 +39,15 @@ fn call(method: &str, sample: &RgbImage, size: u32, given: &[(&str, ParamValue)]
     (t.elapsed().as_secs_f64(), s)
 }
 
-/// Medians over `runs` calls after one warm-up: (total, phase "tables", phase "iterations",
-/// iterations run).
-fn timed(runs: usize, method: &str, sample: &RgbImage, size: u32, given: &[(&str, ParamValue)]) -> (f64, f64, f64, u64) {
+/// Medians over `runs` calls after one warm-up: (total, phase "lattice", phase "tables", phase
+/// "iterations", iterations run).
+fn timed(runs: usize, method: &str, sample: &RgbImage, size: u32, given: &[(&str, ParamValue)]) -> (f64, f64, f64, f64, u64) {
     call(method, sample, size, given);
     let results: Vec<(f64, Synthesis)> = (0..runs).map(|_| call(method, sample, size, given)).collect();
     let iterations = results[0].1.diagnostics["iterations"].as_u64().unwrap_or(0);
     (
         median(results.iter().map(|r| r.0).collect()),
+        median(results.iter().map(|r| phase(&r.1, "lattice")).collect()),
         median(results.iter().map(|r| phase(&r.1, "tables")).collect()),
         median(results.iter().map(|r| phase(&r.1, "iterations")).collect()),
         iterations,
@@ -65,7 +66,7 @@ fn main() {
     let found = extract(&sample, &LatticeOptions::default()).unwrap();
     assert_eq!((found.t1, found.t2), ((27, 0), (0, 26)), "the \"lattice given\" rows assume the extracted lattice");
     println!("metal_tread_studs 256x256, seed 1; median of {runs} runs after a warm-up, seconds");
-    println!("coevolution total = whole call; tables = lattice extraction + E_I + H/V; iter = initialisation + evolution");
+    println!("coevolution total = whole call; lattice = extraction; tables = E_I + H/V; iter = initialisation + evolution");
     println!("\"lattice given\": t1 = (27, 0), t2 = (0, 26) as params (the extracted vectors, same pixels), no extraction");
     println!("speed-up = TES / coevolution total (paper 000 Table 2: 62.9, 131.6, 233.9, 334.2)");
     for threads in [1usize, 2] {
@@ -91,11 +92,12 @@ fn main() {
             // also shows the methods' own cost without the shared extraction.
             let given = [jobs[0].clone(), jobs[1].clone(), ("t1_x", ParamValue::Int(27)), ("t2_y", ParamValue::Int(26))];
             for (label, params) in [("lattice extracted (as the jobs)", &jobs[..]), ("lattice given", &given[..])] {
-                let (total, tables, iter, it_c) = pool.install(|| timed(runs, "coevolution", &sample, size, params));
-                let (tes, _, _, it_t) = pool.install(|| timed(runs, "tes", &sample, size, params));
+                let (total, lattice, tables, iter, it_c) = pool.install(|| timed(runs, "coevolution", &sample, size, params));
+                let (tes, _, _, tes_iter, it_t) = pool.install(|| timed(runs, "tes", &sample, size, params));
                 println!(
-                    "{threads} thread(s)  {n:>2}x{n:<2} ({size}x{size})  {label:<31}  coevolution total {total:>8.4} s (tables {tables:>7.4}, iter {iter:>7.4}; {it_c:>2} iterations)  TES (reconstructed) {tes:>8.4} s ({it_t:>2} iterations)  speed-up {:>7.2}",
-                    tes / total
+                    "{threads} thread(s)  {n:>2}x{n:<2} ({size}x{size})  {label:<31}  coevolution total {total:>8.4} s (lattice {lattice:>7.4}, tables {tables:>7.4}, iter {iter:>7.4}; {it_c:>2} iterations)  TES (reconstructed) {tes:>8.4} s (iter {tes_iter:>7.4}; {it_t:>2} iterations)  speed-up {:>7.2}  iteration speed-up {:>7.1}",
+                    tes / total,
+                    tes_iter / iter
                 );
                 if n == 20 && params.len() == 2 {
                     at_20 = (total, tes);

@@ -462,6 +462,18 @@ fn cases() -> Vec<Case> {
             "unknown placeholder `{foo}`",
             vec!["bad.toml:5:8", "`output.path`"],
         ),
+        jobs_case(
+            "lattice_rows_zero",
+            base_with(2, r#"method = "coevolution""#).replace("block = 16\n", "rows = 0\ncols = 4\n"),
+            "0 is out of range: allowed 1..=4096, or \"cover\"",
+            vec!["bad.toml:9:1", "`params.rows`"],
+        ),
+        jobs_case(
+            "tile_odd_overlap",
+            base_with(2, r#"method = "rw-tiles""#).replace("block = 16\n", "tile = 32\noverlap = 5\n"),
+            "overlap 5 must be even",
+            vec!["bad.toml:10:", "`params.overlap`"],
+        ),
         // --- sweeps ---------------------------------------------------------------------------
         jobs_case(
             "sweep_unknown_key",

@@ -63,8 +63,8 @@ pub(crate) const LATTICE_PARAMS: [ParamSpec; 7] = [
     ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
     ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
     ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
-    ParamSpec { name: "rows", kind: ParamKind::Int { min: 0, max: 4096 }, default: Default::Int(0), doc: "output lattice rows (along t2); 0 = enough to cover the output" },
-    ParamSpec { name: "cols", kind: ParamKind::Int { min: 0, max: 4096 }, default: Default::Int(0), doc: "output lattice columns (along t1); 0 = enough to cover the output" },
+    ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice rows (along t2), or \"cover\": enough to cover the output" },
+    ParamSpec { name: "cols", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice columns (along t1), or \"cover\": enough to cover the output" },
     ParamSpec { name: "fill", kind: ParamKind::Choice(&["error", "black"]), default: Default::Str("error"), doc: "output pixels the lattice does not cover: an error, or black" },
 ];
 
@@ -368,16 +368,16 @@ pub(crate) fn check_lattice_params(p: &Params, sample: (u32, u32)) -> Vec<ParamE
             errors.push(ParamError::new("t1_x", format!("a texel spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
         }
     }
-    if (p.int("rows") == 0) != (p.int("cols") == 0) {
-        errors.push(ParamError::new("rows", "give both rows and cols, or neither (0 = cover the output)"));
+    if p.int_or_word("rows").is_none() != p.int_or_word("cols").is_none() {
+        errors.push(ParamError::new("rows", "give both rows and cols as numbers, or neither (\"cover\": as many as cover the output)"));
     }
     errors
 }
 
 /// Where the output lattice sits: its size and the output position of cell (0, 0)'s origin.
 pub(crate) fn place(g: &Geometry, p: &Params, width: u32, height: u32) -> (usize, usize, (i64, i64)) {
-    let (rows, cols) = (p.int("rows"), p.int("cols"));
-    if rows == 0 {
+    let (rows, cols) = (p.int_or_word("rows").unwrap_or(0), p.int_or_word("cols").unwrap_or(0));
+    if rows == 0 || cols == 0 {
         let corners = [(0, 0), (width as i64 - 1, 0), (0, height as i64 - 1), (width as i64 - 1, height as i64 - 1)];
         let cells: Vec<(i64, i64)> = corners.iter().map(|&c| g.cell_of(c)).collect();
         let (m0, m1) = (cells.iter().map(|c| c.0).min().unwrap(), cells.iter().map(|c| c.0).max().unwrap());
@@ -445,7 +445,7 @@ pub(crate) fn render(
     }
     if uncovered > 0 && !fill_black {
         return Err(format!(
-            "the {rows}x{cols} lattice leaves {uncovered} of the {width}x{height} output pixels uncovered; use more rows/cols, rows = cols = 0, or fill = \"black\""
+            "the {rows}x{cols} lattice leaves {uncovered} of the {width}x{height} output pixels uncovered; use more rows/cols, rows = cols = \"cover\", or fill = \"black\""
         ));
     }
     Ok(out)
@@ -687,6 +687,8 @@ impl Method for Coevolution {
         let sample = req.sample;
         let started = Instant::now();
         let (t1, t2, source) = lattice_vectors(p, sample)?;
+        let lattice_seconds = started.elapsed().as_secs_f64();
+        let started = Instant::now();
         let g = Geometry::new(t1, t2);
         let (w, h) = (sample.width() as i64, sample.height() as i64);
         let shape = Shape::new(&g, p.str("mask"));
@@ -830,7 +832,7 @@ impl Method for Coevolution {
             image,
             seams: None,
             diagnostics,
-            phases: vec![("tables".into(), tables_seconds), ("iterations".into(), iter_seconds)],
+            phases: vec![("lattice".into(), lattice_seconds), ("tables".into(), tables_seconds), ("iterations".into(), iter_seconds)],
             extras: Vec::new(),
         })
     }

@@ -189,6 +189,8 @@ impl Method for Tes {
         let sample = req.sample;
         let started = Instant::now();
         let (t1, t2, source) = lattice_vectors(p, sample)?;
+        let lattice_seconds = started.elapsed().as_secs_f64();
+        let started = Instant::now();
         let g = Geometry::new(t1, t2);
         let tex = texels(&g, sample.width() as i64, sample.height() as i64);
         let s = tex.len();
@@ -205,13 +207,13 @@ impl Method for Tes {
             ovw: ((bw as f64 / 6.0).round() as i64).max(2).min(bw),
             ovh: ((bh as f64 / 6.0).round() as i64).max(2).min(bh),
         };
-        let (rows, cols) = match (p.int("rows"), p.int("cols")) {
-            (0, _) | (_, 0) => ((req.height as u64).div_ceil(bh as u64) as usize, (req.width as u64).div_ceil(bw as u64) as usize),
-            (r, c) => (r as usize, c as usize),
+        let (rows, cols) = match (p.int_or_word("rows"), p.int_or_word("cols")) {
+            (None, _) | (_, None) => ((req.height as u64).div_ceil(bh as u64) as usize, (req.width as u64).div_ceil(bw as u64) as usize),
+            (Some(r), Some(c)) => (r as usize, c as usize),
         };
         if ((cols as i64) * bw < req.width as i64 || (rows as i64) * bh < req.height as i64) && p.str("fill") != "black" {
             return Err(format!(
-                "the {rows}x{cols} grid of {bw}x{bh} blocks does not cover the {}x{} output; use more rows/cols, rows = cols = 0, or fill = \"black\"",
+                "the {rows}x{cols} grid of {bw}x{bh} blocks does not cover the {}x{} output; use more rows/cols, rows = cols = \"cover\", or fill = \"black\"",
                 req.width, req.height
             ));
         }
@@ -265,7 +267,7 @@ impl Method for Tes {
             "iterations": iterations,
             "mean_fitness": history,
         });
-        Ok(Synthesis { image, seams: None, diagnostics, phases: vec![("iterations".into(), iter_seconds)], extras: Vec::new() })
+        Ok(Synthesis { image, seams: None, diagnostics, phases: vec![("lattice".into(), lattice_seconds), ("iterations".into(), iter_seconds)], extras: Vec::new() })
     }
 }
 
