@@ -11,6 +11,7 @@ pub mod patch_sampling;
 pub mod quilting;
 pub mod rw_tiles;
 pub mod tes;
+pub mod tile_align;
 pub mod wang_tiles;
 
 use crate::params::{ParamError, ParamSpec, Params};

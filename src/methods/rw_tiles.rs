@@ -11,7 +11,11 @@
 //! The filling is keyed by position by default (`tiling = "keyed"`): the tile at lattice position
 //! `(i, j)` does not depend on the output size or on the thread count, so a smaller output is
 //! exactly a crop of a larger one with the same seed.
+//!
+//! `align = "lattice"` (not in the paper) places the patches in phase on the sample's lattice so
+//! that near-regular patterns continue through the seams ([`RwAlign`], [`super::tile_align`]).
 
+use super::tile_align::{self, Alignment, Overlap, V, best_offset, overlap_error};
 use super::{Method, Request, Synthesis};
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::primitives::overlap::pixel_error;
@@ -56,6 +60,16 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Int(1),
         doc: "1: the four patches are drawn at random (paper); N > 1: N random patch choices are built and, among those whose patches all have at least half the sample's contrast, the one with the smallest total seam cost is kept (not in the paper; helps structured samples)",
     },
+    ParamSpec {
+        name: "align",
+        kind: ParamKind::Choice(&["none", "lattice"]),
+        default: Default::Str("none"),
+        doc: "none: the four patches at independent random positions (paper); lattice: the first at random, the others at lattice translates of their in-phase positions, so the seams join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+    },
+    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
+    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
+    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
+    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
     ParamSpec {
         name: "tiling",
         kind: ParamKind::Choice(&["keyed", "scanline"]),
@@ -292,18 +306,128 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(RwTileSet, usize), String> {
+    build_tile_set_aligned(sample, tile, ov, set, err, seed, candidates, None)
+}
+
+/// One candidate's patch corners: `([PA[0], PA[1]], [PB[0], PB[1]])`.
+type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
+
+/// `align = "lattice"` for RW-Tiles (phase analysis in [`super::tile_align`]). Class A are the
+/// "/" patches `PA` (framework origins `(0, 0)` as B1, `(h, h)` as B3: translation `h(1, 1)`),
+/// class B the "\" patches `PB` (`(h, 0)` as B2, `(0, h)` as B4: translation `h(−1, 1)`, the
+/// difference of the B4 and B2 phases). The phases are taken in the B1 and B2 roles,
+/// `ψ_A = PA`, `ψ_B = PB − (h, 0)`, `δ = ψ_A − ψ_B`.
+#[derive(Clone, Debug)]
+pub struct RwAlign {
+    pub lattice: Alignment,
+    /// `δ`.
+    pub offset: V,
+    /// Phase error of each seam: the strips B1|B2, B2|B3, B3|B4, B4|B1 and the centre's diagonal
+    /// pairs B1|B3, B2|B4, in pixels as a vector.
+    pub errors: [(&'static str, V); 6],
+}
+
+impl RwAlign {
+    /// The tile translation vectors `h(1, 1), h(−1, 1)` for tile `T = 2h`.
+    pub fn vectors(tile: i64) -> [V; 2] {
+        let h = tile / 2;
+        [(h, h), (-h, h)]
+    }
+
+    pub fn new(lattice: Alignment, g: &Geometry) -> RwAlign {
+        let [va, vb] = RwAlign::vectors(g.tile() as i64);
+        let (ra, rb) = (lattice.residual(va), lattice.residual(vb));
+        let errors = move |d: V| -> [(&'static str, V); 6] {
+            [
+                ("B1|B2", d),
+                ("B2|B3", (ra.0 - d.0, ra.1 - d.1)),
+                ("B3|B4", (d.0 - ra.0 + rb.0, d.1 - ra.1 + rb.1)),
+                ("B4|B1", (-d.0 - rb.0, -d.1 - rb.1)),
+                ("B1|B3", ra),
+                ("B2|B4", rb),
+            ]
+        };
+        let centre = ((ra.0 - rb.0) as f64 / 2.0, (ra.1 - rb.1) as f64 / 2.0);
+        let offset = best_offset(centre, |d| errors(d)[..4].iter().map(|e| e.1).collect());
+        RwAlign { lattice, offset, errors: errors(offset) }
+    }
+
+    /// Patch corners for one candidate: `PA[0]` is `first`; `PA[1]` a lattice translate of it,
+    /// `PB[0]`, `PB[1]` lattice translates of `ψ_A − δ + (h, 0)`, drawn from `st` (one draw each)
+    /// among the corners whose sub-block fits in the sample; then each `PB`, and after them `PA[1]`,
+    /// is [`tile_align::refine`]d against the other class's patches, in all the roles where they
+    /// meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+        let (lo, hi) = ((0, 0), ((sample.width() as i32 - g.s) as i64, (sample.height() as i32 - g.s) as i64));
+        let h = g.h as i64;
+        let pa0 = (first.0 as i64, first.1 as i64);
+        let r = tile_align::refine_radius(&self.lattice);
+        // A "\" patch, as B2 and as B4, meets both "/" patches, as B1 and as B3 (inside the rhombus).
+        let mut overlaps = Vec::new();
+        for b in [1, 3] {
+            for a in [0, 2] {
+                let (ob, oa) = (g.origin(b), g.origin(a));
+                let covers = |o: (i32, i32), x: i32, y: i32| x >= o.0 && x < o.0 + g.s && y >= o.1 && y < o.1 + g.s;
+                let pixels = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y) && covers(ob, x, y) && covers(oa, x, y));
+                let anchors = ((ob.0 as i64, ob.1 as i64), (oa.0 as i64, oa.1 as i64));
+                overlaps.push(Overlap { anchors, pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
+            }
+        }
+        let pa1 = self.lattice.place(st, pa0, lo, hi, &[pa0])?;
+        let ideal_b = (pa0.0 - self.offset.0 + h, pa0.1 - self.offset.1);
+        let fit_b = |p: V| tile_align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[pa0, pa1], &overlaps, true));
+        let pb0 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1])?);
+        let pb1 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1, pb0])?);
+        let pa1 = tile_align::refine(pa1, lo, hi, r, |q| overlap_error(sample, q, &[pb0, pb1], &overlaps, false));
+        let u = |p: V| (p.0 as u32, p.1 as u32);
+        Ok(([first, u(pa1)], [u(pb0), u(pb1)]))
+    }
+
+    /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
+    pub fn diagnostics(&self, g: &Geometry, sample: (u32, u32)) -> serde_json::Value {
+        let max_t = 2 * (sample.0.min(sample.1) as i64 - g.ov as i64);
+        let sizes = (8.max(2 * g.ov as i64 + 4)..=max_t).filter(|t| t % 2 == 0);
+        let suggested = tile_align::suggest(&self.lattice, sizes, RwAlign::vectors, g.tile() as i64, 5);
+        tile_align::diagnostics(&self.lattice, RwAlign::vectors(g.tile() as i64), self.offset, &self.errors, &suggested)
+    }
+}
+
+/// [`build_tile_set_searched`] with `align = "lattice"` when `align` is given: candidate `c`'s
+/// `PA[0]` is draws `x, y` of `rwtiles/patches` as before, and its other three patches take one
+/// draw each ([`RwAlign`]); a first patch that leaves another no lattice translate in the sample
+/// is drawn again ([`tile_align::first_fitting`]).
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_aligned(
+    sample: &RgbImage,
+    tile: i32,
+    ov: i32,
+    set: TileSet,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+    align: Option<&RwAlign>,
+) -> Result<(RwTileSet, usize), String> {
     let g = Geometry::new(tile, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if g.s > sw || g.s > sh {
         return Err(format!("sub-block side {} (tile/2 + overlap) does not fit in the {sw}x{sh} sample", g.s));
     }
     let mut st = Stream::new(seed, "rwtiles/patches");
-    let mut draw = || {
+    let draw = |st: &mut Stream| {
         let x = st.below((sw - g.s + 1) as u64) as u32;
         let y = st.below((sh - g.s + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Vec<([(u32, u32); 2], [(u32, u32); 2])> = (0..candidates.max(1)).map(|_| ([draw(), draw()], [draw(), draw()])).collect();
+    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+        .map(|_| match align {
+            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            Some(al) => tile_align::first_fitting(&al.lattice, || {
+                let first = draw(&mut st);
+                al.place(sample, &g, &mut st, first)
+            }),
+        })
+        .collect();
+    let choices = choices?;
     let built: Result<Vec<RwTileSet>, String> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
@@ -628,6 +752,7 @@ impl Method for RwTiles {
         if 2 * ov + 4 > tile {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for tile {tile}: use at most {}", (tile - 4) / 2)));
         }
+        errors.extend(tile_align::check(p, sample));
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
         if s > smaller {
@@ -655,14 +780,15 @@ impl Method for RwTiles {
         let order = TilingOrder::parse(p.str("tiling"));
         let t0 = Instant::now();
         let candidates = p.int("patch_candidates") as usize;
-        let (tiles, chosen) = build_tile_set_searched(req.sample, tile, ov, set, err, req.seed, candidates)?;
+        let align = Alignment::from_params(p, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
+        let (tiles, chosen) = build_tile_set_aligned(req.sample, tile, ov, set, err, req.seed, candidates, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
         let image = render(&tiles, &tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
-        let diagnostics = serde_json::json!({
+        let mut diagnostics = serde_json::json!({
             "geometry": { "tile": g.tile(), "overlap": g.ov, "sub_block": g.s, "framework": g.f },
             "patches": { "a": tiles.pa, "b": tiles.pb, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
             "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
@@ -674,6 +800,9 @@ impl Method for RwTiles {
             "lattice": { "i": [tiling.r0, tiling.r0 + tiling.rows as i64 - 1], "j": [tiling.c0, tiling.c0 + tiling.cols as i64 - 1] },
             "usage": tiling.usage(set),
         });
+        if let Some(al) = &align {
+            diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
         Ok(Synthesis {
             image,
             seams: Some(seam_grid(&g, req.width, req.height)),
@@ -862,6 +991,77 @@ mod tests {
         let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let again = one_thread.install(|| build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap());
         assert_eq!((again.0.pa, again.0.pb, again.1), (best.pa, best.pb, again.1));
+    }
+
+    /// A sample periodic on the lattice `(16, 0), (8, 16)` whose pixels are distinct within a period.
+    fn periodic(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let (u, v) = ((x + 16 - (y / 16) % 2 * 8) % 16, y % 16);
+            [(u * 16 + v) as u8, (u * 9 + v * 5) as u8, 77]
+        })
+    }
+
+    fn aligned(extra: &[(&str, ParamValue)]) -> Params {
+        let mut given = vec![
+            ("tile", ParamValue::Int(64)),
+            ("align", ParamValue::Str("lattice".into())),
+            ("t1_x", ParamValue::Int(16)),
+            ("t2_x", ParamValue::Int(8)),
+            ("t2_y", ParamValue::Int(16)),
+        ];
+        given.extend(extra.iter().cloned());
+        params(&given)
+    }
+
+    #[test]
+    fn lattice_alignment_makes_a_periodic_sample_seamless() {
+        // h(1, 1) = (32, 32) and h(−1, 1) are lattice vectors of (16, 0), (8, 16): zero phase
+        // residual, so every seam joins in-phase content (cost 0) and the output is periodic.
+        let sample = periodic(128, 112);
+        for candidates in [1, 5] {
+            let p = aligned(&[("patch_candidates", ParamValue::Int(candidates))]);
+            for seed in 0..6 {
+                let out = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed }).unwrap();
+                assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
+                assert_eq!(out.diagnostics["patches"]["seam_cost"], 0, "{candidates} seed {seed}");
+                let img = out.image;
+                for y in 0..180 - 16 {
+                    for x in 0..200 - 16 {
+                        assert_eq!(img.get(x, y), img.get(x + 16, y), "({x},{y})");
+                        if x >= 8 {
+                            assert_eq!(img.get(x, y), img.get(x - 8, y + 16), "({x},{y})");
+                        }
+                    }
+                }
+            }
+        }
+        let none = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(64))]), seed: 1 }).unwrap();
+        assert!(none.diagnostics["patches"]["seam_cost"].as_u64().unwrap() > 0);
+        assert!(none.diagnostics.get("align").is_none());
+    }
+
+    #[test]
+    fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
+        let sample = periodic(128, 112);
+        let p = aligned(&[("tile", ParamValue::Int(48)), ("patch_candidates", ParamValue::Int(6))]);
+        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3 };
+        let many = RwTiles.synthesize(&req).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| RwTiles.synthesize(&req).unwrap());
+        assert_eq!(single.image, many.image);
+        assert_eq!(single.diagnostics, many.diagnostics);
+        // h = 24: (24, 24) is 8 px from (24, 16) + ... ; tile 64 has no residual.
+        let a = &many.diagnostics["align"];
+        assert_eq!(a["phase_residual_px"], 8.0);
+        assert_eq!(a["suggested_tiles"][0]["tile"], 64);
+        assert_eq!(a["suggested_tiles"][0]["residual_px"], 0.0);
+        let mut st = Stream::new(3, "noise");
+        let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
+        let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
+        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
+        let errs = RwTiles.check(&aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]), (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
     }
 
     #[test]

@@ -8,8 +8,12 @@
 //! in the 45°-rotated frame (`cut = "dp"`, as paper 001 describes Cohen's tiles), or the
 //! 8-neighbour shortest path of B4 (`cut = "shortest_path"`, the ablation that isolates RW-Tiles'
 //! geometry from its cut). Filling is B12's scanline tiling, keyed per row, and copying tile rows.
+//!
+//! `align = "lattice"` (not in the paper) places the diamonds in phase on the sample's lattice so
+//! that near-regular patterns continue through the cuts ([`WangAlign`], [`super::tile_align`]).
 
 use super::rw_tiles::{PixelError, pick_candidate, representative};
+use super::tile_align::{self, Alignment, Overlap, V, best_offset, overlap_error};
 use super::{Method, Request, Synthesis};
 use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::primitives::shortest_path::{flood4, shortest_path};
@@ -59,6 +63,16 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Int(1),
         doc: "1: the four diamonds are drawn at random (Cohen); N > 1: N random choices are built and, among those whose diamonds all have at least half the sample's contrast, the one with the smallest total cut cost is kept (not in the paper)",
     },
+    ParamSpec {
+        name: "align",
+        kind: ParamKind::Choice(&["none", "lattice"]),
+        default: Default::Str("none"),
+        doc: "none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+    },
+    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
+    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
+    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
+    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
     ParamSpec {
         name: "tiling",
         kind: ParamKind::Choice(&["keyed", "scanline"]),
@@ -202,18 +216,123 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(WangTileSet, usize), String> {
+    build_tile_set_aligned(sample, t, ov, set, cut, err, seed, candidates, None)
+}
+
+/// One candidate's diamond centres: `([DN[0], DN[1]], [DE[0], DE[1]])`.
+type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
+
+/// `align = "lattice"` for Wang tiles (phase analysis in [`super::tile_align`]). Class A are the
+/// N/S diamonds (anchors `(m, 0)` as N, `(m, t)` as S: translation `(0, t)`), class B the E/W
+/// diamonds (anchors `(0, m)` as W, `(t, m)` as E: translation `(t, 0)`). The phases are taken in
+/// the N and W roles, `ψ_A = DN − (m, 0)`, `ψ_B = DE − (0, m)`, `δ = ψ_A − ψ_B`.
+#[derive(Clone, Debug)]
+pub struct WangAlign {
+    pub lattice: Alignment,
+    /// `δ`.
+    pub offset: V,
+    /// Phase error of each cut (N|E, E|S, S|W, W|N), in pixels as a vector.
+    pub errors: [(&'static str, V); 4],
+}
+
+impl WangAlign {
+    /// The tile translation vectors `(t, 0), (0, t)`.
+    pub fn vectors(t: i64) -> [V; 2] {
+        [(t, 0), (0, t)]
+    }
+
+    pub fn new(lattice: Alignment, g: &Geometry) -> WangAlign {
+        let t = g.t as i64;
+        let (ra, rb) = (lattice.residual((0, t)), lattice.residual((t, 0)));
+        let errors = move |d: V| -> [(&'static str, V); 4] {
+            [
+                ("N|E", (d.0 + rb.0, d.1 + rb.1)),
+                ("E|S", (ra.0 - rb.0 - d.0, ra.1 - rb.1 - d.1)),
+                ("S|W", (d.0 - ra.0, d.1 - ra.1)),
+                ("W|N", (-d.0, -d.1)),
+            ]
+        };
+        let centre = ((ra.0 - rb.0) as f64 / 2.0, (ra.1 - rb.1) as f64 / 2.0);
+        let offset = best_offset(centre, |d| errors(d).iter().map(|e| e.1).collect());
+        WangAlign { lattice, offset, errors: errors(offset) }
+    }
+
+    /// Diamond centres for one candidate: `DN[0]` is `first`; `DN[1]` a lattice translate of it,
+    /// `DE[0]`, `DE[1]` lattice translates of `ψ_A − δ + (0, m)`, drawn from `st` (one draw
+    /// each) among the centres whose diamond fits in the sample; then each `DE`, and after them
+    /// `DN[1]`, is [`tile_align::refine`]d against the other class's diamonds, in all the roles
+    /// where they meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+        let (a, m) = (g.a as i64, (g.t / 2) as i64);
+        let (lo, hi) = ((a, a), (sample.width() as i64 - a, sample.height() as i64 - a));
+        let dn0 = (first.0 as i64, first.1 as i64);
+        let r = tile_align::refine_radius(&self.lattice);
+        let psi_a = (dn0.0 - m, dn0.1);
+        // An E/W diamond, as W and as E, meets both N/S diamonds, as N and as S.
+        let mut overlaps = Vec::new();
+        for e in [W, E] {
+            for n in [N, S] {
+                let pixels = (0..g.t).flat_map(|y| (0..g.t).map(move |x| (x, y))).filter(|&(x, y)| g.in_diamond(e, x, y) && g.in_diamond(n, x, y));
+                let anchor = |d: usize| (g.centre(d).0 as i64, g.centre(d).1 as i64);
+                overlaps.push(Overlap { anchors: (anchor(e), anchor(n)), pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
+            }
+        }
+        let dn1 = self.lattice.place(st, dn0, lo, hi, &[dn0])?;
+        let ideal_e = (psi_a.0 - self.offset.0, psi_a.1 - self.offset.1 + m);
+        let fit_e = |p: V| tile_align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[dn0, dn1], &overlaps, true));
+        let de0 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1])?);
+        let de1 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1, de0])?);
+        let dn1 = tile_align::refine(dn1, lo, hi, r, |q| overlap_error(sample, q, &[de0, de1], &overlaps, false));
+        let u = |p: V| (p.0 as u32, p.1 as u32);
+        Ok(([first, u(dn1)], [u(de0), u(de1)]))
+    }
+
+    /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
+    pub fn diagnostics(&self, g: &Geometry, sample: (u32, u32)) -> serde_json::Value {
+        let max_t = sample.0.min(sample.1) as i64 - g.ov as i64;
+        let sizes = (8.max(2 * g.ov as i64)..=max_t).filter(|t| t % 2 == 0);
+        let suggested = tile_align::suggest(&self.lattice, sizes, WangAlign::vectors, g.t as i64, 5);
+        tile_align::diagnostics(&self.lattice, WangAlign::vectors(g.t as i64), self.offset, &self.errors, &suggested)
+    }
+}
+
+/// [`build_tile_set_searched`] with `align = "lattice"` when `align` is given: candidate `c`'s
+/// `DN[0]` is draws `x, y` of `wang/patches` as before, and its other three diamonds take one
+/// draw each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
+/// is drawn again ([`tile_align::first_fitting`]).
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_aligned(
+    sample: &RgbImage,
+    t: i32,
+    ov: i32,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+    align: Option<&WangAlign>,
+) -> Result<(WangTileSet, usize), String> {
     let g = Geometry::new(t, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if 2 * g.a > sw || 2 * g.a > sh {
         return Err(format!("diamonds of {0}x{0} (tile + overlap) do not fit in the {sw}x{sh} sample", 2 * g.a));
     }
     let mut st = Stream::new(seed, "wang/patches");
-    let mut draw = || {
+    let draw = |st: &mut Stream| {
         let x = g.a as u32 + st.below((sw - 2 * g.a + 1) as u64) as u32;
         let y = g.a as u32 + st.below((sh - 2 * g.a + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Vec<([(u32, u32); 2], [(u32, u32); 2])> = (0..candidates.max(1)).map(|_| ([draw(), draw()], [draw(), draw()])).collect();
+    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+        .map(|_| match align {
+            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            Some(al) => tile_align::first_fitting(&al.lattice, || {
+                let first = draw(&mut st);
+                al.place(sample, &g, &mut st, first)
+            }),
+        })
+        .collect();
+    let choices = choices?;
     let built: Result<Vec<WangTileSet>, String> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
@@ -461,6 +580,7 @@ impl Method for WangTiles {
         if ov * 2 > t {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the tile ({t}); use at most {}", t / 2)));
         }
+        errors.extend(tile_align::check(p, sample));
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
         if need > smaller {
@@ -489,14 +609,15 @@ impl Method for WangTiles {
         let order = TilingOrder::parse(p.str("tiling"));
         let t0 = Instant::now();
         let candidates = p.int("patch_candidates") as usize;
-        let (tiles, chosen) = build_tile_set_searched(req.sample, t, ov, set, cut, err, req.seed, candidates)?;
+        let align = Alignment::from_params(p, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
+        let (tiles, chosen) = build_tile_set_aligned(req.sample, t, ov, set, cut, err, req.seed, candidates, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
         let image = render(&tiles, &tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
-        let diagnostics = serde_json::json!({
+        let mut diagnostics = serde_json::json!({
             "geometry": { "tile": g.t, "overlap": g.ov, "diamond_half_diagonal": g.a },
             "diamond_centres": { "ns": tiles.dn, "ew": tiles.de, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
             "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
@@ -507,6 +628,9 @@ impl Method for WangTiles {
             "grid": { "rows": tiling.rows, "cols": tiling.cols },
             "usage": tiling.usage(set),
         });
+        if let Some(al) = &align {
+            diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
         Ok(Synthesis {
             image,
             seams: Some(seam_grid(&g, req.width, req.height)),
@@ -652,6 +776,91 @@ mod tests {
         assert!(c < 12);
         let (one, c1) = build_tile_set_searched(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2, 1).unwrap();
         assert_eq!((one.dn, one.de, c1), (plain.dn, plain.de, 0));
+    }
+
+    /// A sample periodic on the lattice `(16, 0), (8, 16)` whose pixels are distinct within a period.
+    fn periodic(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let (u, v) = ((x + 16 - (y / 16) % 2 * 8) % 16, y % 16);
+            [(u * 16 + v) as u8, (u * 9 + v * 5) as u8, 77]
+        })
+    }
+
+    fn aligned(extra: &[(&str, ParamValue)]) -> Params {
+        let mut given = vec![
+            ("tile", ParamValue::Int(32)),
+            ("align", ParamValue::Str("lattice".into())),
+            ("t1_x", ParamValue::Int(16)),
+            ("t2_x", ParamValue::Int(8)),
+            ("t2_y", ParamValue::Int(16)),
+        ];
+        given.extend(extra.iter().cloned());
+        params(&given)
+    }
+
+    #[test]
+    fn lattice_alignment_makes_a_periodic_sample_seamless() {
+        // (32, 0) and (0, 32) are lattice vectors of (16, 0), (8, 16): zero phase residual, so
+        // every cut joins in-phase content (cost 0) and the output is periodic on the lattice.
+        let sample = periodic(128, 112);
+        for cut in ["dp", "shortest_path"] {
+            for candidates in [1, 5] {
+                let p = aligned(&[("cut", ParamValue::Str(cut.into())), ("patch_candidates", ParamValue::Int(candidates))]);
+                for seed in 0..6 {
+                    let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed }).unwrap();
+                    assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
+                    assert_eq!(out.diagnostics["diamond_centres"]["seam_cost"], 0, "{cut} {candidates} seed {seed}");
+                    let img = out.image;
+                    for y in 0..180 - 16 {
+                        for x in 0..200 - 16 {
+                            assert_eq!(img.get(x, y), img.get(x + 16, y), "({x},{y})");
+                            if x >= 8 {
+                                assert_eq!(img.get(x, y), img.get(x - 8, y + 16), "({x},{y})");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // The faithful mode puts the diamonds out of phase.
+        let none = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(32))]), seed: 1 }).unwrap();
+        assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
+        assert!(none.diagnostics.get("align").is_none());
+    }
+
+    #[test]
+    fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
+        let sample = periodic(128, 112);
+        let p = aligned(&[("tile", ParamValue::Int(40)), ("patch_candidates", ParamValue::Int(6))]);
+        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3 };
+        let many = WangTiles.synthesize(&req).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| WangTiles.synthesize(&req).unwrap());
+        assert_eq!(single.image, many.image);
+        assert_eq!(single.diagnostics, many.diagnostics);
+        // Tile 40: (40, 0) is 8 px from the nearest lattice vector (32, 0) or (48, 0), and (0, 40)
+        // is 8 px from (0, 32) + ... : the residual is reported, with tile sizes that have none.
+        let a = &many.diagnostics["align"];
+        assert_eq!(a["lattice"]["source"], "given");
+        assert_eq!(a["lattice"]["t1"], serde_json::json!([16, 0]));
+        assert_eq!(a["phase_residual_px"], 8.0);
+        assert_eq!(a["suggested_tiles"][0]["tile"], 32);
+        assert_eq!(a["suggested_tiles"][0]["residual_px"], 0.0);
+    }
+
+    #[test]
+    fn lattice_alignment_errors_are_clear() {
+        let mut st = Stream::new(3, "noise");
+        let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
+        let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
+        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
+        let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
+        let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
+        let unused = params(&[("t1_x", ParamValue::Int(16)), ("t2_y", ParamValue::Int(16))]);
+        let errs = WangTiles.check(&unused, (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.message.contains("only used with align = \"lattice\"")), "{errs:?}");
     }
 
     #[test]
