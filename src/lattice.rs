@@ -138,17 +138,7 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String>
     let t2 = shortest(&mut c.iter().filter(|p| (cross(t1, p.0).abs() as f64) >= len(t1) * len(p.0) * sin_min))
         .ok_or_else(|| format!("{NONE} (the autocorrelation peaks lie along one direction only)"))?;
     // 7. Lagrange–Gauss reduction.
-    let (mut t1, mut t2) = (t1, t2);
-    loop {
-        if dot(t1, t1) > dot(t2, t2) {
-            std::mem::swap(&mut t1, &mut t2);
-        }
-        let mu = (dot(t1, t2) as f64 / dot(t1, t1) as f64).round() as i64;
-        if mu == 0 {
-            break;
-        }
-        t2 = (t2.0 - mu * t1.0, t2.1 - mu * t1.1);
-    }
+    let (t1, t2) = reduce(t1, t2);
     // 8. Reliability.
     let peak_at = |t: (i64, i64)| -> f64 {
         let mut m = f64::NEG_INFINITY;
@@ -194,6 +184,24 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String>
 }
 
 /// Step 9: `t1` the more horizontal vector, pointing right (or down), `cross(t1, t2) > 0`.
+/// Lagrange–Gauss reduction of a basis (shortest first). Stops as soon as a step no longer
+/// shortens `t2`: when `t1·t2 / t1·t1` is exactly ±½ rounding alone would flip `t2` between two
+/// equally long vectors forever (e.g. (16, 0), (8, 16)).
+pub fn reduce(t1: (i64, i64), t2: (i64, i64)) -> ((i64, i64), (i64, i64)) {
+    let (mut t1, mut t2) = (t1, t2);
+    loop {
+        if dot(t1, t1) > dot(t2, t2) {
+            std::mem::swap(&mut t1, &mut t2);
+        }
+        let mu = (dot(t1, t2) as f64 / dot(t1, t1) as f64).round() as i64;
+        let next = (t2.0 - mu * t1.0, t2.1 - mu * t1.1);
+        if mu == 0 || dot(next, next) >= dot(t2, t2) {
+            return (t1, t2);
+        }
+        t2 = next;
+    }
+}
+
 pub fn canonical(t1: (i64, i64), t2: (i64, i64)) -> ((i64, i64), (i64, i64)) {
     let horizontality = |v: (i64, i64)| v.0.abs() as f64 / len(v);
     let (mut t1, mut t2) = if horizontality(t2) > horizontality(t1) { (t2, t1) } else { (t1, t2) };
@@ -236,6 +244,14 @@ pub fn overlay(img: &RgbImage, lat: &Lattice) -> RgbImage {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn reduction_terminates_on_half_ties_and_shortens() {
+        assert_eq!(reduce((16, 0), (8, 16)), ((16, 0), (8, 16)));
+        assert_eq!(reduce((16, 0), (-8, 16)), ((16, 0), (-8, 16)));
+        assert_eq!(reduce((27, 0), (27 * 3, 26)), ((0, 26), (27, 0)));
+        assert_eq!(reduce((38, -24), (74, 0)), ((36, 24), (38, -24)));
+    }
+
     use super::*;
 
     fn periodic(w: u32, h: u32, t1: (i64, i64), t2: (i64, i64)) -> RgbImage {
