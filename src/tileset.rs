@@ -15,6 +15,7 @@
 //! of the tile one row up, and its `b` equals the `d` of the tile one column to the left.
 
 use crate::imageio::{self, DecodeLimits};
+use crate::params::{Default, ParamKind, ParamSpec};
 use crate::methods::rw_tiles::{self, RwTile, RwTileSet};
 use crate::methods::wang_tiles::{self, WangTile, WangTileSet};
 use crate::methods::{ExtraContent, ExtraOutput};
@@ -22,6 +23,14 @@ use crate::primitives::wang::{TileSet, TilingOrder};
 use crate::RgbImage;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+
+/// The `export_tiles` parameter of both tile methods.
+pub const EXPORT_TILES_PARAM: ParamSpec = ParamSpec {
+    name: "export_tiles",
+    kind: ParamKind::Bool,
+    default: Default::Bool(false),
+    doc: "also write the tile set next to the output: one RGBA PNG per tile and index.json (edge colours, placement), in `{output}.tiles/`; `texsyn tiles render` renders any size from it",
+};
 
 /// The index's format tag; bumped on any incompatible change.
 pub const FORMAT: &str = "texsyn-tileset/1";

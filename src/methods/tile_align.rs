@@ -52,7 +52,7 @@
 //! `patch_candidates` works on top: each candidate is another random first patch.
 
 use crate::lattice::{LatticeOptions, extract};
-use crate::params::{ParamError, Params};
+use crate::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::rng::Stream;
 use crate::RgbImage;
 
@@ -209,6 +209,14 @@ impl Alignment {
 
 /// How many first patches [`first_fitting`] draws before giving up.
 pub const FIRST_DRAWS: usize = 1000;
+
+/// `t1_x, t1_y, t2_x, t2_y`, shared by both tile methods (all 0: extract the lattice).
+pub const LATTICE_VECTOR_PARAMS: [ParamSpec; 4] = [
+    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
+    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
+    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
+    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
+];
 
 /// Draws first patches with `attempt` until one lets every other patch sit at a lattice translate
 /// inside the sample (on a sample only a little larger than the patches, some first positions

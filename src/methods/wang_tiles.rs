@@ -69,22 +69,17 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Str("none"),
         doc: "none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
     },
-    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
-    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
-    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
-    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
+    super::tile_align::LATTICE_VECTOR_PARAMS[0],
+    super::tile_align::LATTICE_VECTOR_PARAMS[1],
+    super::tile_align::LATTICE_VECTOR_PARAMS[2],
+    super::tile_align::LATTICE_VECTOR_PARAMS[3],
     ParamSpec {
         name: "tiling",
         kind: ParamKind::Choice(&["keyed", "scanline"]),
         default: Default::Str("keyed"),
         doc: "keyed: one stream per tile row, so pixels do not depend on the output size; scanline: one stream over all tiles (depends on the output width)",
     },
-    ParamSpec {
-        name: "export_tiles",
-        kind: ParamKind::Bool,
-        default: Default::Bool(false),
-        doc: "also write the tile set next to the output: one RGBA PNG per tile and index.json (edge colours, placement), in `{output}.tiles/`; `texsyn tiles render` renders any size from it",
-    },
+    crate::tileset::EXPORT_TILES_PARAM,
 ];
 
 const UNSET: u8 = u8::MAX;
