@@ -409,11 +409,8 @@ fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u3
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(format!("--width and --height must be 1..={MAX_SIDE} (got {w}x{h})"));
     }
-    let order = match tiling.unwrap_or(&ix.tiling) {
-        "keyed" => TilingOrder::Keyed,
-        "scanline" => TilingOrder::Scanline,
-        other => return Err(format!("tiling `{other}` is not keyed or scanline")),
-    };
+    let tiling = tiling.unwrap_or(&ix.tiling);
+    let order = TilingOrder::from_name(tiling).ok_or_else(|| format!("tiling `{tiling}` is not keyed or scanline"))?;
     let format = Format::from_path(out).ok_or_else(|| format!("{}: the output must end in .png or .exr", out.display()))?;
     let seed = seed.unwrap_or(ix.seed);
     let started = std::time::Instant::now();

@@ -79,20 +79,6 @@ fn tile_file(k: usize) -> String {
     format!("tile_{k:02}.png")
 }
 
-fn set_name(set: TileSet) -> &'static str {
-    match set {
-        TileSet::Minimal => "minimal",
-        TileSet::Complete => "complete",
-    }
-}
-
-fn order_name(order: TilingOrder) -> &'static str {
-    match order {
-        TilingOrder::Keyed => "keyed",
-        TilingOrder::Scanline => "scanline",
-    }
-}
-
 fn finish(index: Index, images: Vec<(u32, u32, Vec<u8>)>) -> Vec<ExtraOutput> {
     let mut extras: Vec<ExtraOutput> = images
         .into_iter()
@@ -112,14 +98,14 @@ pub fn export_wang(set: &WangTileSet, order: TilingOrder, seed: u64, output: (u3
     let index = Index {
         format: FORMAT.into(),
         method: "wang-tiles".into(),
-        tile_set: set_name(set.set).into(),
+        tile_set: set.set.name().into(),
         tile: t,
         overlap: set.geometry.ov as u32,
         lattice: "square".into(),
         col_step: [t as i64, 0],
         row_step: [0, t as i64],
         edges: ["N", "W", "S", "E"].map(String::from),
-        tiling: order_name(order).into(),
+        tiling: order.name().into(),
         seed,
         output: [output.0, output.1],
         tiles: set
@@ -169,7 +155,7 @@ pub fn export_rw(set: &RwTileSet, order: TilingOrder, seed: u64, output: (u32, u
     let index = Index {
         format: FORMAT.into(),
         method: "rw-tiles".into(),
-        tile_set: set_name(set.set).into(),
+        tile_set: set.set.name().into(),
         tile: g.tile() as u32,
         overlap: g.ov as u32,
         lattice: "rhombus".into(),
@@ -177,7 +163,7 @@ pub fn export_rw(set: &RwTileSet, order: TilingOrder, seed: u64, output: (u32, u
         col_step: [-half, half],
         row_step: [half, half],
         edges: ["NW", "NE", "SE", "SW"].map(String::from),
-        tiling: order_name(order).into(),
+        tiling: order.name().into(),
         seed,
         output: [output.0, output.1],
         tiles: set
@@ -223,11 +209,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
     if index.format != FORMAT {
         return Err(at(format!("format `{}` is not `{FORMAT}`; it was written by another texsyn version", index.format)));
     }
-    let set = match index.tile_set.as_str() {
-        "minimal" => TileSet::Minimal,
-        "complete" => TileSet::Complete,
-        other => return Err(at(format!("tile_set `{other}` is not minimal or complete"))),
-    };
+    let set = TileSet::from_name(&index.tile_set).ok_or_else(|| at(format!("tile_set `{}` is not minimal or complete", index.tile_set)))?;
     if index.tiles.len() != set.len() {
         return Err(at(format!("a {} set has {} tiles, the index lists {}", index.tile_set, set.len(), index.tiles.len())));
     }

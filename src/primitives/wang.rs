@@ -19,10 +19,25 @@ pub enum TileSet {
 }
 
 impl TileSet {
+    /// The set a validated `tile_set` parameter names.
     pub fn parse(name: &str) -> TileSet {
+        TileSet::from_name(name).unwrap_or(TileSet::Minimal)
+    }
+
+    /// `minimal` or `complete`; `None` for anything else.
+    pub fn from_name(name: &str) -> Option<TileSet> {
         match name {
-            "complete" => TileSet::Complete,
-            _ => TileSet::Minimal,
+            "minimal" => Some(TileSet::Minimal),
+            "complete" => Some(TileSet::Complete),
+            _ => None,
+        }
+    }
+
+    /// The parameter value naming this set.
+    pub fn name(&self) -> &'static str {
+        match self {
+            TileSet::Minimal => "minimal",
+            TileSet::Complete => "complete",
         }
     }
 
@@ -80,10 +95,25 @@ pub enum TilingOrder {
 }
 
 impl TilingOrder {
+    /// The order a validated `tiling` parameter names.
     pub fn parse(name: &str) -> TilingOrder {
+        TilingOrder::from_name(name).unwrap_or(TilingOrder::Keyed)
+    }
+
+    /// `keyed` or `scanline`; `None` for anything else.
+    pub fn from_name(name: &str) -> Option<TilingOrder> {
         match name {
-            "scanline" => TilingOrder::Scanline,
-            _ => TilingOrder::Keyed,
+            "keyed" => Some(TilingOrder::Keyed),
+            "scanline" => Some(TilingOrder::Scanline),
+            _ => None,
+        }
+    }
+
+    /// The parameter value naming this order.
+    pub fn name(&self) -> &'static str {
+        match self {
+            TilingOrder::Keyed => "keyed",
+            TilingOrder::Scanline => "scanline",
         }
     }
 }
