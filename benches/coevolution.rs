@@ -14,10 +14,11 @@
 use std::path::Path;
 use std::time::Instant;
 use texsyn::RgbImage;
-use texsyn::imageio::{DecodeLimits, read_rgb8};
-use texsyn::lattice::{LatticeOptions, extract};
-use texsyn::methods::{Request, Synthesis, find};
-use texsyn::params::{ParamValue, resolve};
+use texsyn::image::io::{DecodeLimits, read_rgb8};
+use texsyn::synth::lattice::{LatticeOptions, extract};
+use texsyn::synth::method::{Request, Synthesis};
+use texsyn::synth::methods::find;
+use texsyn::synth::params::{ParamValue, resolve};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);

@@ -8,9 +8,10 @@
 
 use std::path::Path;
 use std::time::Instant;
-use texsyn::imageio::{DecodeLimits, read_rgb8};
-use texsyn::methods::{Request, find};
-use texsyn::params::{ParamValue, resolve};
+use texsyn::image::io::{DecodeLimits, read_rgb8};
+use texsyn::synth::method::Request;
+use texsyn::synth::methods::find;
+use texsyn::synth::params::{ParamValue, resolve};
 
 fn main() {
     if std::env::args().any(|a| a == "--list") {

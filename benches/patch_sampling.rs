@@ -9,9 +9,10 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::path::Path;
-use texsyn::imageio::{DecodeLimits, read_rgb8};
-use texsyn::methods::{Request, find};
-use texsyn::params::{ParamValue, resolve};
+use texsyn::image::io::{DecodeLimits, read_rgb8};
+use texsyn::synth::method::Request;
+use texsyn::synth::methods::find;
+use texsyn::synth::params::{ParamValue, resolve};
 
 fn bench(c: &mut Criterion) {
     let sample_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/pebbles_beige.png");

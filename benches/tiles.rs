@@ -10,12 +10,13 @@
 use std::path::Path;
 use std::time::Instant;
 use texsyn::RgbImage;
-use texsyn::imageio::{DecodeLimits, read_rgb8};
-use texsyn::methods::rw_tiles::{self, PixelError};
-use texsyn::methods::wang_tiles::{self, Cut};
-use texsyn::methods::{Request, find};
-use texsyn::params::{ParamValue, resolve};
-use texsyn::primitives::wang::{TileSet, TilingOrder};
+use texsyn::image::io::{DecodeLimits, read_rgb8};
+use texsyn::synth::methods::tiles::rw_tiles::{self, PixelError};
+use texsyn::synth::methods::tiles::wang_tiles::{self, Cut};
+use texsyn::synth::method::Request;
+use texsyn::synth::methods::find;
+use texsyn::synth::params::{ParamValue, resolve};
+use texsyn::synth::methods::tiles::wang::{TileSet, TilingOrder};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());

@@ -13,8 +13,8 @@
 //! (worst − best over the runs) is smaller and its mean better than PSO's on all four functions.
 
 use std::f64::consts::{E, PI};
-use texsyn::primitives::pso::{self, ChaosParams, Outcome, Rediversify, SwarmParams, UpdateOrder};
-use texsyn::rng::Stream;
+use texsyn::synth::primitives::pso::{self, ChaosParams, Outcome, Rediversify, SwarmParams, UpdateOrder};
+use texsyn::synth::rng::Stream;
 
 const DIMS: usize = 30;
 const SEED: u64 = 2010;

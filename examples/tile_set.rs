@@ -10,9 +10,9 @@
 
 use std::path::PathBuf;
 use std::time::Instant;
-use texsyn::imageio::{self, DecodeLimits, Encoding, Format};
-use texsyn::methods::rw_tiles::{self, PixelError};
-use texsyn::primitives::wang::{TileSet, TilingOrder};
+use texsyn::image::io::{self as imageio, DecodeLimits, Encoding, Format};
+use texsyn::synth::methods::tiles::rw_tiles::{self, PixelError};
+use texsyn::synth::methods::tiles::wang::{TileSet, TilingOrder};
 
 fn main() -> Result<(), String> {
     let out_dir = std::env::args().nth(1).map(PathBuf::from).unwrap_or_else(|| PathBuf::from("."));

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use texsyn::manifest::Manifest;
-use texsyn::{golden, methods, runner, verify};
+use texsyn::batch::manifest::Manifest;
+use texsyn::batch::{golden, run as runner, verify};
+use texsyn::synth::methods;
 
 const EXIT_CODES: &str = "\
 Exit codes:
@@ -325,7 +326,7 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             };
-            match texsyn::lattice::extract(&loaded.image, &texsyn::lattice::LatticeOptions::default()) {
+            match texsyn::synth::lattice::extract(&loaded.image, &texsyn::synth::lattice::LatticeOptions::default()) {
                 Err(e) => {
                     if json {
                         println!("{}", serde_json::json!({"sample": sample.display().to_string(), "lattice": null, "error": e}));
@@ -335,9 +336,9 @@ fn main() -> ExitCode {
                 }
                 Ok(l) => {
                     if let Some(path) = overlay {
-                        let img = texsyn::lattice::overlay(&loaded.image, &l);
-                        let enc = texsyn::imageio::encode(&img, texsyn::imageio::Encoding { format: texsyn::imageio::Format::Png, bit_depth: 8 });
-                        if let Err(e) = enc.and_then(|e| texsyn::outdir::write_atomic(&path, &e.bytes)) {
+                        let img = texsyn::synth::lattice::overlay(&loaded.image, &l);
+                        let enc = texsyn::image::io::encode(&img, texsyn::image::io::Encoding { format: texsyn::image::io::Format::Png, bit_depth: 8 });
+                        if let Err(e) = enc.and_then(|e| texsyn::batch::outdir::write_atomic(&path, &e.bytes)) {
                             eprintln!("error: {e}");
                             return ExitCode::from(2);
                         }
@@ -400,9 +401,9 @@ fn main() -> ExitCode {
 
 /// `texsyn tiles render`.
 fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u32>, height: Option<u32>, seed: Option<u64>, tiling: Option<&str>) -> Result<String, String> {
-    use texsyn::imageio::{Encoding, Format};
-    use texsyn::primitives::wang::TilingOrder;
-    let loaded = texsyn::tileset::load(index)?;
+    use texsyn::image::io::{Encoding, Format};
+    use texsyn::synth::methods::tiles::wang::TilingOrder;
+    let loaded = texsyn::synth::methods::tiles::export::load(index)?;
     let ix = loaded.index();
     let (w, h) = (width.unwrap_or(ix.output[0]), height.unwrap_or(ix.output[1]));
     const MAX_SIDE: u32 = 65_536;
@@ -417,8 +418,8 @@ fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u3
     let img = loaded.render(w, h, seed, order);
     let fill = started.elapsed().as_secs_f64();
     let bit_depth = if format == Format::Exr { 32 } else { 8 };
-    let encoded = texsyn::imageio::encode(&img, Encoding { format, bit_depth })?;
-    texsyn::outdir::write_atomic(out, &encoded.bytes)?;
+    let encoded = texsyn::image::io::encode(&img, Encoding { format, bit_depth })?;
+    texsyn::batch::outdir::write_atomic(out, &encoded.bytes)?;
     Ok(format!(
         "{}: {w}x{h} from {} {} tiles (seed {seed}), filled in {fill:.3} s; pixels {}",
         out.display(),

@@ -11,7 +11,7 @@ use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 use texsyn::RgbImage;
-use texsyn::imageio::{self, DecodeLimits};
+use texsyn::image::io::{self as imageio, DecodeLimits};
 
 const METRICS: [&str; 6] = ["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
 

@@ -5,7 +5,7 @@
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use texsyn::imageio::{self, DecodeLimits};
+use texsyn::image::io::{self as imageio, DecodeLimits};
 
 fn texsyn() -> Command {
     Command::new(env!("CARGO_BIN_EXE_texsyn"))

@@ -1,6 +1,6 @@
 //! Histograms and the Kullback–Leibler divergence (methods.md B10, §5.6 items 1–2).
 
-use crate::raster::RgbImage;
+use crate::image::RgbImage;
 
 /// The `ε` of B10: a guard against empty `Q` bins.
 pub const KL_EPSILON: f64 = 1e-10;

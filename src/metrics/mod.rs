@@ -28,8 +28,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::raster::RgbImage;
-use crate::seamgrid::SeamGrid;
+use crate::image::RgbImage;
+use crate::image::seam_grid::SeamGrid;
 
 pub use acf::{
     Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance,

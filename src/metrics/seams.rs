@@ -8,8 +8,8 @@
 //! `mean jump over seam pairs / mean jump over all other pairs`, pooling both orientations; sums
 //! and counts are exact integers.
 
-use crate::raster::RgbImage;
-use crate::seamgrid::{SeamBand, SeamGrid};
+use crate::image::RgbImage;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
 
 fn band_mask(bands: &[SeamBand], n: usize) -> Vec<bool> {
     // mask[k] for boundary k in 0..=n; only 1..n are real boundaries.

@@ -1,7 +1,7 @@
 //! Tests of the metric layer (the building blocks are tested in their own files).
 
 use super::*;
-use crate::seamgrid::SeamBand;
+use crate::image::seam_grid::SeamBand;
 
 fn noise(w: u32, h: u32, seed: u64) -> RgbImage {
     let mut s = seed;

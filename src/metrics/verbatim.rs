@@ -7,7 +7,7 @@
 //! hash collisions can cost time but never change the result. The count is an integer, so the
 //! value does not depend on the number of threads.
 
-use crate::raster::RgbImage;
+use crate::image::RgbImage;
 use rayon::prelude::*;
 
 /// Side of the neighbourhood (7 × 7, i.e. radius 3 around the pixel).

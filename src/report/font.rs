@@ -3,7 +3,7 @@
 //! Contact sheets must look the same on every machine, so the font travels inside the binary
 //! instead of being looked up on the system.
 
-use crate::RgbImage;
+use crate::image::RgbImage;
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont, point};
 use std::sync::OnceLock;
 

@@ -8,7 +8,7 @@
 use super::fmt::{self, html as h};
 use super::model::Model;
 use super::tables::{Stat, TIME, Table};
-use crate::manifest::Manifest;
+use crate::batch::manifest::Manifest;
 
 /// Where an image of the report lives (relative to the page), or why it could not be shown.
 pub type ImageRef = Result<(String, u32, u32), String>;

@@ -20,10 +20,10 @@ pub mod tables;
 
 pub use model::{GroupBy, GroupKey};
 
-use crate::imageio::{self, DecodeLimits, Encoding, Format};
-use crate::manifest::Manifest;
-use crate::outdir::OutDir;
-use crate::RgbImage;
+use crate::image::io::{self as imageio, DecodeLimits, Encoding, Format};
+use crate::batch::manifest::Manifest;
+use crate::batch::outdir::OutDir;
+use crate::image::RgbImage;
 use html::{Assets, ImageRef, Shown};
 use rayon::prelude::*;
 use sheet::{Cell, Picture};
@@ -103,7 +103,7 @@ impl Writer {
         if path.canonicalize().is_ok_and(|c| self.protected.contains(&c)) {
             return Err(format!("{} is a file the manifest refers to; write the report to a directory of its own", path.display()));
         }
-        crate::outdir::write_atomic(&path, bytes)?;
+        crate::batch::outdir::write_atomic(&path, bytes)?;
         self.written.push(rel.to_string());
         Ok(())
     }

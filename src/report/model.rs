@@ -4,7 +4,7 @@
 //! Every later stage (tables, sheets, plot, page) works from this one view, so they cannot
 //! disagree on which jobs count or how they are grouped.
 
-use crate::manifest::{JobRecord, Manifest};
+use crate::batch::manifest::{JobRecord, Manifest};
 use serde_json::Value;
 use std::cmp::Ordering;
 use std::collections::{BTreeMap, BTreeSet};
@@ -314,7 +314,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
     }
 
     // Rows: one per sample file, named by stem unless two different files share one.
-    let mut sample_paths: BTreeMap<String, &crate::manifest::SampleRecord> = BTreeMap::new();
+    let mut sample_paths: BTreeMap<String, &crate::batch::manifest::SampleRecord> = BTreeMap::new();
     for job in &counted {
         let s = job.sample.as_ref().expect("counted jobs have a sample");
         sample_paths.entry(s.path.clone()).or_insert(s);
@@ -521,11 +521,11 @@ mod tests {
             })
             .collect();
         serde_json::from_value(serde_json::json!({
-            "format": crate::manifest::FORMAT,
+            "format": crate::batch::manifest::FORMAT,
             "tool": {"name": "texsyn", "version": "0", "commit": "x"},
             "deterministic_digest": d,
             "jobs": jobs,
-            "run": crate::manifest::RunFacts::default(),
+            "run": crate::batch::manifest::RunFacts::default(),
         }))
         .unwrap()
     }

@@ -5,7 +5,7 @@
 //! never resampled individually, so sizes and textures compare honestly across methods.
 
 use super::font;
-use crate::RgbImage;
+use crate::image::RgbImage;
 
 const PAD: u32 = 16;
 const GAP: u32 = 16;

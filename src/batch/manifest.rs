@@ -1,0 +1,319 @@
+//! The manifest: what was run, from what, producing what — enough to re-run and check every
+//! result from the manifest alone.
+//!
+//! Layout (`<out>/manifest.json`): `format`, `tool`, `deterministic_digest`, `jobs` (sorted by id)
+//! and `run`. Everything that depends on the moment (times, host, argv, durations) lives in `run`
+//! and in each job's `timing`; the *deterministic part* is `tool` plus every job without its
+//! `timing`, with status `up-to-date` counted as `ok`. Its digest is SHA-256 over RFC 8785
+//! canonical JSON, so it can be recomputed by any tool.
+
+use crate::digest::Digest;
+use crate::image::seam_grid::SeamGrid;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::path::Path;
+
+pub const FORMAT: &str = "texsyn-manifest/1";
+pub const FILE_NAME: &str = "manifest.json";
+
+/// The tool that wrote a manifest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tool {
+    pub name: String,
+    pub version: String,
+    pub commit: String,
+}
+
+impl Tool {
+    pub fn current() -> Tool {
+        Tool { name: "texsyn".into(), version: env!("CARGO_PKG_VERSION").into(), commit: env!("TEXSYN_COMMIT").into() }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Synthesised in this run.
+    Ok,
+    /// Recorded earlier with the same content key; its output file still hashes as recorded.
+    UpToDate,
+    /// Valid, but synthesis or writing failed (see `error`).
+    Failed,
+    /// Rejected by validation before running (see `error`).
+    Invalid,
+}
+
+impl Status {
+    pub fn is_success(&self) -> bool {
+        matches!(self, Status::Ok | Status::UpToDate)
+    }
+    pub fn name(&self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::UpToDate => "up-to-date",
+            Status::Failed => "failed",
+            Status::Invalid => "invalid",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FileRef {
+    /// Relative to the manifest's directory when possible, else absolute; `/`-separated.
+    pub path: String,
+    pub digest: Digest,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SampleRecord {
+    /// Relative to the manifest's directory when possible, else absolute.
+    pub path: String,
+    pub file_digest: Digest,
+    /// Digest of the 8-bit RGB pixels the method saw.
+    pub pixel_digest: Digest,
+    pub width: u32,
+    pub height: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OutputRecord {
+    /// Relative to the output directory.
+    pub path: String,
+    pub format: String,
+    pub bit_depth: u8,
+    pub width: u32,
+    pub height: u32,
+    pub file_digest: Digest,
+    /// Digest of the stored samples (see `imageio::NativeImage::pixel_digest`).
+    pub pixel_digest: Digest,
+}
+
+/// Durations of one job's last actual run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// The method's synthesis call only (no decoding or encoding).
+    pub synthesis_seconds: f64,
+    /// Computing the requested metrics (0 when none were requested).
+    #[serde(default)]
+    pub metrics_seconds: f64,
+    /// Named phases of the synthesis call, when the method reports them.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub phases: std::collections::BTreeMap<String, f64>,
+    /// Everything for this job, including encoding and writing.
+    pub total_seconds: f64,
+    /// When it ran, seconds since the Unix epoch.
+    pub finished_at: u64,
+}
+
+/// One job's record.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobRecord {
+    pub id: String,
+    pub job_file: FileRef,
+    pub status: Status,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub algorithm_version: Option<u32>,
+    /// Fully resolved parameters (defaults filled in).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub params: Option<Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub params_digest: Option<Digest>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<SampleRecord>,
+    /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_spec: Option<Value>,
+    /// Content key: method, algorithm version, params, seed, sample pixels, output spec.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub content_key: Option<Digest>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outputs: Vec<OutputRecord>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seams: Option<SeamGrid>,
+    #[serde(default, skip_serializing_if = "Value::is_null")]
+    pub diagnostics: Value,
+    /// Requested metrics of the output against the sample (`null` where undefined).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<std::collections::BTreeMap<String, Option<f64>>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timing: Option<Timing>,
+}
+
+/// Facts about the run that wrote the manifest (not reproducible by nature).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunFacts {
+    pub started_at: u64,
+    pub finished_at: u64,
+    pub wall_seconds: f64,
+    pub host: String,
+    pub argv: Vec<String>,
+    pub threads: usize,
+    pub ran: usize,
+    pub up_to_date: usize,
+    pub failed: usize,
+    pub invalid: usize,
+    /// True while the run is still going (the manifest is rewritten as jobs finish).
+    pub in_progress: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub tool: Tool,
+    pub deterministic_digest: Digest,
+    pub jobs: Vec<JobRecord>,
+    pub run: RunFacts,
+}
+
+impl Manifest {
+    /// Builds a manifest from records (sorted here) and computes its deterministic digest.
+    pub fn new(mut jobs: Vec<JobRecord>, run: RunFacts) -> Manifest {
+        jobs.sort_by(|a, b| a.id.cmp(&b.id));
+        let tool = Tool::current();
+        let deterministic_digest = deterministic_digest(&tool, &jobs);
+        Manifest { format: FORMAT.into(), tool, deterministic_digest, jobs, run }
+    }
+
+    /// Recomputes the deterministic digest from the content (to detect edits).
+    pub fn recompute_digest(&self) -> Digest {
+        deterministic_digest(&self.tool, &self.jobs)
+    }
+
+    pub fn load(path: &Path) -> Result<Manifest, String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read manifest: {e}", path.display()))?;
+        let m: Manifest = serde_json::from_slice(&bytes).map_err(|e| format!("{}: not a texsyn manifest: {e}", path.display()))?;
+        if m.format != FORMAT {
+            return Err(format!("{}: unsupported manifest format `{}` (expected {FORMAT})", path.display(), m.format));
+        }
+        Ok(m)
+    }
+
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut s = serde_json::to_string_pretty(self).expect("manifest serialises");
+        s.push('\n');
+        s.into_bytes()
+    }
+
+    pub fn job(&self, id: &str) -> Option<&JobRecord> {
+        self.jobs.binary_search_by(|j| j.id.as_str().cmp(id)).ok().map(|i| &self.jobs[i])
+    }
+}
+
+fn deterministic_digest(tool: &Tool, jobs: &[JobRecord]) -> Digest {
+    let projected: Vec<Value> = jobs
+        .iter()
+        .map(|j| {
+            let mut v = serde_json::to_value(j).expect("record serialises");
+            let obj = v.as_object_mut().expect("record is an object");
+            obj.remove("timing");
+            if j.status == Status::UpToDate {
+                obj.insert("status".into(), Value::String("ok".into()));
+            }
+            v
+        })
+        .collect();
+    Digest::of_json(&serde_json::json!({ "tool": tool, "jobs": projected }))
+}
+
+/// The content key of a job: everything its pixels depend on, and its output spec.
+pub fn content_key(method: &str, algorithm_version: u32, params: &Value, seed: u64, sample_pixels: &Digest, output_spec: &Value) -> Digest {
+    Digest::of_json(&serde_json::json!({
+        "method": method,
+        "algorithm_version": algorithm_version,
+        "params": params,
+        "seed": seed,
+        "sample_pixels": sample_pixels,
+        "output": output_spec,
+    }))
+}
+
+/// `path` relative to `base` when it lies under it (or reachable with `..`), `/`-separated;
+/// absolute otherwise. Both are made absolute first.
+pub fn relative_path(path: &Path, base: &Path) -> String {
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let (p, b) = (normalise(&abs(path)), normalise(&abs(base)));
+    let pc: Vec<_> = p.components().collect();
+    let bc: Vec<_> = b.components().collect();
+    let common = pc.iter().zip(&bc).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return p.to_string_lossy().replace('\\', "/");
+    }
+    let mut parts: Vec<String> = vec!["..".into(); bc.len() - common];
+    parts.extend(pc[common..].iter().map(|c| c.as_os_str().to_string_lossy().into_owned()));
+    if parts.is_empty() { ".".into() } else { parts.join("/") }
+}
+
+/// Removes `.` and resolves `..` lexically.
+fn normalise(p: &Path) -> std::path::PathBuf {
+    let mut out = std::path::PathBuf::new();
+    for c in p.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(id: &str, status: Status) -> JobRecord {
+        JobRecord {
+            id: id.into(),
+            job_file: FileRef { path: "jobs/a.toml".into(), digest: Digest::of_bytes(b"a") },
+            status,
+            error: None,
+            method: Some("quilting".into()),
+            algorithm_version: Some(1),
+            params: Some(serde_json::json!({"block": 50})),
+            params_digest: None,
+            seed: Some(1),
+            sample: None,
+            output_spec: None,
+            content_key: None,
+            outputs: vec![],
+            seams: None,
+            diagnostics: Value::Null,
+            metrics: None,
+            timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 2.0, finished_at: 5 }),
+        }
+    }
+
+    #[test]
+    fn deterministic_digest_ignores_timing_run_facts_and_up_to_date() {
+        let a = Manifest::new(vec![record("b", Status::Ok), record("a", Status::Ok)], RunFacts::default());
+        let mut r = record("a", Status::UpToDate);
+        r.timing = None;
+        let b = Manifest::new(vec![r, record("b", Status::Ok)], RunFacts { host: "elsewhere".into(), ..RunFacts::default() });
+        assert_eq!(a.deterministic_digest, b.deterministic_digest);
+        assert_eq!(a.jobs[0].id, "a");
+        let mut c = a.clone();
+        c.jobs[0].seed = Some(2);
+        assert_ne!(c.recompute_digest(), a.deterministic_digest);
+    }
+
+    #[test]
+    fn manifest_round_trips_through_json() {
+        let a = Manifest::new(vec![record("x", Status::Failed)], RunFacts::default());
+        let back: Manifest = serde_json::from_slice(&a.to_bytes()).unwrap();
+        assert_eq!(a, back);
+        assert_eq!(back.recompute_digest(), a.deterministic_digest);
+    }
+
+    #[test]
+    fn relative_paths() {
+        assert_eq!(relative_path(Path::new("/a/b/c.png"), Path::new("/a/out")), "../b/c.png");
+        assert_eq!(relative_path(Path::new("/a/out/x/y.png"), Path::new("/a/out")), "x/y.png");
+    }
+}

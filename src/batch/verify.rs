@@ -1,0 +1,197 @@
+//! `texsyn verify`: re-run every recorded job from the manifest alone and compare pixels.
+//!
+//! Checks, per job: the sample still has the recorded pixels, the method and algorithm version
+//! exist, the recorded parameters still resolve to themselves, a fresh synthesis (written to a
+//! temporary directory) has the recorded pixel digest, and the output file in the output
+//! directory still has the recorded bytes and pixels. The manifest's deterministic digest is
+//! recomputed too, so an edited manifest is caught even when its jobs still reproduce.
+
+use crate::digest::Digest;
+use crate::image::io::{self as imageio, DecodeLimits};
+use crate::batch::job::OutputSpec;
+use crate::batch::manifest::{JobRecord, Manifest, Status};
+use crate::synth::methods;
+use crate::synth::params::{self, ParamValue};
+use crate::batch::run as runner;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// The outcome for one job.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    Verified,
+    Skipped(String),
+    Mismatch(Vec<String>),
+}
+
+#[derive(Debug, Default)]
+pub struct Report {
+    /// Problems with the manifest as a whole.
+    pub manifest_problems: Vec<String>,
+    pub jobs: Vec<(String, Outcome)>,
+}
+
+impl Report {
+    pub fn ok(&self) -> bool {
+        self.manifest_problems.is_empty() && self.jobs.iter().all(|(_, o)| !matches!(o, Outcome::Mismatch(_)))
+    }
+}
+
+/// Verifies a manifest, re-running jobs on `threads` threads (all cores if `None`).
+pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, String> {
+    let manifest = Manifest::load(manifest_path)?;
+    let dir = manifest_path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
+    let dir = if dir.as_os_str().is_empty() { PathBuf::from(".") } else { dir };
+    let mut report = Report::default();
+    if manifest.recompute_digest() != manifest.deterministic_digest {
+        report.manifest_problems.push(format!(
+            "the manifest's deterministic digest ({}) does not match its content ({}): it was edited after texsyn wrote it",
+            manifest.deterministic_digest.short(),
+            manifest.recompute_digest().short()
+        ));
+    }
+    let scratch = std::env::temp_dir().join(format!("texsyn-verify-{}-{}", std::process::id(), crate::synth::rng::fnv1a_64(&manifest_path.display().to_string())));
+    std::fs::create_dir_all(&scratch).map_err(|e| format!("cannot create {}: {e}", scratch.display()))?;
+    let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)).max(1);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| e.to_string())?;
+    report.jobs = pool.install(|| {
+        manifest.jobs.par_iter().with_max_len(1).map(|rec| (rec.id.clone(), verify_job(rec, &dir, &scratch))).collect()
+    });
+    let _ = std::fs::remove_dir_all(&scratch);
+    Ok(report)
+}
+
+fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
+    if !rec.status.is_success() {
+        return Outcome::Skipped(format!("recorded as {}", rec.status.name()));
+    }
+    let mut problems = Vec::new();
+    let (Some(method_name), Some(version), Some(params_json), Some(seed), Some(sample), Some(spec)) =
+        (&rec.method, rec.algorithm_version, &rec.params, rec.seed, &rec.sample, &rec.output_spec)
+    else {
+        return Outcome::Mismatch(vec!["the record lacks the fields needed to re-run it".into()]);
+    };
+    let Some(method) = methods::find(method_name) else {
+        return Outcome::Mismatch(vec![format!("method `{method_name}` is not known to this texsyn")]);
+    };
+    if method.algorithm_version() != version {
+        return Outcome::Mismatch(vec![format!(
+            "recorded with {method_name} algorithm version {version}; this texsyn has version {}",
+            method.algorithm_version()
+        )]);
+    }
+    // Parameters: they must resolve to exactly what was recorded.
+    let given: Vec<(String, ParamValue)> = match serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) {
+        Ok(m) => m.into_iter().collect(),
+        Err(e) => return Outcome::Mismatch(vec![format!("recorded params are malformed: {e}")]),
+    };
+    let params = match params::resolve(method.params(), &given) {
+        Ok(p) => p,
+        Err(errs) => {
+            return Outcome::Mismatch(errs.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
+        }
+    };
+    if rec.params_digest.as_ref() != Some(&Digest::of_json(params_json)) {
+        problems.push("params_digest does not match the recorded params".into());
+    }
+    let output = match output_spec(spec) {
+        Ok(o) => o,
+        Err(e) => return Outcome::Mismatch(vec![e]),
+    };
+    let sample_path = dir.join(&sample.path);
+    let loaded = match runner::load_sample(&sample_path) {
+        Ok(s) => s,
+        Err(e) => return Outcome::Mismatch(vec![e]),
+    };
+    if loaded.pixel_digest != sample.pixel_digest {
+        return Outcome::Mismatch(vec![format!("sample `{}` no longer has the recorded pixels", sample.path)]);
+    }
+    let key = crate::batch::manifest::content_key(method_name, version, params_json, seed, &sample.pixel_digest, spec);
+    if rec.content_key.as_ref() != Some(&key) {
+        problems.push("content_key does not match the recorded inputs".into());
+    }
+    match runner::synthesize_and_encode(method, &loaded.image, &params, seed, &output) {
+        Err(e) => problems.push(format!("re-run failed: {e}")),
+        Ok((synthesis, encoded, _)) => {
+            for extra in &synthesis.extras {
+                match runner::encode_extra(&output.path, extra) {
+                    Err(e) => problems.push(format!("re-run extra output `{}`: {e}", extra.name)),
+                    Ok((fresh, _)) => match rec.outputs.iter().find(|o| o.path == fresh.path) {
+                        None => problems.push(format!("the re-run also writes `{}`, which the record lacks", fresh.path)),
+                        Some(o) if o.pixel_digest != fresh.pixel_digest => problems.push(format!(
+                            "re-run differs from the record for `{}` (recorded {}, re-run {})",
+                            o.path,
+                            o.pixel_digest.short(),
+                            fresh.pixel_digest.short()
+                        )),
+                        Some(_) => {}
+                    },
+                }
+            }
+            let produced: Vec<String> = synthesis.extras.iter().filter_map(|e| runner::extra_path(&output.path, &e.name).ok()).collect();
+            for o in &rec.outputs {
+                if o.path != output.path && !produced.contains(&o.path) {
+                    problems.push(format!("the record lists `{}`, which a re-run does not produce", o.path));
+                }
+            }
+            let fresh = encoded.pixels.pixel_digest();
+            let scratch_file = scratch.join(crate::synth::rng::fnv1a_64(&rec.id).to_string()).with_extension(output.format.name());
+            let _ = std::fs::write(&scratch_file, &encoded.bytes);
+            match rec.outputs.iter().find(|o| o.path == output.path) {
+                None => problems.push(format!("no output record for `{}`", output.path)),
+                Some(o) if o.pixel_digest != fresh => problems.push(format!(
+                    "re-run pixels differ from the record for `{}` (recorded {}, re-run {})",
+                    o.path,
+                    o.pixel_digest.short(),
+                    fresh.short()
+                )),
+                Some(_) => {}
+            }
+        }
+    }
+    for o in &rec.outputs {
+        match std::fs::read(dir.join(&o.path)) {
+            Err(e) => problems.push(format!("output `{}` cannot be read: {e}", o.path)),
+            Ok(bytes) => {
+                if Digest::of_bytes(&bytes) != o.file_digest {
+                    problems.push(format!("output file `{}` differs from the recorded bytes", o.path));
+                }
+                if o.format == "json" {
+                    if Digest::of_bytes(&bytes) != o.pixel_digest {
+                        problems.push(format!("output file `{}` does not have the recorded content", o.path));
+                    }
+                    continue;
+                }
+                match imageio::decode_output(&bytes, DecodeLimits::default()) {
+                    Ok(img) if img.pixel_digest() != o.pixel_digest => {
+                        problems.push(format!("output file `{}` does not decode to the recorded pixels", o.path))
+                    }
+                    Err(e) => problems.push(format!("output file `{}` does not decode: {e}", o.path)),
+                    Ok(_) => {}
+                }
+            }
+        }
+    }
+    if problems.is_empty() { Outcome::Verified } else { Outcome::Mismatch(problems) }
+}
+
+fn output_spec(v: &serde_json::Value) -> Result<OutputSpec, String> {
+    let get_u = |k: &str| v.get(k).and_then(|x| x.as_u64()).ok_or_else(|| format!("output_spec.{k} is missing"));
+    let path = v.get("path").and_then(|x| x.as_str()).ok_or("output_spec.path is missing")?.to_string();
+    let format = match v.get("format").and_then(|x| x.as_str()) {
+        Some("png") => imageio::Format::Png,
+        Some("exr") => imageio::Format::Exr,
+        other => return Err(format!("output_spec.format {other:?} is not png or exr")),
+    };
+    Ok(OutputSpec { path, width: get_u("width")? as u32, height: get_u("height")? as u32, format, bit_depth: get_u("bit_depth")? as u8 })
+}
+
+/// Used by `golden`: the pixel digests of each successful job's outputs.
+pub fn pixel_digests(manifest: &Manifest) -> Vec<(&JobRecord, Vec<(&str, &Digest)>)> {
+    manifest
+        .jobs
+        .iter()
+        .filter(|j| matches!(j.status, Status::Ok | Status::UpToDate))
+        .map(|j| (j, j.outputs.iter().map(|o| (o.path.as_str(), &o.pixel_digest)).collect()))
+        .collect()
+}

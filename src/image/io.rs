@@ -1,0 +1,475 @@
+//! Image decoding and encoding, with limits, and the canonical pixel digest.
+//!
+//! Decoding turns any supported file (PNG 8/16-bit gray/RGB/RGBA, JPEG, EXR) into the 8-bit RGB
+//! [`RgbImage`] methods work on, refusing hostile files (huge dimensions, decompression bombs,
+//! truncation, zero size) with an error instead of a crash or a multi-gigabyte allocation.
+//! Encoding chooses the output format and bit depth from the job, never from the method.
+
+use crate::digest::{Digest, Hasher};
+use crate::image::RgbImage;
+use std::path::Path;
+
+/// Refusal thresholds for decoding.
+#[derive(Clone, Copy, Debug)]
+pub struct DecodeLimits {
+    pub max_side: u32,
+    pub max_pixels: u64,
+    pub max_alloc_bytes: u64,
+}
+
+impl std::default::Default for DecodeLimits {
+    fn default() -> Self {
+        // 16k per side and 64 Mpixel are far beyond any texture sample and still decodable.
+        DecodeLimits { max_side: 16_384, max_pixels: 64 << 20, max_alloc_bytes: 1 << 30 }
+    }
+}
+
+/// Output file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    Png,
+    Exr,
+}
+
+impl Format {
+    /// The format implied by a file name's extension.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        match path.extension()?.to_str()?.to_ascii_lowercase().as_str() {
+            "png" => Some(Format::Png),
+            "exr" => Some(Format::Exr),
+            _ => None,
+        }
+    }
+    pub fn name(&self) -> &'static str {
+        match self {
+            Format::Png => "png",
+            Format::Exr => "exr",
+        }
+    }
+}
+
+/// Decoded samples in their stored precision, for pixel digests of written outputs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Samples {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    F32(Vec<f32>),
+}
+
+/// An image in its stored precision: `width × height × channels` samples, row-major, interleaved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NativeImage {
+    pub width: u32,
+    pub height: u32,
+    pub channels: u32,
+    pub samples: Samples,
+}
+
+impl NativeImage {
+    pub fn from_rgb8(img: &RgbImage) -> NativeImage {
+        NativeImage { width: img.width(), height: img.height(), channels: 3, samples: Samples::U8(img.as_raw().to_vec()) }
+    }
+
+    /// SHA-256 over `texsyn-pixels/1 {width}x{height}x{channels} {u8|u16le|f32le}\n` followed by
+    /// the raw samples (little-endian for multi-byte types). Independent of file compression.
+    pub fn pixel_digest(&self) -> Digest {
+        let mut h = Hasher::new();
+        let kind = match self.samples {
+            Samples::U8(_) => "u8",
+            Samples::U16(_) => "u16le",
+            Samples::F32(_) => "f32le",
+        };
+        h.update(format!("texsyn-pixels/1 {}x{}x{} {kind}\n", self.width, self.height, self.channels).as_bytes());
+        match &self.samples {
+            Samples::U8(v) => h.update(v),
+            Samples::U16(v) => {
+                let bytes: Vec<u8> = v.iter().flat_map(|s| s.to_le_bytes()).collect();
+                h.update(&bytes);
+            }
+            Samples::F32(v) => {
+                let bytes: Vec<u8> = v.iter().flat_map(|s| s.to_le_bytes()).collect();
+                h.update(&bytes);
+            }
+        }
+        h.finish()
+    }
+}
+
+/// The pixel digest of an 8-bit RGB image (what methods see of a sample).
+pub fn rgb_pixel_digest(img: &RgbImage) -> Digest {
+    NativeImage::from_rgb8(img).pixel_digest()
+}
+
+/// Decodes a sample file into 8-bit RGB. Errors say what is wrong with the file, not where it is
+/// (callers add the path).
+pub fn decode_rgb8(bytes: &[u8], limits: DecodeLimits) -> Result<RgbImage, String> {
+    let native = decode_native(bytes, limits)?;
+    Ok(native_to_rgb8(&native))
+}
+
+/// Reads and decodes a sample file.
+pub fn read_rgb8(path: &Path, limits: DecodeLimits) -> Result<(RgbImage, Vec<u8>), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    let img = decode_rgb8(&bytes, limits)?;
+    Ok((img, bytes))
+}
+
+fn check_size(w: u32, h: u32, limits: DecodeLimits) -> Result<(), String> {
+    if w == 0 || h == 0 {
+        return Err(format!("image has zero size ({w}x{h})"));
+    }
+    if w > limits.max_side || h > limits.max_side || w as u64 * h as u64 > limits.max_pixels {
+        return Err(format!(
+            "image is {w}x{h}, larger than the decoder's limit ({} per side, {} pixels); refusing to decode it",
+            limits.max_side, limits.max_pixels
+        ));
+    }
+    Ok(())
+}
+
+/// Decodes PNG, JPEG or EXR into its stored precision (RGB or gray expanded to RGB; alpha dropped).
+pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+    if bytes.is_empty() {
+        return Err("file is empty".into());
+    }
+    if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+        return decode_exr(bytes, limits);
+    }
+    let format = image::guess_format(bytes)
+        .map_err(|_| "not a recognised image (expected PNG, JPEG or EXR)".to_string())?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(format!("unsupported image format {format:?} (expected PNG, JPEG or EXR)"));
+    }
+    if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
+        // The JPEG decoder pads a truncated scan with flat colour instead of failing.
+        return Err("file is truncated (the JPEG has no end-of-image marker after its last scan)".into());
+    }
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(limits.max_side);
+    l.max_image_height = Some(limits.max_side);
+    l.max_alloc = Some(limits.max_alloc_bytes);
+    reader.limits(l);
+    let (w, h) = reader.into_dimensions().map_err(describe_image_error)?;
+    check_size(w, h, limits)?;
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut l = image::Limits::default();
+    l.max_image_width = Some(limits.max_side);
+    l.max_image_height = Some(limits.max_side);
+    l.max_alloc = Some(limits.max_alloc_bytes);
+    reader.limits(l);
+    let img = reader.decode().map_err(describe_image_error)?;
+    use image::DynamicImage as D;
+    let (w, h) = (img.width(), img.height());
+    Ok(match img {
+        D::ImageLuma16(_) | D::ImageLumaA16(_) | D::ImageRgb16(_) | D::ImageRgba16(_) => {
+            NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(img.to_rgb16().into_raw()) }
+        }
+        D::ImageRgb32F(_) | D::ImageRgba32F(_) => {
+            NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(img.to_rgb32f().into_raw()) }
+        }
+        _ => NativeImage { width: w, height: h, channels: 3, samples: Samples::U8(img.to_rgb8().into_raw()) },
+    })
+}
+
+/// Decodes an output file as stored, keeping an alpha channel (RGBA outputs such as exported
+/// tiles are recorded with 4 channels); everything else decodes as [`decode_native`] does.
+pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+    if bytes.starts_with(b"\x89PNG") {
+        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+        let mut l = image::Limits::default();
+        l.max_image_width = Some(limits.max_side);
+        l.max_image_height = Some(limits.max_side);
+        l.max_alloc = Some(limits.max_alloc_bytes);
+        reader.limits(l);
+        if let Ok(img) = reader.decode() {
+            let (w, h) = (img.width(), img.height());
+            check_size(w, h, limits)?;
+            match img {
+                image::DynamicImage::ImageRgba8(rgba) => {
+                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U8(rgba.into_raw()) });
+                }
+                image::DynamicImage::ImageRgba16(rgba) => {
+                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U16(rgba.into_raw()) });
+                }
+                _ => {}
+            }
+        }
+    }
+    decode_native(bytes, limits)
+}
+
+/// Reads an image file as 8-bit RGBA (`width`, `height`, samples); images without alpha are
+/// opaque. Errors say what is wrong with the file (callers add the path).
+pub fn decode_rgba8(bytes: &[u8], limits: DecodeLimits) -> Result<(u32, u32, Vec<u8>), String> {
+    let native = decode_output(bytes, limits)?;
+    let (w, h) = (native.width, native.height);
+    if native.channels == 4 {
+        let data = match native.samples {
+            Samples::U8(v) => v,
+            Samples::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
+            Samples::F32(_) => return Err("floating-point RGBA is not supported here".into()),
+        };
+        return Ok((w, h, data));
+    }
+    let rgb = native_to_rgb8(&native);
+    let data = rgb.as_raw().chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+    Ok((w, h, data))
+}
+
+/// Encodes 8-bit RGBA samples as PNG.
+pub fn encode_rgba8_png(width: u32, height: u32, data: &[u8]) -> Result<Encoded, String> {
+    if data.len() != width as usize * height as usize * 4 {
+        return Err(format!("RGBA data of {} bytes does not match {width}x{height}", data.len()));
+    }
+    let mut bytes = Vec::new();
+    image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), data, width, height, image::ExtendedColorType::Rgba8)
+        .map_err(|e| format!("PNG encoding failed: {e}"))?;
+    Ok(Encoded { bytes, pixels: NativeImage { width, height, channels: 4, samples: Samples::U8(data.to_vec()) } })
+}
+
+/// Whether an end-of-image marker (FF D9) follows the last start-of-scan marker (FF DA). Inside
+/// entropy-coded data 0xFF is always stuffed or a restart marker, so neither can occur there; an
+/// EXIF thumbnail's own markers come before the main scan.
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last = |marker: u8| bytes.windows(2).rposition(|w| w[0] == 0xFF && w[1] == marker);
+    match (last(0xDA), last(0xD9)) {
+        (Some(sos), Some(eoi)) => eoi > sos,
+        _ => false,
+    }
+}
+
+fn describe_image_error(e: image::ImageError) -> String {
+    match e {
+        image::ImageError::Limits(l) => format!("image exceeds the decoder's limits ({l}); refusing to decode it"),
+        image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "file is truncated (unexpected end of data)".into()
+        }
+        other => format!("cannot decode image: {other}"),
+    }
+}
+
+fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+    use exr::prelude::*;
+    let meta = MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| format!("cannot read EXR header: {e}"))?;
+    let header = meta.headers.first().ok_or("EXR file has no layers")?;
+    let size = header.layer_size;
+    if size.width() > u32::MAX as usize || size.height() > u32::MAX as usize {
+        return Err("EXR layer is impossibly large".into());
+    }
+    check_size(size.width() as u32, size.height() as u32, limits)?;
+    // The exr crate validates chunk tables against the header; a panic inside it is still turned
+    // into an error rather than taking the process down.
+    let result = std::panic::catch_unwind(|| {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |resolution, _| (resolution.width(), vec![0f32; resolution.width() * resolution.height() * 3]),
+                |(w, px): &mut (usize, Vec<f32>), pos: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
+                    let i = (pos.y() * *w + pos.x()) * 3;
+                    px[i] = r;
+                    px[i + 1] = g;
+                    px[i + 2] = b;
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(bytes))
+    });
+    let image = match result {
+        Ok(Ok(img)) => img,
+        Ok(Err(e)) => return Err(format!("cannot decode EXR: {e}")),
+        Err(_) => return Err("cannot decode EXR: the decoder failed on malformed data".into()),
+    };
+    let (w, h) = (image.layer_data.size.width() as u32, image.layer_data.size.height() as u32);
+    let (_, px) = image.layer_data.channel_data.pixels;
+    Ok(NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(px) })
+}
+
+/// Quantises any stored precision to the 8-bit RGB methods work on.
+pub fn native_to_rgb8(img: &NativeImage) -> RgbImage {
+    let data: Vec<u8> = match &img.samples {
+        Samples::U8(v) => v.clone(),
+        Samples::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
+        Samples::F32(v) => v.iter().map(|&s| unit_to_u8(linear_to_srgb(s as f64))).collect(),
+    };
+    RgbImage::from_raw(img.width, img.height, data).expect("decoded size matches")
+}
+
+fn unit_to_u8(v: f64) -> u8 {
+    if v.is_nan() { 0 } else { (v * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8 }
+}
+
+/// The sRGB transfer function (IEC 61966-2-1), both directions, on unit scale.
+pub fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+}
+
+pub fn linear_to_srgb(v: f64) -> f64 {
+    if v <= 0.0031308 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// How an output is stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Encoding {
+    pub format: Format,
+    /// 8 or 16 for PNG; 32 (float) for EXR.
+    pub bit_depth: u8,
+}
+
+/// An encoded output: the file bytes and the stored pixels they decode to.
+pub struct Encoded {
+    pub bytes: Vec<u8>,
+    pub pixels: NativeImage,
+}
+
+/// Encodes an 8-bit RGB image as PNG (8 or 16 bits) or EXR (32-bit float, linear light: the sRGB
+/// values are linearised, since EXR holds scene-linear data).
+pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, String> {
+    let (w, h) = img.dimensions();
+    match (enc.format, enc.bit_depth) {
+        (Format::Png, 8) => {
+            let mut bytes = Vec::new();
+            image::ImageEncoder::write_image(
+                image::codecs::png::PngEncoder::new(&mut bytes),
+                img.as_raw(),
+                w,
+                h,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| format!("PNG encoding failed: {e}"))?;
+            Ok(Encoded { bytes, pixels: NativeImage::from_rgb8(img) })
+        }
+        (Format::Png, 16) => {
+            let wide: Vec<u16> = img.as_raw().iter().map(|&v| v as u16 * 257).collect();
+            let be: Vec<u8> = wide.iter().flat_map(|s| s.to_be_bytes()).collect();
+            let mut bytes = Vec::new();
+            image::ImageEncoder::write_image(
+                image::codecs::png::PngEncoder::new(&mut bytes),
+                &be,
+                w,
+                h,
+                image::ExtendedColorType::Rgb16,
+            )
+            .map_err(|e| format!("PNG encoding failed: {e}"))?;
+            Ok(Encoded { bytes, pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(wide) } })
+        }
+        (Format::Exr, _) => {
+            use exr::prelude::*;
+            let lut: Vec<f32> = (0..256).map(|v| srgb_to_linear(v as f64 / 255.0) as f32).collect();
+            let linear: Vec<f32> = img.as_raw().iter().map(|&v| lut[v as usize]).collect();
+            let width = w as usize;
+            let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+                let i = (pos.y() * width + pos.x()) * 3;
+                (linear[i], linear[i + 1], linear[i + 2])
+            });
+            let layer = Layer::new((w as usize, h as usize), LayerAttributes::named("texsyn"), Encoding::FAST_LOSSLESS, channels);
+            let image = Image::from_layer(layer);
+            let mut cursor = std::io::Cursor::new(Vec::new());
+            image.write().non_parallel().to_buffered(&mut cursor).map_err(|e| format!("EXR encoding failed: {e}"))?;
+            Ok(Encoded {
+                bytes: cursor.into_inner(),
+                pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(linear) },
+            })
+        }
+        (Format::Png, d) => Err(format!("PNG bit depth {d} is not supported (use 8 or 16)")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img() -> RgbImage {
+        RgbImage::from_fn(17, 9, |x, y| [(x * 15) as u8, (y * 28) as u8, (x * y) as u8])
+    }
+
+    #[test]
+    fn png8_round_trips_exactly() {
+        let e = encode(&img(), Encoding { format: Format::Png, bit_depth: 8 }).unwrap();
+        let back = decode_native(&e.bytes, DecodeLimits::default()).unwrap();
+        assert_eq!(back, e.pixels);
+        assert_eq!(native_to_rgb8(&back), img());
+    }
+
+    #[test]
+    fn png16_round_trips_and_quantises_back() {
+        let e = encode(&img(), Encoding { format: Format::Png, bit_depth: 16 }).unwrap();
+        let back = decode_native(&e.bytes, DecodeLimits::default()).unwrap();
+        assert_eq!(back, e.pixels);
+        assert!(matches!(back.samples, Samples::U16(_)));
+        assert_eq!(native_to_rgb8(&back), img());
+    }
+
+    #[test]
+    fn exr_is_linear_and_round_trips() {
+        let e = encode(&img(), Encoding { format: Format::Exr, bit_depth: 32 }).unwrap();
+        let back = decode_native(&e.bytes, DecodeLimits::default()).unwrap();
+        assert_eq!(back.pixel_digest(), e.pixels.pixel_digest());
+        assert_eq!(native_to_rgb8(&back), img());
+        if let Samples::F32(v) = &back.samples {
+            // sRGB 128 is about 0.2158 in linear light.
+            let probe = RgbImage::from_fn(1, 1, |_, _| [128, 128, 128]);
+            let e2 = encode(&probe, Encoding { format: Format::Exr, bit_depth: 32 }).unwrap();
+            if let Samples::F32(p) = e2.pixels.samples {
+                assert!((p[0] - 0.2158).abs() < 1e-3, "{}", p[0]);
+            }
+            assert_eq!(v.len(), 17 * 9 * 3);
+        } else {
+            panic!("EXR decoded to integers");
+        }
+    }
+
+    #[test]
+    fn rgba_png_round_trips_with_its_alpha() {
+        let data: Vec<u8> = (0..5 * 3).flat_map(|i| [i as u8, 2 * i as u8, 3 * i as u8, if i % 2 == 0 { 255 } else { 0 }]).collect();
+        let e = encode_rgba8_png(5, 3, &data).unwrap();
+        let back = decode_output(&e.bytes, DecodeLimits::default()).unwrap();
+        assert_eq!(back, e.pixels);
+        assert_eq!(back.channels, 4);
+        assert_eq!(decode_rgba8(&e.bytes, DecodeLimits::default()).unwrap(), (5, 3, data));
+        // An RGB file reads as opaque RGBA, and its recorded pixels are still RGB.
+        let rgb = encode(&img(), Encoding { format: Format::Png, bit_depth: 8 }).unwrap();
+        assert_eq!(decode_output(&rgb.bytes, DecodeLimits::default()).unwrap().channels, 3);
+        let (_, _, opaque) = decode_rgba8(&rgb.bytes, DecodeLimits::default()).unwrap();
+        assert!(opaque.chunks_exact(4).all(|p| p[3] == 255));
+        assert!(encode_rgba8_png(5, 3, &[0; 7]).is_err());
+    }
+
+    #[test]
+    fn pixel_digest_depends_on_pixels_and_shape_only() {
+        let a = NativeImage::from_rgb8(&img());
+        let mut b = a.clone();
+        assert_eq!(a.pixel_digest(), b.pixel_digest());
+        b.width = 9;
+        b.height = 17;
+        assert_ne!(a.pixel_digest(), b.pixel_digest());
+    }
+
+    #[test]
+    fn hostile_inputs_are_refused_with_reasons() {
+        let good = encode(&img(), Encoding { format: Format::Png, bit_depth: 8 }).unwrap().bytes;
+        let l = DecodeLimits::default();
+        assert!(decode_native(&[], l).unwrap_err().contains("empty"));
+        assert!(decode_native(b"hello world", l).unwrap_err().contains("not a recognised image"));
+        let truncated = &good[..good.len() / 2];
+        assert!(decode_native(truncated, l).is_err());
+        let mut jpeg = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::jpeg::JpegEncoder::new(&mut jpeg),
+            img().as_raw(),
+            17,
+            9,
+            image::ExtendedColorType::Rgb8,
+        )
+        .unwrap();
+        assert!(decode_native(&jpeg, l).is_ok());
+        assert!(decode_native(&jpeg[..jpeg.len() - 40], l).unwrap_err().contains("truncated"));
+        let tiny = DecodeLimits { max_side: 10, ..l };
+        assert!(decode_native(&good, tiny).unwrap_err().contains("limit"));
+    }
+}

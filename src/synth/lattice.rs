@@ -1,0 +1,298 @@
+//! Lattice extraction: the translation vectors `t1, t2` of a near-regular texture
+//! (methods.md §2.2, after Liu, Collins & Tsin's region-of-dominance peak selection).
+//!
+//! Lattice-aware methods (co-evolution, TES) need the texel lattice of the sample. It is read off
+//! the autocorrelation of the gray plane: its dominant peaks, reduced to a short basis and checked
+//! for reliability, so a stochastic sample fails loudly ("no lattice found; give t1/t2") instead of
+//! producing a meaningless lattice. Everything is integer offsets of the ACF grid, as in the paper.
+
+use crate::image::RgbImage;
+use crate::metrics::{AcfForm, autocorrelation, centred_gray};
+
+/// Parameters of the extraction (methods.md §2.2 defaults).
+#[derive(Clone, Copy, Debug)]
+pub struct LatticeOptions {
+    /// Dominant peaks kept (peaks come in ± pairs).
+    pub max_peaks: usize,
+    /// Shortest vector accepted, in pixels.
+    pub min_length: f64,
+    /// Smallest angle between `t1` and `t2`, in degrees.
+    pub min_angle_deg: f64,
+    /// `A(t1)` and `A(t2)` must reach this (3×3 maximum around the vector).
+    pub min_peak: f64,
+}
+
+impl Default for LatticeOptions {
+    fn default() -> Self {
+        LatticeOptions { max_peaks: 16, min_length: 4.0, min_angle_deg: 20.0, min_peak: 0.10 }
+    }
+}
+
+/// A lattice found in a sample.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Lattice {
+    pub t1: (i64, i64),
+    pub t2: (i64, i64),
+    /// `A(t1)`, `A(t2)` (biased ACF, 3×3 maximum around the vector).
+    pub peak1: f64,
+    pub peak2: f64,
+    /// Dominant peaks considered, and how many of them the lattice explains.
+    pub candidates: usize,
+    pub explained: usize,
+}
+
+impl Lattice {
+    /// `cross(t1, t2)`: the texel area, positive in canonical form.
+    pub fn determinant(&self) -> i64 {
+        cross(self.t1, self.t2)
+    }
+}
+
+fn cross(a: (i64, i64), b: (i64, i64)) -> i64 {
+    a.0 * b.1 - a.1 * b.0
+}
+fn dot(a: (i64, i64), b: (i64, i64)) -> i64 {
+    a.0 * b.0 + a.1 * b.1
+}
+fn len(a: (i64, i64)) -> f64 {
+    (dot(a, a) as f64).sqrt()
+}
+
+/// Finds `t1, t2`; `Err` explains why the sample is not near-regular enough.
+pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String> {
+    const NONE: &str = "no lattice found; give t1/t2";
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if w < 8 || h < 8 {
+        return Err(format!("{NONE} (the sample is too small to show a period)"));
+    }
+    let plane = centred_gray(img);
+    let (rx, ry) = (w / 2, h / 2);
+    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased).map_err(|e| format!("{NONE} ({e}: the sample is flat)"))?;
+    let (rx, ry) = (rx as i64, ry as i64);
+    let a = |dx: i64, dy: i64| acf.get(dx, dy);
+    let inside = |dx: i64, dy: i64| dx.abs() <= rx && dy.abs() <= ry;
+    let order = |dx: i64, dy: i64| (dy + ry) * (2 * rx + 1) + (dx + rx);
+
+    // 3. Strict local maxima (plateaus: only their first pixel in row-major order). Only offsets
+    // with all 8 neighbours in the window qualify: at the window's edge a value is "maximal" merely
+    // because the window ends, and would then dominate a huge region.
+    let mut peaks = Vec::new();
+    for dy in -ry + 1..ry {
+        for dx in -rx + 1..rx {
+            if dx == 0 && dy == 0 {
+                continue;
+            }
+            let v = a(dx, dy);
+            let mut is_max = true;
+            'n: for ny in -1..=1 {
+                for nx in -1..=1 {
+                    if (nx, ny) == (0, 0) {
+                        continue;
+                    }
+                    let q = a(dx + nx, dy + ny);
+                    if q > v || (q == v && order(dx + nx, dy + ny) < order(dx, dy)) {
+                        is_max = false;
+                        break 'n;
+                    }
+                }
+            }
+            if is_max {
+                peaks.push((dx, dy));
+            }
+        }
+    }
+    // 4. Region of dominance: distance to the nearest higher value.
+    let mut ranked: Vec<((i64, i64), f64, f64)> = peaks
+        .iter()
+        .map(|&(dx, dy)| {
+            let v = a(dx, dy);
+            let mut best = f64::INFINITY;
+            for qy in -ry..=ry {
+                for qx in -rx..=rx {
+                    if a(qx, qy) > v {
+                        let d = (((qx - dx) * (qx - dx) + (qy - dy) * (qy - dy)) as f64).sqrt();
+                        best = best.min(d);
+                    }
+                }
+            }
+            ((dx, dy), best, v)
+        })
+        .collect();
+    // 5. Dominant peaks.
+    ranked.sort_by(|x, y| {
+        y.1.partial_cmp(&x.1)
+            .unwrap()
+            .then(y.2.partial_cmp(&x.2).unwrap())
+            .then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1)))
+    });
+    ranked.truncate(opts.max_peaks);
+    let c: Vec<((i64, i64), f64)> = ranked.into_iter().filter(|p| p.2 > 0.0 && len(p.0) >= opts.min_length).map(|p| (p.0, p.2)).collect();
+    // 6. Shortest vector, then the shortest one far enough in angle.
+    let shortest = |cands: &mut dyn Iterator<Item = &((i64, i64), f64)>| -> Option<(i64, i64)> {
+        cands
+            .min_by(|x, y| dot(x.0, x.0).cmp(&dot(y.0, y.0)).then(y.1.partial_cmp(&x.1).unwrap()).then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1))))
+            .map(|p| p.0)
+    };
+    let t1 = shortest(&mut c.iter()).ok_or_else(|| format!("{NONE} (no dominant autocorrelation peak)"))?;
+    let sin_min = opts.min_angle_deg.to_radians().sin();
+    let t2 = shortest(&mut c.iter().filter(|p| (cross(t1, p.0).abs() as f64) >= len(t1) * len(p.0) * sin_min))
+        .ok_or_else(|| format!("{NONE} (the autocorrelation peaks lie along one direction only)"))?;
+    // 7. Lagrange–Gauss reduction.
+    let (t1, t2) = reduce(t1, t2);
+    // 8. Reliability.
+    let peak_at = |t: (i64, i64)| -> f64 {
+        let mut m = f64::NEG_INFINITY;
+        for ny in -1..=1 {
+            for nx in -1..=1 {
+                if inside(t.0 + nx, t.1 + ny) {
+                    m = m.max(a(t.0 + nx, t.1 + ny));
+                }
+            }
+        }
+        m
+    };
+    let (peak1, peak2) = (peak_at(t1), peak_at(t2));
+    let tol = (0.1 * len(t1).min(len(t2))).max(2.0);
+    let d = cross(t1, t2) as f64;
+    let explained = c
+        .iter()
+        .filter(|p| {
+            let q = p.0;
+            let alpha = cross(q, t2) as f64 / d;
+            let beta = cross(t1, q) as f64 / d;
+            let mut best = f64::INFINITY;
+            for m in [alpha.floor() as i64, alpha.ceil() as i64] {
+                for n in [beta.floor() as i64, beta.ceil() as i64] {
+                    let lp = (m * t1.0 + n * t2.0, m * t1.1 + n * t2.1);
+                    best = best.min(len((q.0 - lp.0, q.1 - lp.1)));
+                }
+            }
+            best <= tol
+        })
+        .count();
+    if peak1 < opts.min_peak || peak2 < opts.min_peak {
+        return Err(format!(
+            "{NONE} (the candidate vectors ({}, {}) and ({}, {}) have weak autocorrelation peaks {:.3} and {:.3}, below {}; the sample is not near-regular enough)",
+            t1.0, t1.1, t2.0, t2.1, peak1, peak2, opts.min_peak
+        ));
+    }
+    if explained * 2 < c.len() {
+        return Err(format!("{NONE} (the lattice ({}, {}), ({}, {}) explains only {explained} of {} dominant peaks)", t1.0, t1.1, t2.0, t2.1, c.len()));
+    }
+    let (t1, t2) = canonical(t1, t2);
+    Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained })
+}
+
+/// Step 9: `t1` the more horizontal vector, pointing right (or down), `cross(t1, t2) > 0`.
+/// Lagrange–Gauss reduction of a basis (shortest first). Stops as soon as a step no longer
+/// shortens `t2`: when `t1·t2 / t1·t1` is exactly ±½ rounding alone would flip `t2` between two
+/// equally long vectors forever (e.g. (16, 0), (8, 16)).
+pub fn reduce(t1: (i64, i64), t2: (i64, i64)) -> ((i64, i64), (i64, i64)) {
+    let (mut t1, mut t2) = (t1, t2);
+    loop {
+        if dot(t1, t1) > dot(t2, t2) {
+            std::mem::swap(&mut t1, &mut t2);
+        }
+        let mu = (dot(t1, t2) as f64 / dot(t1, t1) as f64).round() as i64;
+        let next = (t2.0 - mu * t1.0, t2.1 - mu * t1.1);
+        if mu == 0 || dot(next, next) >= dot(t2, t2) {
+            return (t1, t2);
+        }
+        t2 = next;
+    }
+}
+
+pub fn canonical(t1: (i64, i64), t2: (i64, i64)) -> ((i64, i64), (i64, i64)) {
+    let horizontality = |v: (i64, i64)| v.0.abs() as f64 / len(v);
+    let (mut t1, mut t2) = if horizontality(t2) > horizontality(t1) { (t2, t1) } else { (t1, t2) };
+    if t1.0 < 0 || (t1.0 == 0 && t1.1 < 0) {
+        t1 = (-t1.0, -t1.1);
+    }
+    if cross(t1, t2) < 0 {
+        t2 = (-t2.0, -t2.1);
+    }
+    (t1, t2)
+}
+
+/// The sample with the lattice drawn over it (lines along `t1` and `t2` through the origin
+/// `(0, 0)`), so a user can check it by eye.
+pub fn overlay(img: &RgbImage, lat: &Lattice) -> RgbImage {
+    let mut out = img.clone();
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    let d = lat.determinant();
+    if d == 0 {
+        return out;
+    }
+    // A pixel is on a lattice line when its lattice coordinate α or β is within half a pixel
+    // (measured along the other vector) of an integer: exact integer arithmetic as in B11.
+    let (t1, t2) = (lat.t1, lat.t2);
+    let half_width = |t: (i64, i64)| (d.abs() as f64 / len(t) * 0.5 / d.abs() as f64) * d.abs() as f64;
+    let (hw1, hw2) = (half_width(t2), half_width(t1));
+    for y in 0..h {
+        for x in 0..w {
+            let alpha = cross((x, y), t2) as f64 / d as f64; // coordinate along t1
+            let beta = cross(t1, (x, y)) as f64 / d as f64;
+            let da = (alpha - alpha.round()).abs() * d.abs() as f64 / len(t2);
+            let db = (beta - beta.round()).abs() * d.abs() as f64 / len(t1);
+            if da <= hw1.min(0.75) || db <= hw2.min(0.75) {
+                out.put(x as u32, y as u32, [255, 40, 40]);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn reduction_terminates_on_half_ties_and_shortens() {
+        assert_eq!(reduce((16, 0), (8, 16)), ((16, 0), (8, 16)));
+        assert_eq!(reduce((16, 0), (-8, 16)), ((16, 0), (-8, 16)));
+        assert_eq!(reduce((27, 0), (27 * 3, 26)), ((0, 26), (27, 0)));
+        assert_eq!(reduce((38, -24), (74, 0)), ((36, 24), (38, -24)));
+    }
+
+    use super::*;
+
+    fn periodic(w: u32, h: u32, t1: (i64, i64), t2: (i64, i64)) -> RgbImage {
+        // A blob pattern repeating on the lattice t1, t2 (with a little deterministic texture).
+        let d = cross(t1, t2) as f64;
+        RgbImage::from_fn(w, h, |x, y| {
+            let (x, y) = (x as i64, y as i64);
+            let a = cross((x, y), t2) as f64 / d;
+            let b = cross(t1, (x, y)) as f64 / d;
+            let (fa, fb) = (a - a.floor() - 0.5, b - b.floor() - 0.5);
+            let blob = (fa * fa + fb * fb) < 0.08;
+            let v = if blob { 200 } else { 60 } + ((x * 31 + y * 17) % 7) as u8;
+            [v, v, v]
+        })
+    }
+
+    #[test]
+    fn finds_a_rectangular_and_a_slanted_lattice() {
+        let l = extract(&periodic(160, 160, (20, 0), (0, 16)), &LatticeOptions::default()).unwrap();
+        assert_eq!((l.t1, l.t2), ((20, 0), (0, 16)));
+        let s = extract(&periodic(200, 200, (24, 0), (12, 20)), &LatticeOptions::default()).unwrap();
+        assert!(s.determinant() == 24 * 20, "{s:?}");
+        assert!(s.t1.0 > 0 && s.determinant() > 0);
+    }
+
+    #[test]
+    fn rejects_noise_and_flat_samples() {
+        let mut st = crate::synth::rng::Stream::new(1, "noise");
+        let noise = RgbImage::from_fn(128, 128, |_, _| {
+            let v = st.below(256) as u8;
+            [v, v, v]
+        });
+        assert!(extract(&noise, &LatticeOptions::default()).unwrap_err().contains("no lattice found; give t1/t2"));
+        let flat = RgbImage::from_fn(64, 64, |_, _| [9, 9, 9]);
+        assert!(extract(&flat, &LatticeOptions::default()).unwrap_err().contains("no lattice found"));
+    }
+
+    #[test]
+    fn canonical_form() {
+        assert_eq!(canonical((0, -26), (-27, 0)), ((27, 0), (0, 26)));
+        let (a, b) = canonical((-36, -24), (-38, 24));
+        assert!(a.0 > 0 && cross(a, b) > 0);
+    }
+}

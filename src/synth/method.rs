@@ -1,0 +1,82 @@
+//! The interface every synthesis method implements, and what it returns.
+//!
+//! A method is a pure function of (sample pixels, resolved parameters, seed, output size): it
+//! never sees file names, formats or the clock. That is what lets the batch layer cache, verify
+//! and re-run results from the manifest alone.
+
+use crate::image::RgbImage;
+use crate::image::seam_grid::SeamGrid;
+use crate::synth::params::{ParamError, ParamSpec, Params};
+
+/// What a method is asked to do.
+pub struct Request<'a> {
+    pub sample: &'a RgbImage,
+    pub width: u32,
+    pub height: u32,
+    pub params: &'a Params,
+    pub seed: u64,
+}
+
+/// What a method produces.
+#[derive(Debug)]
+pub struct Synthesis {
+    /// The output, exactly `width × height`.
+    pub image: RgbImage,
+    /// Where block seams may be, for the seam-visibility metric (grid-based methods only).
+    pub seams: Option<SeamGrid>,
+    /// Method-specific diagnostics worth recording in the manifest (`null` when none). Must be
+    /// deterministic: it is part of the reproducible record.
+    pub diagnostics: serde_json::Value,
+    /// Wall-clock seconds of named phases (e.g. table building vs iterations), for papers that
+    /// report them separately. Not reproducible, so recorded with the job's timing, not its result.
+    pub phases: Vec<(String, f64)>,
+    /// Further products a job asked for (e.g. an exported tile set), written next to the main
+    /// output and recorded, hashed and verified like it. Must be deterministic.
+    pub extras: Vec<ExtraOutput>,
+}
+
+impl Synthesis {
+    pub fn new(image: RgbImage) -> Synthesis {
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new(), extras: Vec::new() }
+    }
+}
+
+/// A product besides the main image. The runner stores it at `{output path without its
+/// extension}.{name}`: for output `tiles/bricks.png` and name `tiles/index.json`, the file is
+/// `tiles/bricks.tiles/index.json`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtraOutput {
+    /// Relative name: `/`-separated, no `..`, no leading `/`.
+    pub name: String,
+    pub content: ExtraContent,
+}
+
+/// What an extra output holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ExtraContent {
+    /// An 8-bit RGBA image (`width × height × 4`, row-major), stored as PNG.
+    Rgba8 { width: u32, height: u32, data: Vec<u8> },
+    /// A JSON document, stored pretty-printed.
+    Json(serde_json::Value),
+}
+
+/// A synthesis method.
+pub trait Method: Send + Sync {
+    /// The name used in job files (`method = "…"`).
+    fn name(&self) -> &'static str;
+    /// Bumped whenever a change alters the pixels produced for the same inputs; part of the
+    /// content key, so outputs made by an older algorithm are recomputed, not trusted.
+    fn algorithm_version(&self) -> u32;
+    /// One line for `texsyn methods`.
+    fn summary(&self) -> &'static str;
+    /// The declared parameters.
+    fn params(&self) -> &'static [ParamSpec];
+    /// Checks that need several parameters together or the sample and output sizes (e.g. a block
+    /// larger than the sample). Runs before anything is synthesised.
+    fn check(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        Vec::new()
+    }
+    /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
+    fn synthesize(&self, request: &Request) -> Result<Synthesis, String>;
+}
+

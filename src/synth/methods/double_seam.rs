@@ -1,0 +1,543 @@
+//! Non-overlapping splicing by the double-seam consistency criterion (paper 003, methods.md §5).
+//!
+//! Blocks sit on the same grid as image quilting (stride `block − overlap`), but the overlap is
+//! only *virtual*: a candidate block is judged by how well two lines agree with the output already
+//! there — the true seam (the last existing column/row before the pasted part) and an auxiliary
+//! line `aux_dist` further in — using Pearson correlations of the H, S and I sequences and the
+//! agreement of a binary edge map. The chosen block is pasted verbatim, without blending or a cut.
+//! Comparing two lines instead of a whole overlap is the paper's speed argument.
+
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::image::RgbImage;
+use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::synth::primitives::block_grid::BlockGrid;
+use crate::synth::primitives::color::HsiPlanes;
+use crate::synth::primitives::correlation::pearson_from;
+use crate::synth::primitives::edges::{otsu_edges, sobel4};
+use crate::synth::rng::Stream;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+use rayon::prelude::*;
+use std::f64::consts::TAU;
+
+pub struct DoubleSeam;
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec { name: "block", kind: ParamKind::Int { min: 3, max: 4096 }, default: Default::Int(50), doc: "block side B" },
+    ParamSpec {
+        name: "overlap",
+        kind: ParamKind::Int { min: 1, max: 2048 },
+        default: Default::Derived {
+            rule: "round(block / 6)",
+            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+        },
+        doc: "virtual overlap g: grid stride is block − g (paper: 8 for B = 50, 17 for B = 100)",
+    },
+    ParamSpec {
+        name: "aux_dist",
+        kind: ParamKind::Int { min: 1, max: 2048 },
+        default: Default::Derived { rule: "overlap", compute: |p| ParamValue::Int(p.int("overlap")) },
+        doc: "spacing of the auxiliary seam line from the true one, 1..=overlap (overlap − 1 keeps it inside the window)",
+    },
+    ParamSpec { name: "alpha", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.25), doc: "weight of the hue correlation (alpha + beta + gamma = 1)" },
+    ParamSpec { name: "beta", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.25), doc: "weight of the saturation correlation" },
+    ParamSpec { name: "gamma", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.5), doc: "weight of the intensity correlation" },
+    ParamSpec { name: "mu", kind: ParamKind::Float { min: 0.0, max: 1.0e6 }, default: Default::Float(2.0), doc: "edge-mismatch penalty: F_i = D_HSI / (1 + mu·D_E)" },
+    ParamSpec { name: "tau_f", kind: ParamKind::Float { min: -2.0, max: 2.0 }, default: Default::Float(1.6), doc: "candidates need F ≥ min(tau_f, F_max − eps_f)" },
+    ParamSpec { name: "eps_f", kind: ParamKind::Float { min: 0.0, max: 4.0 }, default: Default::Float(0.05), doc: "near-best margin when no position reaches tau_f" },
+    ParamSpec { name: "hue_mode", kind: ParamKind::Choice(&["linear", "circular"]), default: Default::Str("linear"), doc: "linear: Pearson on H/360 (faithful); circular: circular correlation (hue is an angle)" },
+    ParamSpec { name: "clamp_negative", kind: ParamKind::Bool, default: Default::Bool(false), doc: "use max(D_HSI, 0) so a negative correlation is not softened by the edge term" },
+    ParamSpec {
+        name: "level_penalty",
+        kind: ParamKind::Float { min: 0.0, max: 1000.0 },
+        default: Default::Float(0.0),
+        doc: "0 = faithful. Pearson ignores brightness offsets, so blocks of another tone pass as consistent and leave colour steps; > 0 subtracts level_penalty·|mean I difference| per line (try 10)",
+    },
+];
+
+/// Which neighbours a grid position has.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Case {
+    /// First row: left neighbour only.
+    Horizontal,
+    /// First column: upper neighbour only.
+    Vertical,
+    L,
+}
+
+/// The window offsets of the true and the auxiliary seam lines (methods.md §5.3).
+fn lines(case: Case, block: i32, g: i32, a: i32) -> [Vec<(i32, i32)>; 2] {
+    match case {
+        Case::Horizontal => [(0..block).map(|r| (g - 1, r)).collect(), (0..block).map(|r| (a, r)).collect()],
+        Case::Vertical => [(0..block).map(|c| (c, g - 1)).collect(), (0..block).map(|c| (c, a)).collect()],
+        Case::L => [
+            (g - 1..block).map(|r| (g - 1, r)).chain((g..block).map(|c| (c, g - 1))).collect(),
+            (a..block).map(|r| (a, r)).chain((a + 1..block).map(|c| (c, a))).collect(),
+        ],
+    }
+}
+
+/// The sample, pre-processed once: HSI planes and the binary edge map (B6, B7).
+struct Prepared<'a> {
+    rgb: &'a RgbImage,
+    w: usize,
+    planes: HsiPlanes,
+    edges: Vec<u8>,
+}
+
+/// Per candidate position, the candidate side of one line: mean and centred sum of squares of H,
+/// S and I (for circular hue: circular mean and Σ sin² instead), computed once per job and case.
+type LineStats = Vec<[f64; 6]>;
+
+struct Settings {
+    block: i32,
+    g: i32,
+    a: i32,
+    weights: [f64; 3],
+    mu: f64,
+    tau: f64,
+    eps: f64,
+    circular: bool,
+    clamp: bool,
+    level_penalty: f64,
+}
+
+impl Method for DoubleSeam {
+    fn name(&self) -> &'static str {
+        "double-seam"
+    }
+    fn algorithm_version(&self) -> u32 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "paper 003: non-overlapping splicing chosen by double-seam consistency in HSI space"
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        PARAMS
+    }
+
+    fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let (block, g, aux) = (p.int("block"), p.int("overlap"), p.int("aux_dist"));
+        let smaller = sample.0.min(sample.1) as i64;
+        let mut errors = super::check_block_and_overlap(block, g, sample);
+        if aux > g {
+            errors.push(ParamError::new("aux_dist", format!("aux_dist {aux} exceeds the overlap ({g}): the auxiliary line must lie in existing output")));
+        }
+        let a = g - 1 - aux;
+        if block <= smaller && a < 0 && block - a > smaller {
+            errors.push(ParamError::new(
+                "aux_dist",
+                format!("with aux_dist = overlap the auxiliary line needs the sample to be wider than the block ({block}); use aux_dist = {} or a smaller block", g - 1),
+            ));
+        }
+        for w in ["alpha", "beta", "gamma"] {
+            let v = p.float(w);
+            if v <= 0.0 || v >= 1.0 {
+                errors.push(ParamError::new(w, format!("{w} must be strictly between 0 and 1, got {v}")));
+            }
+        }
+        let sum = p.float("alpha") + p.float("beta") + p.float("gamma");
+        if (sum - 1.0).abs() > 1e-9 {
+            errors.push(ParamError::new("alpha", format!("alpha + beta + gamma must be 1, got {sum}")));
+        }
+        errors
+    }
+
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+        let p = req.params;
+        let s = Settings {
+            block: p.int("block") as i32,
+            g: p.int("overlap") as i32,
+            a: (p.int("overlap") - 1 - p.int("aux_dist")) as i32,
+            weights: [p.float("alpha"), p.float("beta"), p.float("gamma")],
+            mu: p.float("mu"),
+            tau: p.float("tau_f"),
+            eps: p.float("eps_f"),
+            circular: p.str("hue_mode") == "circular",
+            clamp: p.bool("clamp_negative"),
+            level_penalty: p.float("level_penalty"),
+        };
+        let sample = req.sample;
+        let (sw, sh) = (sample.width() as i32, sample.height() as i32);
+        if s.block > sw || s.block > sh {
+            return Err(format!("block {} does not fit in the {sw}x{sh} sample", s.block));
+        }
+        let planes = HsiPlanes::of(sample);
+        let edges = otsu_edges(&sobel4(&planes.i, sw as usize, sh as usize));
+        let prep = Prepared { rgb: sample, w: sw as usize, planes, edges };
+
+        let (block, g) = (s.block as u32, s.g as u32);
+        // The quilting grid; the overlap is only virtual here.
+        let grid = BlockGrid::new(block, g, req.width, req.height);
+        let (stride, cols, rows) = (grid.stride(), grid.cols, grid.rows);
+        let (cw, ch) = grid.canvas();
+        let mut out = Canvas::new(cw, ch);
+        let mut stats: Vec<(Case, [LineStats; 2])> = Vec::new();
+        let mut set_sizes = Vec::new();
+        let mut f_max_sum = 0.0;
+        for bi in 0..rows {
+            for bj in 0..cols {
+                let (ox, oy) = grid.origin(bi, bj);
+                let (x, y) = if bi == 0 && bj == 0 {
+                    let mut st = Stream::new(req.seed, "seam/first");
+                    let x = st.below((sw - s.block + 1) as u64) as i32;
+                    let y = st.below((sh - s.block + 1) as u64) as i32;
+                    (x, y)
+                } else {
+                    let case = if bi == 0 { Case::Horizontal } else if bj == 0 { Case::Vertical } else { Case::L };
+                    if !stats.iter().any(|(c, _)| *c == case) {
+                        let ls = lines(case, s.block, s.g, s.a);
+                        let computed = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
+                        stats.push((case, computed));
+                    }
+                    let st = &stats.iter().find(|(c, _)| *c == case).expect("computed").1;
+                    let (positions, scores) = score_all(&prep, &s, case, st, &out, (ox as i32, oy as i32));
+                    let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    let theta = s.tau.min(f_max - s.eps);
+                    let members: Vec<(i32, i32)> =
+                        positions.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(p, _)| *p).collect();
+                    if members.is_empty() {
+                        return Err(format!("no candidate position at grid ({bi}, {bj}) (all scores undefined)"));
+                    }
+                    set_sizes.push(members.len());
+                    f_max_sum += f_max;
+                    let mut st = Stream::new(req.seed, &format!("seam/pick/bi={bi}/bj={bj}"));
+                    members[st.below_usize(members.len())]
+                };
+                let c0 = if bj > 0 { g } else { 0 };
+                let r0 = if bi > 0 { g } else { 0 };
+                out.paste(&prep, (x as u32, y as u32), (ox, oy), c0, r0, block);
+            }
+        }
+        let image = out.rgb.crop(0, 0, req.width, req.height);
+        let band = |count: u32, limit: u32| -> Vec<SeamBand> {
+            (1..count).map(|k| k * stride + g).filter(|&b| b < limit).map(|start| SeamBand { start, len: 1 }).collect()
+        };
+        let seams = SeamGrid { columns: band(cols, req.width), rows: band(rows, req.height) };
+        let n = set_sizes.len().max(1) as f64;
+        let diagnostics = serde_json::json!({
+            "blocks": { "cols": cols, "rows": rows },
+            "mean_candidates": set_sizes.iter().sum::<usize>() as f64 / n,
+            "mean_f_max": f_max_sum / n,
+        });
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
+    }
+}
+
+/// The output being built: RGB plus the HSI values and edge bits of the pasted sample pixels
+/// (the output's edge map is never recomputed, §5.2).
+struct Canvas {
+    rgb: RgbImage,
+    w: usize,
+    h: Vec<f64>,
+    s: Vec<f64>,
+    i: Vec<f64>,
+    e: Vec<u8>,
+}
+
+impl Canvas {
+    fn new(w: u32, h: u32) -> Canvas {
+        let n = w as usize * h as usize;
+        Canvas { rgb: RgbImage::new(w, h), w: w as usize, h: vec![0.0; n], s: vec![0.0; n], i: vec![0.0; n], e: vec![0; n] }
+    }
+
+    fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), c0: u32, r0: u32, block: u32) {
+        for r in r0..block {
+            for c in c0..block {
+                let (sx, sy) = (src.0 + c, src.1 + r);
+                let (dx, dy) = (dst.0 + c, dst.1 + r);
+                self.rgb.put(dx, dy, prep.rgb.get(sx, sy));
+                let si = sy as usize * prep.w + sx as usize;
+                let di = dy as usize * self.w + dx as usize;
+                self.h[di] = prep.planes.h[si];
+                self.s[di] = prep.planes.s[si];
+                self.i[di] = prep.planes.i[si];
+                self.e[di] = prep.edges[si];
+            }
+        }
+    }
+}
+
+/// Admissible candidate positions of a case, as inclusive ranges of `x` and `y`.
+fn admissible(prep: &Prepared, s: &Settings, case: Case) -> (std::ops::RangeInclusive<i32>, std::ops::RangeInclusive<i32>) {
+    let (sw, sh) = (prep.w as i32, (prep.planes.i.len() / prep.w) as i32);
+    let lo = (-s.a).max(0);
+    let x0 = if matches!(case, Case::Horizontal | Case::L) { lo } else { 0 };
+    let y0 = if matches!(case, Case::Vertical | Case::L) { lo } else { 0 };
+    (x0..=sw - s.block, y0..=sh - s.block)
+}
+
+/// Candidate-side statistics of one line at every admissible position (row-major).
+fn candidate_stats(prep: &Prepared, s: &Settings, case: Case, line: &[(i32, i32)]) -> LineStats {
+    let (xs, ys) = admissible(prep, s, case);
+    let n = line.len() as f64;
+    let w = prep.w as i32;
+    let ys: Vec<i32> = ys.collect();
+    ys.par_iter()
+        .flat_map_iter(|&y| {
+            let xs = xs.clone();
+            xs.map(move |x| {
+                let idx: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x + c) as usize).collect();
+                let mut out = [0.0; 6];
+                for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                    if k == 0 && s.circular {
+                        let (sn, cs) = idx.iter().fold((0.0, 0.0), |(a, b), &i| (a + (TAU * plane[i]).sin(), b + (TAU * plane[i]).cos()));
+                        let m = sn.atan2(cs);
+                        let ss: f64 = idx.iter().map(|&i| (TAU * plane[i] - m).sin().powi(2)).sum();
+                        out[0] = m;
+                        out[1] = ss;
+                    } else {
+                        let m = idx.iter().map(|&i| plane[i]).sum::<f64>() / n;
+                        let ss: f64 = idx.iter().map(|&i| (plane[i] - m) * (plane[i] - m)).sum();
+                        out[2 * k] = m;
+                        out[2 * k + 1] = ss;
+                    }
+                }
+                out
+            })
+            .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// The output side of one line: per channel the centred values (or hue sines), mean and sum of
+/// squares, plus the edge bits.
+struct OutputLine {
+    centred: [Vec<f64>; 3],
+    mean: [f64; 3],
+    ss: [f64; 3],
+    edges: Vec<u8>,
+}
+
+fn output_line(out: &Canvas, s: &Settings, origin: (i32, i32), line: &[(i32, i32)]) -> OutputLine {
+    let idx: Vec<usize> = line.iter().map(|&(c, r)| ((origin.1 + r) as usize) * out.w + (origin.0 + c) as usize).collect();
+    let n = line.len() as f64;
+    let mut centred: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let mut mean = [0.0; 3];
+    let mut ss = [0.0; 3];
+    for (k, plane) in [&out.h, &out.s, &out.i].into_iter().enumerate() {
+        if k == 0 && s.circular {
+            let (sn, cs) = idx.iter().fold((0.0, 0.0), |(a, b), &i| (a + (TAU * plane[i]).sin(), b + (TAU * plane[i]).cos()));
+            let m = sn.atan2(cs);
+            centred[0] = idx.iter().map(|&i| (TAU * plane[i] - m).sin()).collect();
+            mean[0] = m;
+        } else {
+            let m = idx.iter().map(|&i| plane[i]).sum::<f64>() / n;
+            centred[k] = idx.iter().map(|&i| plane[i] - m).collect();
+            mean[k] = m;
+        }
+        ss[k] = centred[k].iter().map(|v| v * v).sum();
+    }
+    OutputLine { centred, mean, ss, edges: idx.iter().map(|&i| out.e[i]).collect() }
+}
+
+/// `F = F_1 + F_2` at every admissible position, row-major, evaluated in parallel by rows; each
+/// value's arithmetic is fixed, so the result does not depend on the thread count.
+fn score_all(
+    prep: &Prepared,
+    s: &Settings,
+    case: Case,
+    stats: &[LineStats; 2],
+    out: &Canvas,
+    origin: (i32, i32),
+) -> (Vec<(i32, i32)>, Vec<f64>) {
+    let ls = lines(case, s.block, s.g, s.a);
+    let outs = [output_line(out, s, origin, &ls[0]), output_line(out, s, origin, &ls[1])];
+    let (xs, ys) = admissible(prep, s, case);
+    let nx = (xs.end() - xs.start() + 1) as usize;
+    let x0 = *xs.start();
+    let w = prep.w as i32;
+    let rows: Vec<i32> = ys.collect();
+    let scores: Vec<f64> = rows
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(row_index, &y)| {
+            let mut f = vec![0.0; nx];
+            for (li, line) in ls.iter().enumerate() {
+                let o = &outs[li];
+                let st = &stats[li][row_index * nx..(row_index + 1) * nx];
+                let mut cross = [vec![0.0; nx], vec![0.0; nx], vec![0.0; nx]];
+                let mut mismatches = vec![0u32; nx];
+                if s.circular {
+                    // Slow path: a sine per pixel.
+                    for (i, &(c, r)) in line.iter().enumerate() {
+                        let base = ((y + r) * w + x0 + c) as usize;
+                        for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                            let ci = o.centred[k][i];
+                            let row = &plane[base..base + nx];
+                            for ((a, v), stx) in cross[k].iter_mut().zip(row).zip(st) {
+                                *a += if k == 0 { ci * (TAU * v - stx[0]).sin() } else { ci * (v - stx[2 * k]) };
+                            }
+                        }
+                        let e1 = o.edges[i];
+                        for (m, e2) in mismatches.iter_mut().zip(&prep.edges[base..base + nx]) {
+                            *m += u32::from(e1 != *e2);
+                        }
+                    }
+                } else {
+                    // Candidates in register blocks of LANES, line pixels in index order inside:
+                    // the same sums in the same order as the two-pass formula, without
+                    // round-tripping accumulators through memory for every pixel.
+                    const LANES: usize = 8;
+                    let offsets: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x0 + c) as usize).collect();
+                    let mut x = 0;
+                    while x < nx {
+                        let lanes = LANES.min(nx - x);
+                        let mut m2 = [[0.0f64; LANES]; 3];
+                        for l in 0..lanes {
+                            for k in 0..3 {
+                                m2[k][l] = st[x + l][2 * k];
+                            }
+                        }
+                        let mut acc = [[0.0f64; LANES]; 3];
+                        let mut mism = [0u32; LANES];
+                        for (i, &base) in offsets.iter().enumerate() {
+                            let b = base + x;
+                            for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                                let ci = o.centred[k][i];
+                                if lanes == LANES {
+                                    let v: &[f64; LANES] = plane[b..b + LANES].try_into().expect("lanes");
+                                    for l in 0..LANES {
+                                        acc[k][l] += ci * (v[l] - m2[k][l]);
+                                    }
+                                } else {
+                                    for l in 0..lanes {
+                                        acc[k][l] += ci * (plane[b + l] - m2[k][l]);
+                                    }
+                                }
+                            }
+                            let e1 = o.edges[i];
+                            for l in 0..lanes {
+                                mism[l] += u32::from(e1 != prep.edges[b + l]);
+                            }
+                        }
+                        for l in 0..lanes {
+                            for k in 0..3 {
+                                cross[k][x + l] = acc[k][l];
+                            }
+                            mismatches[x + l] = mism[l];
+                        }
+                        x += lanes;
+                    }
+                }
+                let n = line.len() as f64;
+                for x in 0..nx {
+                    let stx = &st[x];
+                    let mut d = 0.0;
+                    for k in 0..3 {
+                        let rho = if k == 0 && s.circular {
+                            let mut diff = (o.mean[0] - stx[0]).abs() % TAU;
+                            if diff > TAU / 2.0 {
+                                diff = TAU - diff;
+                            }
+                            pearson_from(0.0, o.ss[0], diff / TAU, stx[1], cross[0][x])
+                        } else {
+                            pearson_from(o.mean[k], o.ss[k], stx[2 * k], stx[2 * k + 1], cross[k][x])
+                        };
+                        d += s.weights[k] * rho;
+                    }
+                    if s.clamp {
+                        d = d.max(0.0);
+                    }
+                    let de = mismatches[x] as f64 / n;
+                    f[x] += d / (1.0 + s.mu * de);
+                    if s.level_penalty > 0.0 {
+                        f[x] -= s.level_penalty * (o.mean[2] - stx[4]).abs();
+                    }
+                }
+            }
+            f
+        })
+        .collect();
+    let positions = rows.iter().flat_map(|&y| (0..nx as i32).map(move |dx| (x0 + dx, y))).collect();
+    (positions, scores)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::params::resolve;
+    use crate::synth::primitives::correlation::pearson;
+
+    fn params(given: &[(&str, ParamValue)]) -> Params {
+        let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        resolve(PARAMS, &g).unwrap()
+    }
+
+    fn structured() -> RgbImage {
+        RgbImage::from_fn(96, 96, |x, y| {
+            let mortar = x % 24 < 3 || y % 16 < 3;
+            let v = if mortar { 200 } else { 90 + ((x * 7 + y * 13) % 23) as u8 };
+            [v, (v as u32 * 3 / 4) as u8, (v as u32 / 2) as u8]
+        })
+    }
+
+    #[test]
+    fn output_size_determinism_and_verbatim_pixels() {
+        let s = structured();
+        let p = params(&[("block", ParamValue::Int(24))]);
+        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 2 };
+        let a = DoubleSeam.synthesize(&req).unwrap();
+        assert_eq!(a.image.dimensions(), (100, 70));
+        assert_eq!(a.image, DoubleSeam.synthesize(&req).unwrap().image);
+        let colours: std::collections::HashSet<[u8; 3]> = s.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+        assert!(a.image.as_raw().chunks_exact(3).all(|p| colours.contains(&[p[0], p[1], p[2]])), "pasted without blending");
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let b = one.install(|| DoubleSeam.synthesize(&req).unwrap());
+        assert_eq!(a.image, b.image, "thread count");
+    }
+
+    #[test]
+    fn scores_equal_a_direct_evaluation_of_the_formula() {
+        // Recompute F for a few candidates straight from the definition (B8, eqs. 6–10).
+        let sample = structured();
+        let p = params(&[("block", ParamValue::Int(24)), ("clamp_negative", ParamValue::Bool(false))]);
+        let s = Settings { block: 24, g: 4, a: -1, weights: [0.25, 0.25, 0.5], mu: 2.0, tau: 1.6, eps: 0.05, circular: false, clamp: false, level_penalty: 0.0 };
+        assert_eq!(p.int("overlap"), 4);
+        let planes = HsiPlanes::of(&sample);
+        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
+        let prep = Prepared { rgb: &sample, w: 96, planes, edges };
+        let mut out = Canvas::new(60, 60);
+        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
+        out.paste(&prep, (40, 30), (20, 0), 4, 0, 24);
+        out.paste(&prep, (3, 50), (0, 20), 0, 4, 24);
+        let case = Case::L;
+        let ls = lines(case, 24, 4, -1);
+        let stats = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
+        let origin = (20, 20);
+        let (positions, scores) = score_all(&prep, &s, case, &stats, &out, origin);
+        for k in [0usize, 17, 500, positions.len() - 1] {
+            let (x, y) = positions[k];
+            let mut f = 0.0;
+            for line in &ls {
+                let o = |plane: &Vec<f64>| -> Vec<f64> { line.iter().map(|&(c, r)| plane[((origin.1 + r) * 60 + origin.0 + c) as usize]).collect() };
+                let c = |plane: &Vec<f64>| -> Vec<f64> { line.iter().map(|&(cc, r)| plane[((y + r) * 96 + x + cc) as usize]).collect() };
+                let d = 0.25 * pearson(&o(&out.h), &c(&prep.planes.h)) + 0.25 * pearson(&o(&out.s), &c(&prep.planes.s)) + 0.5 * pearson(&o(&out.i), &c(&prep.planes.i));
+                let mism = line
+                    .iter()
+                    .filter(|&&(cc, r)| out.e[((origin.1 + r) * 60 + origin.0 + cc) as usize] != prep.edges[((y + r) * 96 + x + cc) as usize])
+                    .count();
+                f += d / (1.0 + 2.0 * mism as f64 / line.len() as f64);
+            }
+            assert!((f - scores[k]).abs() < 1e-12, "candidate {k}: {f} vs {}", scores[k]);
+        }
+        // The natural continuation of a block scores F = 2 when its lines vary and edges agree.
+        let mut out2 = Canvas::new(60, 60);
+        out2.paste(&prep, (10, 10), (0, 0), 0, 0, 24);
+        let hz = Case::Horizontal;
+        let lh = lines(hz, 24, 4, -1);
+        let st = [candidate_stats(&prep, &s, hz, &lh[0]), candidate_stats(&prep, &s, hz, &lh[1])];
+        let (pos, sc) = score_all(&prep, &s, hz, &st, &out2, (20, 0));
+        let natural = pos.iter().position(|&p| p == (30, 10)).unwrap();
+        assert!((sc[natural] - 2.0).abs() < 1e-9, "{}", sc[natural]);
+    }
+
+    #[test]
+    fn rejects_bad_weights_negative_mu_and_big_blocks() {
+        let p = params(&[("alpha", ParamValue::Float(0.5)), ("block", ParamValue::Int(200))]);
+        let errs = DoubleSeam.check(&p, (128, 128), (100, 100));
+        let keys: Vec<&str> = errs.iter().map(|e| e.key.as_str()).collect();
+        assert!(keys.contains(&"block") && keys.contains(&"alpha"), "{keys:?}");
+        let g: Vec<(String, ParamValue)> = vec![("mu".into(), ParamValue::Float(-1.0))];
+        assert!(resolve(PARAMS, &g).unwrap_err()[0].message.contains("out of range"));
+    }
+}

@@ -1,0 +1,1003 @@
+//! Patch sampling with feathered overlaps whose best-match search is a particle swarm (paper 002,
+//! methods.md §4), with its baselines: plain PSO and exhaustive search / Liang et al.'s sampler.
+//!
+//! Blocks of `block × block` are laid in raster order on a grid of stride `block − overlap`. The
+//! first block is a random sample block; every other one minimises the exact SSD over its boundary
+//! zone (the left strip, the top strip or the L-shaped union of both, eq. 7), found by
+//!
+//! - `search = "cpso"`: the chaos PSO of §4.3 (premature-convergence test, logistic-map chaos
+//!   search, re-diversification of the worse half of the swarm);
+//! - `search = "pso"`: the same swarm without the chaos part, drawing from the same streams, so the
+//!   two coincide draw for draw until CPSO's first chaos search;
+//! - `search = "exhaustive"`: every position (exact, `primitives::overlap_search`); with
+//!   `tolerance = ε > 0` it is Liang et al.'s sampler (uniform among the patches whose RMS zone
+//!   error is below `ε` times the zone's RMS intensity, the best patch if there is none).
+//!
+//! The block is pasted with feathering over its zone (B5). The output is the top-left
+//! `width × height` of the grid.
+//!
+//! **Diagnostics** (the manifest's `diagnostics`, deterministic): always `search`, `blocks`
+//! (`cols`, `rows`), `searched_blocks`, `mean_rms_error` (RMS difference per channel over the
+//! zone, averaged over blocks); for swarms `mean_iterations`, `mean_evaluations`, `early_stops`,
+//! `chaos_blocks`, `chaos_searches`; for exhaustive `mean_candidates`. With `diagnostics = true`
+//! (or `record_optimum = true`) also `first` (`x`, `y`) and `per_block`: `bi`, `bj`, `x`, `y`,
+//! `error` (d, eq. 7), `zone_pixels` (A), and for swarms `iterations`, `best_iteration` (when the
+//! final best was first reached), `chaos_searches`, `first_chaos`, `evaluations`, `stopped_early`
+//! (and `swarm_error` with `polish_radius > 0`); for exhaustive `candidates`. `record_optimum`
+//! adds `optimum` (the exhaustive minimum of d) and `positions_within_3pct` per block, and
+//! `mean_rms_optimum`. Paper 002's Table 2 is computed from these (see `examples/paper002_tables.rs`).
+//!
+//! **Options that are not in the paper** (all off by default): `blend = "cut"` (the minimum-error
+//! boundary cut instead of feathering: feathering over a poor match ghosts, which shows as a faint
+//! grid or as bands along block rows on stochastic samples), `candidates = "near-best"` (Liang's
+//! tolerance is relative to the zone's intensity, so on bright low-contrast samples it admits almost
+//! every patch), `polish_radius` (a local exhaustive search around the swarm's best).
+//!
+//! **Threads.** A block depends only on blocks earlier in raster order that overlap its zone, so
+//! the blocks with the same `2·bi + bj` ("waves") never touch each other's pixels and the swarm
+//! searches of a wave run in parallel; every random draw comes from the block's own labelled
+//! streams and every error is an exact integer, so the pixels are those of a raster-order run on
+//! any number of threads.
+
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
+use crate::synth::primitives::overlap::{Rect, rect_ssd};
+use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
+use crate::synth::primitives::pso::{self, ChaosParams, Outcome, Rediversify, SwarmParams, UpdateOrder};
+use crate::synth::rng::Stream;
+use crate::image::RgbImage;
+use rayon::prelude::*;
+use serde_json::{Value, json};
+
+pub struct PatchSampling;
+
+const SEARCHES: &[&str] = &["cpso", "pso", "exhaustive"];
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "block",
+        kind: ParamKind::Int { min: 3, max: 4096 },
+        default: Default::Int(30),
+        doc: "B: side of the square patches, in pixels (paper: 30; at most the sample's smaller side)",
+    },
+    ParamSpec {
+        name: "overlap",
+        kind: ParamKind::Int { min: 1, max: 2048 },
+        default: Default::Derived {
+            rule: "round(block / 6)",
+            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+        },
+        doc: "w_E: width of the boundary zone shared with the already synthesised output (paper: not given; at most block / 2)",
+    },
+    ParamSpec {
+        name: "search",
+        kind: ParamKind::Choice(SEARCHES),
+        default: Default::Str("cpso"),
+        doc: "best-match search: cpso (paper 002), pso (its baseline), exhaustive (every position; with tolerance > 0 Liang et al.'s sampler)",
+    },
+    ParamSpec {
+        name: "particles",
+        kind: ParamKind::Int { min: 1, max: 100_000 },
+        default: Default::Int(20),
+        doc: "M: swarm size (pso, cpso; paper: 20, chosen from 10/20/30)",
+    },
+    ParamSpec {
+        name: "iterations",
+        kind: ParamKind::Int { min: 0, max: 1_000_000 },
+        default: Default::Int(300),
+        doc: "T_max: swarm iterations per block after the initial evaluation (paper: 300)",
+    },
+    ParamSpec {
+        name: "c1",
+        kind: ParamKind::Float { min: 0.0, max: 10.0 },
+        default: Default::Float(1.47),
+        doc: "cognitive acceleration coefficient (paper: 1.47)",
+    },
+    ParamSpec {
+        name: "c2",
+        kind: ParamKind::Float { min: 0.0, max: 10.0 },
+        default: Default::Float(1.47),
+        doc: "social acceleration coefficient (paper: 1.47)",
+    },
+    ParamSpec {
+        name: "inertia",
+        kind: ParamKind::Float { min: 0.0, max: 2.0 },
+        default: Default::Float(0.729),
+        doc: "ω: inertia weight (paper: not given; 0.729 is the standard value for c ≈ 1.47)",
+    },
+    ParamSpec {
+        name: "vmax",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.2),
+        doc: "velocity clamp per axis as a fraction of the search range (paper: not given)",
+    },
+    ParamSpec {
+        name: "distance_threshold",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.01),
+        doc: "T: premature convergence needs the mean particle distance / box diagonal below this (cpso; paper: 0.01)",
+    },
+    ParamSpec {
+        name: "variance_threshold",
+        kind: ParamKind::Float { min: 0.0, max: 1e12 },
+        default: Default::Float(0.001),
+        doc: "S: … and the normalised fitness variance (eqs. 4-5) below this (cpso; paper: 0.001)",
+    },
+    ParamSpec {
+        name: "logistic_mu",
+        kind: ParamKind::Float { min: 1.0, max: 4.0 },
+        default: Default::Float(4.0),
+        doc: "μ of the chaos search's logistic map z ← μz(1−z) (cpso; paper: not given; 4 is fully chaotic)",
+    },
+    ParamSpec {
+        name: "chaos_steps",
+        kind: ParamKind::Int { min: 1, max: 1_000_000 },
+        default: Default::Int(200),
+        doc: "N_c: chaotic points evaluated per chaos search, all of them unless one beats delta (cpso; paper: 200)",
+    },
+    ParamSpec {
+        name: "rediversify",
+        kind: ParamKind::Choice(&["worse-half", "none"]),
+        default: Default::Str("worse-half"),
+        doc: "after a chaos search: worse-half restarts the worse half of the swarm at the next chaotic points; none only replaces the global best (cpso; reconstructed)",
+    },
+    ParamSpec {
+        name: "update",
+        kind: ParamKind::Choice(&["synchronous", "asynchronous"]),
+        default: Default::Str("synchronous"),
+        doc: "when the swarm's best is updated: after all particles moved (synchronous, as eq. 1's t−1 implies) or after each particle (pso, cpso; reconstructed)",
+    },
+    ParamSpec {
+        name: "delta_rms",
+        kind: ParamKind::Float { min: 0.0, max: 255.0 },
+        default: Default::Float(10.0),
+        doc: "early stop when the zone error d < A·3·delta_rms² (an RMS difference per channel); 0 disables (pso, cpso; paper: δ named, no value)",
+    },
+    ParamSpec {
+        name: "tolerance",
+        kind: ParamKind::Float { min: 0.0, max: 10.0 },
+        default: Default::Float(0.2),
+        doc: "ε of Liang et al.'s sampler: uniform among patches with RMS zone error < ε·RMS zone intensity, else the best; 0: always the best (exhaustive)",
+    },
+    ParamSpec {
+        name: "candidates",
+        kind: ParamKind::Choice(&["liang", "near-best"]),
+        default: Default::Str("liang"),
+        doc: "exhaustive with tolerance > 0: liang (RMS error below tolerance x RMS zone intensity, Liang et al.) or near-best (error within (1 + tolerance) x the best, Efros-Freeman's rule; not in the paper)",
+    },
+    ParamSpec {
+        name: "engine",
+        kind: ParamKind::Choice(&["fft", "direct"]),
+        default: Default::Str("fft"),
+        doc: "how exhaustive search scores every position: fft (FFT correlation + exact integer re-check) or direct (brute-force sums, the 'blind' search of paper 002's timing); identical results",
+    },
+    ParamSpec {
+        name: "blend",
+        kind: ParamKind::Choice(&["feather", "cut"]),
+        default: Default::Str("feather"),
+        doc: "how a block meets the output over its zone: feather (Liang's linear blend, the paper) or cut (not in the paper: Efros-Freeman minimum-error boundary cut, which hides mismatches instead of ghosting them)",
+    },
+    ParamSpec {
+        name: "polish_radius",
+        kind: ParamKind::Int { min: 0, max: 4096 },
+        default: Default::Int(0),
+        doc: "not in the paper: after the swarm, also try every position within this Chebyshev radius of its best (0: off, faithful)",
+    },
+    ParamSpec {
+        name: "first_x",
+        kind: ParamKind::Int { min: -1, max: 65_535 },
+        default: Default::Int(-1),
+        doc: "sample x of the first block; -1: drawn from the seed (set with first_y, e.g. for paper 002's fixed-first-block experiment)",
+    },
+    ParamSpec {
+        name: "first_y",
+        kind: ParamKind::Int { min: -1, max: 65_535 },
+        default: Default::Int(-1),
+        doc: "sample y of the first block; -1: drawn from the seed",
+    },
+    ParamSpec {
+        name: "diagnostics",
+        kind: ParamKind::Bool,
+        default: Default::Bool(false),
+        doc: "record every block's search (position, error found, iterations, chaos searches, evaluations) in the manifest",
+    },
+    ParamSpec {
+        name: "record_optimum",
+        kind: ParamKind::Bool,
+        default: Default::Bool(false),
+        doc: "also record each block's exhaustive optimum (costs an exhaustive search per block; implies diagnostics)",
+    },
+];
+
+/// Blocks in order of `2·bi + bj`: within a wave no two blocks overlap (needs `2·overlap ≤
+/// block`), and every block a block's zone reads from is in an earlier wave.
+fn waves(grid: &BlockGrid) -> Vec<Vec<(u32, u32)>> {
+    let last = 2 * (grid.rows - 1) + (grid.cols - 1);
+    (0..=last)
+        .map(|t| {
+            (0..grid.rows)
+                .filter_map(|bi| t.checked_sub(2 * bi).filter(|&bj| bj < grid.cols).map(|bj| (bi, bj)))
+                .collect()
+        })
+        .collect()
+}
+
+/// The resolved settings of one synthesis.
+struct Settings {
+    search: Search,
+    swarm: SwarmParams,
+    delta_rms: f64,
+    tolerance: f64,
+    polish_radius: u32,
+    cut: bool,
+    near_best: bool,
+    direct: bool,
+    first: Option<(u32, u32)>,
+    per_block: bool,
+    optimum: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Search {
+    Cpso,
+    Pso,
+    Exhaustive,
+}
+
+impl Search {
+    fn name(self) -> &'static str {
+        match self {
+            Search::Cpso => "cpso",
+            Search::Pso => "pso",
+            Search::Exhaustive => "exhaustive",
+        }
+    }
+}
+
+impl Settings {
+    fn from(p: &Params) -> Settings {
+        let search = match p.str("search") {
+            "cpso" => Search::Cpso,
+            "pso" => Search::Pso,
+            _ => Search::Exhaustive,
+        };
+        let chaos = (search == Search::Cpso).then(|| ChaosParams {
+            distance_threshold: p.float("distance_threshold"),
+            variance_threshold: p.float("variance_threshold"),
+            mu: p.float("logistic_mu"),
+            steps: p.int("chaos_steps") as u32,
+            rediversify: if p.str("rediversify") == "none" { Rediversify::None } else { Rediversify::WorseHalf },
+        });
+        let swarm = SwarmParams {
+            particles: p.int("particles") as usize,
+            max_iterations: p.int("iterations") as u32,
+            c1: p.float("c1"),
+            c2: p.float("c2"),
+            inertia: p.float("inertia"),
+            vmax_fraction: p.float("vmax"),
+            stop_below: None,
+            update: if p.str("update") == "asynchronous" { UpdateOrder::Asynchronous } else { UpdateOrder::Synchronous },
+            chaos,
+            trace: false,
+        };
+        let (fx, fy) = (p.int("first_x"), p.int("first_y"));
+        Settings {
+            search,
+            swarm,
+            delta_rms: p.float("delta_rms"),
+            tolerance: p.float("tolerance"),
+            polish_radius: p.int("polish_radius") as u32,
+            cut: p.str("blend") == "cut",
+            near_best: p.str("candidates") == "near-best",
+            direct: p.str("engine") == "direct",
+            first: (fx >= 0 && fy >= 0).then_some((fx as u32, fy as u32)),
+            per_block: p.bool("diagnostics") || p.bool("record_optimum"),
+            optimum: p.bool("record_optimum"),
+        }
+    }
+}
+
+/// What the search of one block found.
+#[derive(Clone, Debug)]
+struct BlockResult {
+    bi: u32,
+    bj: u32,
+    pos: (u32, u32),
+    /// `d` at `pos`.
+    error: u64,
+    /// `A`, the zone's pixel count.
+    zone_pixels: u64,
+    /// Swarm searches only.
+    swarm: Option<Outcome>,
+    /// Exhaustive search only: how many candidates the choice was made among (0: none within
+    /// tolerance, the best was taken).
+    candidates: Option<usize>,
+    /// The exhaustive optimum, when known.
+    optimum: Option<u64>,
+    /// Positions within `NEAR_OPTIMUM` of the optimum, when recorded.
+    near_optimum: Option<usize>,
+}
+
+/// Paper 002's success band: a search succeeds if `d ≤ 1.03·d_opt`.
+const NEAR_OPTIMUM: f64 = 0.03;
+
+impl Method for PatchSampling {
+    fn name(&self) -> &'static str {
+        "patch-sampling"
+    }
+    fn algorithm_version(&self) -> u32 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "Patch sampling with feathered overlaps; best match by chaos PSO (paper 002), PSO or exhaustive / Liang et al."
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        PARAMS
+    }
+
+    fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let block = p.int("block");
+        let smaller = sample.0.min(sample.1) as i64;
+        let mut errors = super::check_block_and_overlap(block, p.int("overlap"), sample);
+        let search = p.str("search");
+        if search != "exhaustive" && p.float("vmax") <= 0.0 {
+            errors.push(ParamError::new("vmax", "vmax must be greater than 0: with 0 the particles never move"));
+        }
+        let (fx, fy) = (p.int("first_x"), p.int("first_y"));
+        if (fx < 0) != (fy < 0) {
+            let (set, unset) = if fx >= 0 { ("first_x", "first_y") } else { ("first_y", "first_x") };
+            errors.push(ParamError::new(unset, format!("{set} is set but {unset} is not; give both or neither")));
+        }
+        if block <= smaller {
+            for (key, v, limit) in [("first_x", fx, sample.0 as i64 - block), ("first_y", fy, sample.1 as i64 - block)] {
+                if v > limit {
+                    errors.push(ParamError::new(
+                        key,
+                        format!("{key} {v} puts the first block outside the {}x{} sample; use 0..={limit} (or -1 for random)", sample.0, sample.1),
+                    ));
+                }
+            }
+        }
+        errors
+    }
+
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+        let block = req.params.int("block") as u32;
+        let overlap = req.params.int("overlap") as u32;
+        let sample = req.sample;
+        if block > sample.width() || block > sample.height() {
+            return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
+        }
+        if overlap * 2 > block || overlap == 0 {
+            return Err(format!("overlap {overlap} must be in 1..={}", block / 2));
+        }
+        let settings = Settings::from(req.params);
+        let layout = BlockGrid::new(block, overlap, req.width, req.height);
+        let (cw, ch) = layout.canvas();
+        let mut canvas = RgbImage::new(cw, ch);
+        let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
+        let first = match settings.first {
+            Some((x, y)) => {
+                if x >= nx || y >= ny {
+                    return Err(format!("the first block ({x}, {y}) does not fit in the sample"));
+                }
+                (x, y)
+            }
+            None => {
+                let mut s = Stream::new(req.seed, "cpso/first");
+                let x = s.below(nx as u64) as u32;
+                let y = s.below(ny as u64) as u32;
+                (x, y)
+            }
+        };
+        let needs_exhaustive = settings.search == Search::Exhaustive || settings.optimum;
+        let mut search = needs_exhaustive.then(|| OverlapSearch::new(sample, block, block));
+        let mut results: Vec<BlockResult> = Vec::with_capacity((layout.rows * layout.cols) as usize);
+
+        for wave in waves(&layout) {
+            let mut found: Vec<BlockResult> = if wave == [(0, 0)] {
+                vec![BlockResult {
+                    bi: 0,
+                    bj: 0,
+                    pos: first,
+                    error: 0,
+                    zone_pixels: 0,
+                    swarm: None,
+                    candidates: None,
+                    optimum: None,
+                    near_optimum: None,
+                }]
+            } else if settings.search == Search::Exhaustive {
+                let s = search.as_mut().expect("exhaustive search prepared");
+                wave.iter().map(|&(bi, bj)| exhaustive_block(s, sample, &canvas, &layout, bi, bj, &settings, req.seed)).collect()
+            } else {
+                let canvas = &canvas;
+                let layout = &layout;
+                let settings = &settings;
+                wave.par_iter()
+                    .with_max_len(1)
+                    .map(|&(bi, bj)| swarm_block(sample, canvas, layout, bi, bj, settings, req.seed))
+                    .collect()
+            };
+            if settings.optimum {
+                let s = search.as_mut().expect("exhaustive search prepared");
+                for r in found.iter_mut().filter(|r| (r.bi, r.bj) != (0, 0)) {
+                    // The optimum, and how many positions are within 3 % of it (paper 002's
+                    // success criterion, Table 2): how hard the block problem is for a swarm.
+                    let regions = layout.overlap_regions(r.bi, r.bj);
+                    let origin = (r.bj * layout.stride(), r.bi * layout.stride());
+                    let c = s.candidates(&canvas, origin, &regions, NEAR_OPTIMUM);
+                    r.optimum = Some(c.min_ssd);
+                    r.near_optimum = Some(c.members.len());
+                }
+            }
+            for r in &found {
+                let dst = (r.bj * layout.stride(), r.bi * layout.stride());
+                paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, if settings.cut { OverlapRule::Cut } else { OverlapRule::Feather });
+            }
+            results.extend(found);
+        }
+        results.sort_by_key(|r| (r.bi, r.bj));
+        let image = canvas.crop(0, 0, req.width, req.height);
+        let seams = layout.seam_grid(req.width, req.height);
+        let diagnostics = diagnostics(&layout, &settings, &results);
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
+    }
+}
+
+/// `SSD(sample block at (x, y), output block, Ω)` (eq. 7).
+fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: (u32, u32), regions: &[Rect]) -> u64 {
+    regions
+        .iter()
+        .map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h))
+        .sum()
+}
+
+/// The swarm search of one block (§4.2 step 5, §4.3).
+fn swarm_block(
+    sample: &RgbImage,
+    canvas: &RgbImage,
+    layout: &BlockGrid,
+    bi: u32,
+    bj: u32,
+    settings: &Settings,
+    seed: u64,
+) -> BlockResult {
+    let regions = layout.overlap_regions(bi, bj);
+    let origin = (bj * layout.stride(), bi * layout.stride());
+    let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
+    let (nx, ny) = (sample.width() - layout.block + 1, sample.height() - layout.block + 1);
+    let hi = [(nx - 1) as f64, (ny - 1) as f64];
+    let mut params = settings.swarm;
+    if settings.delta_rms > 0.0 {
+        params.stop_below = Some(zone_pixels as f64 * 3.0 * settings.delta_rms * settings.delta_rms);
+    }
+    // The fitness at a position is a pure function of the rounded position: memoise it. This
+    // changes nothing but the time (the swarm often revisits positions once it has converged).
+    let mut memo = vec![u64::MAX; nx as usize * ny as usize];
+    let mut swarm = Stream::new(seed, &format!("cpso/swarm/bi={bi}/bj={bj}"));
+    let mut chaos = Stream::new(seed, &format!("cpso/chaos/bi={bi}/bj={bj}"));
+    let outcome = pso::optimise(&[0.0, 0.0], &hi, &params, &mut swarm, &mut chaos, |x| {
+        let pos = round_position(x, hi);
+        let i = pos.1 as usize * nx as usize + pos.0 as usize;
+        if memo[i] == u64::MAX {
+            memo[i] = zone_error(sample, canvas, pos, origin, &regions);
+        }
+        memo[i] as f64
+    });
+    let mut pos = round_position(&outcome.best, hi);
+    let mut error = outcome.best_fitness as u64;
+    let r = settings.polish_radius;
+    if r > 0 {
+        // Row-major over the window; strictly better only, so ties keep the swarm's choice.
+        let (x0, y0) = (pos.0.saturating_sub(r), pos.1.saturating_sub(r));
+        let (x1, y1) = ((pos.0 + r).min(nx - 1), (pos.1 + r).min(ny - 1));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let i = y as usize * nx as usize + x as usize;
+                if memo[i] == u64::MAX {
+                    memo[i] = zone_error(sample, canvas, (x, y), origin, &regions);
+                }
+                if memo[i] < error {
+                    error = memo[i];
+                    pos = (x, y);
+                }
+            }
+        }
+    }
+    BlockResult {
+        bi,
+        bj,
+        pos,
+        error,
+        zone_pixels,
+        swarm: Some(outcome),
+        candidates: None,
+        optimum: None,
+        near_optimum: None,
+    }
+}
+
+/// A particle's patch: its position rounded half away from zero, clamped to the box.
+fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
+    let r = |v: f64, h: f64| v.round().clamp(0.0, h) as u32;
+    (r(x[0], hi[0]), r(x[1], hi[1]))
+}
+
+/// Exhaustive search of one block (§4.4). `tolerance = 0`: the best position (row-major first on
+/// ties). `tolerance = ε > 0`, `candidates = "liang"`: Liang et al.'s choice, uniform among
+/// `{ d < ε²·Σ_Ω |out(p)|² }` (the same set as `sqrt(d/A) < ε·sqrt(Σ|out|²/A)`, decided on exact
+/// integers against one `f64` threshold), the best position if that set is empty.
+/// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`.
+#[allow(clippy::too_many_arguments)]
+fn exhaustive_block(
+    search: &mut OverlapSearch,
+    sample: &RgbImage,
+    canvas: &RgbImage,
+    layout: &BlockGrid,
+    bi: u32,
+    bj: u32,
+    settings: &Settings,
+    seed: u64,
+) -> BlockResult {
+    let regions = layout.overlap_regions(bi, bj);
+    let origin = (bj * layout.stride(), bi * layout.stride());
+    let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
+    let mut result = BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
+    let eps = settings.tolerance;
+    let mut best: Option<Candidates> = None;
+    let members: Vec<(u32, u32, u64)> = if eps <= 0.0 {
+        Vec::new()
+    } else if settings.near_best {
+        let c = scored(search, settings.direct, canvas, origin, &regions, eps);
+        result.optimum = Some(c.min_ssd);
+        c.members
+    } else {
+        let energy: u64 = regions
+            .iter()
+            .flat_map(|r| (0..r.h).flat_map(move |dy| (0..r.w).map(move |dx| (r.x + dx, r.y + dy))))
+            .map(|(dx, dy)| canvas.get(origin.0 + dx, origin.1 + dy).iter().map(|&c| c as u64 * c as u64).sum::<u64>())
+            .sum();
+        let threshold = eps * eps * energy as f64;
+        // The exact minimum first (one FFT search); the set is a tolerance set around it.
+        let c = scored(search, settings.direct, canvas, origin, &regions, 0.0);
+        let min = c.min_ssd;
+        result.optimum = Some(min);
+        best = Some(c);
+        if (min as f64) >= threshold {
+            Vec::new()
+        } else if min == 0 {
+            // A tolerance relative to 0 cannot express the bound: scan every position, pruned.
+            members_below(sample, canvas, origin, &regions, layout.block, threshold)
+        } else {
+            // A superset of the bound (the margin covers rounding of threshold / min), then the exact rule.
+            let tol = (threshold / min as f64 - 1.0) * (1.0 + 1e-9) + 1e-9;
+            let c = scored(search, settings.direct, canvas, origin, &regions, tol);
+            c.members.into_iter().filter(|m| (m.2 as f64) < threshold).collect()
+        }
+    };
+    if members.is_empty() {
+        let best = best.unwrap_or_else(|| scored(search, settings.direct, canvas, origin, &regions, 0.0));
+        let (x, y, d) = best.members[0];
+        result.pos = (x, y);
+        result.error = d;
+        result.optimum = Some(d);
+        if eps <= 0.0 {
+            result.candidates = Some(best.members.len());
+        }
+        return result;
+    }
+    let mut s = Stream::new(seed, &format!("liang/pick/bi={bi}/bj={bj}"));
+    let pick = members[s.below_usize(members.len())];
+    result.pos = (pick.0, pick.1);
+    result.error = pick.2;
+    result.candidates = Some(members.len());
+    result
+}
+
+/// The tolerance set of `OverlapSearch`, by FFT or by brute force (`engine`); the same result.
+fn scored(search: &mut OverlapSearch, direct: bool, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+    if direct { search.candidates_direct(canvas, origin, regions, tolerance) } else { search.candidates(canvas, origin, regions, tolerance) }
+}
+
+/// Every position whose zone error is `< threshold`, row-major, with its exact error. Each
+/// position's sum is abandoned as soon as it reaches the bound, so a tight bound costs little.
+fn members_below(
+    sample: &RgbImage,
+    canvas: &RgbImage,
+    origin: (u32, u32),
+    regions: &[Rect],
+    block: u32,
+    threshold: f64,
+) -> Vec<(u32, u32, u64)> {
+    // For an integer d (exact in f64 below 2^53), d < threshold ⟺ d < ceil(threshold).
+    let limit = threshold.ceil() as u64;
+    let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
+    (0..ny)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            (0..nx).filter_map(move |x| {
+                let mut sum = 0u64;
+                for r in regions {
+                    for dy in 0..r.h {
+                        sum += rect_ssd(sample, x + r.x, y + r.y + dy, canvas, origin.0 + r.x, origin.1 + r.y + dy, r.w, 1);
+                        if sum >= limit {
+                            return None;
+                        }
+                    }
+                }
+                Some((x, y, sum))
+            })
+        })
+        .collect()
+}
+
+/// The manifest's diagnostics: a summary always, every searched block with `diagnostics = true`.
+fn diagnostics(layout: &BlockGrid, settings: &Settings, results: &[BlockResult]) -> Value {
+    let searched: Vec<&BlockResult> = results.iter().filter(|r| (r.bi, r.bj) != (0, 0)).collect();
+    let n = searched.len();
+    let mean = |f: &dyn Fn(&BlockResult) -> f64| if n == 0 { 0.0 } else { searched.iter().map(|r| f(r)).sum::<f64>() / n as f64 };
+    let mut summary = json!({
+        "search": settings.search.name(),
+        "blocks": { "cols": layout.cols, "rows": layout.rows },
+        "searched_blocks": n,
+        "mean_rms_error": mean(&|r| rms(r.error, r.zone_pixels)),
+    });
+    let obj = summary.as_object_mut().expect("object");
+    if settings.search == Search::Exhaustive {
+        obj.insert("mean_candidates".into(), json!(mean(&|r| r.candidates.unwrap_or(0) as f64)));
+    } else {
+        let sw = |r: &BlockResult| r.swarm.clone().expect("swarm outcome");
+        obj.insert("mean_iterations".into(), json!(mean(&|r| sw(r).iterations as f64)));
+        obj.insert("mean_evaluations".into(), json!(mean(&|r| sw(r).evaluations as f64)));
+        obj.insert("early_stops".into(), json!(searched.iter().filter(|r| sw(r).stopped_early).count()));
+        obj.insert("chaos_blocks".into(), json!(searched.iter().filter(|r| sw(r).chaos_searches > 0).count()));
+        obj.insert("chaos_searches".into(), json!(searched.iter().map(|r| sw(r).chaos_searches as u64).sum::<u64>()));
+    }
+    if settings.optimum {
+        obj.insert("mean_rms_optimum".into(), json!(mean(&|r| rms(r.optimum.unwrap_or(0), r.zone_pixels))));
+        // Per-run figures of paper 002's Table 2, tabulated by `texsyn report` (mean over seeds =
+        // success rate): success = every searched block within 3 % of the exhaustive optimum;
+        // iterations to the final best, only for successful runs (null otherwise).
+        let success = searched.iter().all(|r| (r.error as f64) <= (1.0 + NEAR_OPTIMUM) * r.optimum.unwrap_or(0) as f64);
+        let iterations = if success && settings.search != Search::Exhaustive {
+            json!(mean(&|r| r.swarm.as_ref().map_or(0.0, |s| s.best_iteration as f64)))
+        } else {
+            Value::Null
+        };
+        obj.insert("summary".into(), json!({ "success": if success { 1.0 } else { 0.0 }, "iterations_when_successful": iterations }));
+    }
+    if settings.per_block {
+        let first = &results[0];
+        obj.insert("first".into(), json!({ "x": first.pos.0, "y": first.pos.1 }));
+        let list: Vec<Value> = searched
+            .iter()
+            .map(|r| {
+                let mut b = json!({
+                    "bi": r.bi, "bj": r.bj, "x": r.pos.0, "y": r.pos.1,
+                    "error": r.error, "zone_pixels": r.zone_pixels,
+                });
+                let o = b.as_object_mut().expect("object");
+                if let Some(s) = &r.swarm {
+                    o.insert("iterations".into(), json!(s.iterations));
+                    o.insert("best_iteration".into(), json!(s.best_iteration));
+                    o.insert("chaos_searches".into(), json!(s.chaos_searches));
+                    o.insert("first_chaos".into(), json!(s.first_chaos));
+                    o.insert("evaluations".into(), json!(s.evaluations));
+                    o.insert("stopped_early".into(), json!(s.stopped_early));
+                    if settings.polish_radius > 0 {
+                        o.insert("swarm_error".into(), json!(s.best_fitness as u64));
+                    }
+                }
+                if let Some(c) = r.candidates {
+                    o.insert("candidates".into(), json!(c));
+                }
+                if settings.optimum {
+                    o.insert("optimum".into(), json!(r.optimum));
+                    o.insert("positions_within_3pct".into(), json!(r.near_optimum));
+                }
+                b
+            })
+            .collect();
+        obj.insert("per_block".into(), Value::Array(list));
+    }
+    summary
+}
+
+/// RMS difference per channel over a zone of `pixels` pixels.
+fn rms(ssd: u64, pixels: u64) -> f64 {
+    if pixels == 0 { 0.0 } else { (ssd as f64 / (3 * pixels) as f64).sqrt() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::params::resolve;
+
+    fn params(given: &[(&str, ParamValue)]) -> Params {
+        let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        resolve(PARAMS, &g).unwrap()
+    }
+
+    fn noise(w: u32, h: u32, seed: u64) -> RgbImage {
+        let mut s = Stream::new(seed, "test/noise");
+        RgbImage::from_fn(w, h, |_, _| [s.below(256) as u8, s.below(256) as u8, s.below(256) as u8])
+    }
+
+    /// A smooth-ish texture with structure at several scales (the swarm has something to follow).
+    fn texture(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let v = ((x / 7 + y / 5) % 3) as u8 * 60 + ((x * 13 + y * 7) % 17) as u8 * 4 + (x % 11) as u8;
+            [v, (v / 2).wrapping_add((y % 9) as u8 * 9), 200 - v / 2]
+        })
+    }
+
+    fn run(sample: &RgbImage, w: u32, h: u32, p: &Params, seed: u64) -> Synthesis {
+        PatchSampling.synthesize(&Request { sample, width: w, height: h, params: p, seed }).unwrap()
+    }
+
+    #[test]
+    fn paper_layout_and_defaults() {
+        let p = params(&[]);
+        assert_eq!((p.int("block"), p.int("overlap"), p.int("particles"), p.int("iterations")), (30, 5, 20, 300));
+        assert_eq!((p.float("c1"), p.float("c2"), p.float("inertia"), p.float("vmax")), (1.47, 1.47, 0.729, 0.2));
+        assert_eq!((p.float("distance_threshold"), p.float("variance_threshold")), (0.01, 0.001));
+        assert_eq!((p.float("logistic_mu"), p.int("chaos_steps"), p.float("delta_rms")), (4.0, 200, 10.0));
+        assert_eq!(p.str("search"), "cpso");
+        // 256 px with B = 30, w_E = 5 needs 11 × 11 blocks (§4.2 step 2).
+        let l = BlockGrid::new(30, 5, 256, 256);
+        assert_eq!((l.cols, l.rows), (11, 11));
+        assert_eq!(l.canvas(), (280, 280));
+    }
+
+    #[test]
+    fn waves_cover_every_block_once_and_respect_dependencies() {
+        let l = BlockGrid::new(30, 5, 200, 130);
+        let waves = waves(&l);
+        let mut seen = std::collections::HashMap::new();
+        for (t, wave) in waves.iter().enumerate() {
+            for &b in wave {
+                assert!(seen.insert(b, t).is_none());
+            }
+        }
+        assert_eq!(seen.len(), (l.rows * l.cols) as usize);
+        for (&(bi, bj), &t) in &seen {
+            // Every earlier block that overlaps this one is in an earlier wave.
+            for (di, dj) in [(-1i64, -1i64), (-1, 0), (-1, 1), (0, -1)] {
+                let (i, j) = (bi as i64 + di, bj as i64 + dj);
+                if let Some(&u) = (i >= 0 && j >= 0).then(|| seen.get(&(i as u32, j as u32))).flatten() {
+                    assert!(u < t, "({i},{j}) must precede ({bi},{bj})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn output_size_determinism_and_seed_dependence() {
+        let s = texture(80, 70);
+        for search in SEARCHES {
+            let p = params(&[("block", ParamValue::Int(16)), ("search", ParamValue::Str(search.to_string()))]);
+            let a = run(&s, 75, 50, &p, 3);
+            assert_eq!(a.image.dimensions(), (75, 50));
+            assert_eq!(a.image, run(&s, 75, 50, &p, 3).image, "{search}");
+            assert_eq!(a.diagnostics, run(&s, 75, 50, &p, 3).diagnostics, "{search}");
+            assert_ne!(a.image, run(&s, 75, 50, &p, 4).image, "{search}");
+        }
+    }
+
+    #[test]
+    fn pixels_do_not_depend_on_the_thread_count() {
+        let s = texture(90, 90);
+        for (search, blend) in [("cpso", "feather"), ("pso", "feather"), ("exhaustive", "feather"), ("cpso", "cut"), ("exhaustive", "cut")] {
+            let p = params(&[
+                ("block", ParamValue::Int(18)),
+                ("search", ParamValue::Str(search.to_string())),
+                ("blend", ParamValue::Str(blend.to_string())),
+                ("diagnostics", ParamValue::Bool(true)),
+            ]);
+            let runs: Vec<Synthesis> = [1, 2, 5]
+                .iter()
+                .map(|&n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap().install(|| run(&s, 120, 100, &p, 9)))
+                .collect();
+            for r in &runs[1..] {
+                assert_eq!(r.image, runs[0].image, "{search}");
+                assert_eq!(r.diagnostics, runs[0].diagnostics, "{search}");
+            }
+        }
+    }
+
+    /// The wave schedule gives exactly the raster-order result: replay the recorded choices in
+    /// raster order and compare.
+    #[test]
+    fn waves_equal_raster_order() {
+        let s = texture(90, 90);
+        let p = params(&[("block", ParamValue::Int(20)), ("search", ParamValue::Str("pso".into())), ("diagnostics", ParamValue::Bool(true))]);
+        let out = run(&s, 130, 110, &p, 2);
+        let l = BlockGrid::new(20, 3, 130, 110);
+        let mut canvas = RgbImage::new(l.canvas().0, l.canvas().1);
+        let d = &out.diagnostics;
+        let first = (d["first"]["x"].as_u64().unwrap() as u32, d["first"]["y"].as_u64().unwrap() as u32);
+        paste_block(&mut canvas, &s, first, (0, 0), 20, 3, false, false, OverlapRule::Feather);
+        for b in d["per_block"].as_array().unwrap() {
+            let g = |k: &str| b[k].as_u64().unwrap() as u32;
+            let (bi, bj) = (g("bi"), g("bj"));
+            let dst = (bj * l.stride(), bi * l.stride());
+            // The recorded error is the zone error against the raster-order canvas.
+            assert_eq!(zone_error(&s, &canvas, (g("x"), g("y")), dst, &l.overlap_regions(bi, bj)), b["error"].as_u64().unwrap());
+            paste_block(&mut canvas, &s, (g("x"), g("y")), dst, 20, 3, bj > 0, bi > 0, OverlapRule::Feather);
+        }
+        assert_eq!(canvas.crop(0, 0, 130, 110), out.image);
+    }
+
+    #[test]
+    fn exhaustive_finds_a_unique_perfect_match() {
+        // Noise has a unique perfect continuation of the first block: the block one stride to its
+        // right in the sample. Exhaustive search must find it with d = 0.
+        let s = noise(60, 40, 4);
+        let p = params(&[
+            ("block", ParamValue::Int(12)),
+            ("overlap", ParamValue::Int(3)),
+            ("search", ParamValue::Str("exhaustive".into())),
+            ("tolerance", ParamValue::Float(0.0)),
+            ("first_x", ParamValue::Int(5)),
+            ("first_y", ParamValue::Int(7)),
+            ("record_optimum", ParamValue::Bool(true)),
+        ]);
+        let out = run(&s, 21, 12, &p, 1);
+        let b = &out.diagnostics["per_block"][0];
+        assert_eq!((b["x"].as_u64(), b["y"].as_u64()), (Some(5 + 9), Some(7)));
+        assert_eq!(b["error"].as_u64(), Some(0));
+        assert_eq!(b["optimum"].as_u64(), Some(0));
+        assert_eq!(b["candidates"].as_u64(), Some(1));
+        // The output is the sample itself there.
+        assert_eq!(out.image, s.crop(5, 7, 21, 12));
+    }
+
+    #[test]
+    fn liang_candidates_follow_the_relative_rule() {
+        let s = texture(64, 64);
+        let p = |eps: f64| {
+            params(&[
+                ("block", ParamValue::Int(16)),
+                ("search", ParamValue::Str("exhaustive".into())),
+                ("tolerance", ParamValue::Float(eps)),
+                ("diagnostics", ParamValue::Bool(true)),
+            ])
+        };
+        let best = run(&s, 60, 60, &p(0.0), 1);
+        let liang = run(&s, 60, 60, &p(0.3), 1);
+        // Every Liang pick is within the bound, and the bound admits more than one patch somewhere.
+        let blocks = liang.diagnostics["per_block"].as_array().unwrap();
+        assert!(blocks.iter().any(|b| b["candidates"].as_u64().unwrap() > 1));
+        for b in blocks {
+            assert!(b["error"].as_u64() >= b["optimum"].as_u64());
+        }
+        assert_ne!(best.image, liang.image);
+    }
+
+    #[test]
+    fn direct_engine_equals_fft_engine_for_every_rule() {
+        let s = texture(64, 64);
+        for (rule, eps) in [("liang", 0.0), ("liang", 0.3), ("liang", 0.05), ("near-best", 0.2)] {
+            let p = |engine: &str| {
+                params(&[
+                    ("block", ParamValue::Int(16)),
+                    ("search", ParamValue::Str("exhaustive".into())),
+                    ("candidates", ParamValue::Str(rule.into())),
+                    ("tolerance", ParamValue::Float(eps)),
+                    ("engine", ParamValue::Str(engine.into())),
+                    ("diagnostics", ParamValue::Bool(true)),
+                ])
+            };
+            let a = run(&s, 70, 60, &p("fft"), 2);
+            let b = run(&s, 70, 60, &p("direct"), 2);
+            assert_eq!(a.image, b.image, "{rule} {eps}");
+            assert_eq!(a.diagnostics, b.diagnostics, "{rule} {eps}");
+        }
+    }
+
+    #[test]
+    fn near_best_candidates_are_within_the_relative_tolerance() {
+        let s = texture(64, 64);
+        let p = params(&[
+            ("block", ParamValue::Int(16)),
+            ("search", ParamValue::Str("exhaustive".into())),
+            ("candidates", ParamValue::Str("near-best".into())),
+            ("tolerance", ParamValue::Float(0.5)),
+            ("record_optimum", ParamValue::Bool(true)),
+        ]);
+        let out = run(&s, 70, 60, &p, 2);
+        for b in out.diagnostics["per_block"].as_array().unwrap() {
+            let (e, o) = (b["error"].as_u64().unwrap() as f64, b["optimum"].as_u64().unwrap() as f64);
+            assert!(e >= o && e <= 1.5 * o, "{b}");
+            assert!(b["candidates"].as_u64().unwrap() >= 1);
+        }
+    }
+
+    #[test]
+    fn a_cut_paste_copies_sample_pixels_only() {
+        let s = texture(64, 64);
+        let colours: std::collections::HashSet<[u8; 3]> = (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
+        let p = params(&[("block", ParamValue::Int(16)), ("blend", ParamValue::Str("cut".into()))]);
+        let out = run(&s, 70, 60, &p, 2).image;
+        for y in 0..60 {
+            for x in 0..70 {
+                assert!(colours.contains(&out.get(x, y)), "({x},{y})");
+            }
+        }
+    }
+
+    #[test]
+    fn polish_never_makes_a_block_worse() {
+        let s = texture(80, 80);
+        let p = params(&[
+            ("block", ParamValue::Int(16)),
+            ("search", ParamValue::Str("pso".into())),
+            ("iterations", ParamValue::Int(5)),
+            ("polish_radius", ParamValue::Int(3)),
+            ("diagnostics", ParamValue::Bool(true)),
+        ]);
+        let out = run(&s, 60, 60, &p, 2);
+        let blocks = out.diagnostics["per_block"].as_array().unwrap();
+        assert!(blocks.iter().all(|b| b["error"].as_u64() <= b["swarm_error"].as_u64()));
+        assert!(blocks.iter().any(|b| b["error"].as_u64() < b["swarm_error"].as_u64()));
+    }
+
+    #[test]
+    fn swarm_diagnostics_are_consistent() {
+        let s = texture(100, 100);
+        let p = params(&[
+            ("block", ParamValue::Int(20)),
+            ("search", ParamValue::Str("cpso".into())),
+            ("delta_rms", ParamValue::Float(0.0)),
+            ("iterations", ParamValue::Int(60)),
+            ("record_optimum", ParamValue::Bool(true)),
+        ]);
+        let out = run(&s, 60, 60, &p, 5);
+        let d = &out.diagnostics;
+        assert_eq!(d["search"], "cpso");
+        for b in d["per_block"].as_array().unwrap() {
+            assert_eq!(b["iterations"].as_u64(), Some(60), "no early stop with delta_rms = 0");
+            assert!(b["best_iteration"].as_u64().unwrap() <= 60);
+            assert!(b["error"].as_u64().unwrap() >= b["optimum"].as_u64().unwrap());
+            assert!(!b["stopped_early"].as_bool().unwrap());
+        }
+    }
+
+    #[test]
+    fn pso_and_cpso_blocks_coincide_until_a_chaos_search() {
+        // Same streams: with the test unable to fire, CPSO's output is PSO's.
+        let s = texture(90, 90);
+        let base = [("block", ParamValue::Int(18)), ("diagnostics", ParamValue::Bool(true))];
+        let mut pso = base.to_vec();
+        pso.push(("search", ParamValue::Str("pso".into())));
+        let mut cpso = base.to_vec();
+        cpso.push(("search", ParamValue::Str("cpso".into())));
+        cpso.push(("distance_threshold", ParamValue::Float(0.0)));
+        let a = run(&s, 100, 100, &params(&pso), 8);
+        let b = run(&s, 100, 100, &params(&cpso), 8);
+        assert_eq!(a.image, b.image);
+        assert_eq!(a.diagnostics["per_block"], b.diagnostics["per_block"]);
+    }
+
+    #[test]
+    fn bad_parameters_name_their_key() {
+        let p = params(&[("block", ParamValue::Int(80)), ("overlap", ParamValue::Int(50))]);
+        let keys: Vec<String> = PatchSampling.check(&p, (64, 64), (100, 100)).into_iter().map(|e| e.key).collect();
+        assert_eq!(keys, vec!["block", "overlap"]);
+        let p = params(&[("vmax", ParamValue::Float(0.0)), ("first_x", ParamValue::Int(300))]);
+        let errs = PatchSampling.check(&p, (256, 256), (100, 100));
+        let keys: Vec<&str> = errs.iter().map(|e| e.key.as_str()).collect();
+        assert_eq!(keys, vec!["vmax", "first_y", "first_x"]);
+        assert!(errs[2].message.contains("0..=226"), "{}", errs[2].message);
+        // Particle count 0 is refused by the range with the key named.
+        let g = vec![("particles".to_string(), ParamValue::Int(0))];
+        let e = resolve(PARAMS, &g).unwrap_err();
+        assert_eq!(e[0].key, "particles");
+        assert!(e[0].message.contains("1..="), "{}", e[0].message);
+        // Exhaustive does not need a moving swarm.
+        let p = params(&[("vmax", ParamValue::Float(0.0)), ("search", ParamValue::Str("exhaustive".into()))]);
+        assert!(PatchSampling.check(&p, (64, 64), (100, 100)).is_empty());
+    }
+}

@@ -1,0 +1,419 @@
+//! Lattice alignment of the tile methods' patches (`align = "lattice"` of `wang-tiles` and
+//! `rw-tiles`; not in paper 001).
+//!
+//! # Phase analysis
+//!
+//! Both tile methods build every tile from four patches of the sample. Inside one tile, the content
+//! of patch `d` at tile pixel `x` is `sample(q_d + x − c_d)`, where `q_d` is the patch's position
+//! in the sample and `c_d` its anchor in tile coordinates (Wang: the diamond centres at the edge
+//! midpoints `(m,0), (t,m), (m,t), (0,m)`, `m = t/2`; RW: the sub-block origins `(0,0), (h,0),
+//! (h,h), (0,h)` in the framework). On a sample periodic on the lattice `L = {a·t1 + b·t2}`, two
+//! patches `d`, `e` show the same pattern where they meet (a cut between them joins in-phase
+//! content, at zero cost on a perfectly periodic sample) exactly when their *phases* agree:
+//! `ψ_d = q_d − c_d ≡ ψ_e = q_e − c_e (mod L)`.
+//!
+//! Each edge colour (a patch) plays two roles: a Wang N/S diamond is the N diamond of one tile and
+//! the S diamond of another, anchored `(0, t)` apart; an E/W diamond is anchored `(t, 0)` apart; an
+//! RW "/" patch is `B1` of one tile and `B3` of another, anchored `h(1,1)` apart; a "\" patch is
+//! `B2` and `B4`, anchored `h(−1,1)` apart. These differences are exactly the tile translation
+//! vectors `v_A, v_B`. If patch class A has phase `ψ_A` in its first role, it has `ψ_A − v_A` in its
+//! second, and since phases only matter modulo `L`, `ψ_A − v_A ≡ ψ_A − ρ_A` with the *residual*
+//! `ρ_A = v_A − (nearest lattice vector to v_A)`. So all four patches of every tile can be in
+//! phase only when both translation vectors are lattice vectors (`ρ_A = ρ_B = 0`); otherwise some
+//! cuts join content `|ρ|` pixels out of phase, whatever the patches are. The residual
+//! ([`Alignment::residual`], `diagnostics.align.phase_residual_px`) is what a user reads to pick a
+//! tile size ([`suggest`] lists good ones): for the lattice `(27, 0), (0, 26)`, Wang tile 54 leaves
+//! 2 px, tile 64 leaves 12. It is measured on the integer lattice; a sample's real period can be
+//! fractional (see below), so two sizes with equal residual can differ in practice.
+//!
+//! With the offset `δ = ψ_A − ψ_B` between the classes, the four cuts around a tile see the phase
+//! errors (Wang, cuts N|E, E|S, S|W, W|N) `δ + ρ_B, ρ_A − ρ_B − δ, δ − ρ_A, −δ`, and (RW, strips
+//! B1|B2, B2|B3, B3|B4, B4|B1) `δ, ρ_A − δ, δ − ρ_A + ρ_B, −δ − ρ_B` (the RW centre also joins the
+//! diagonal pairs B1|B3 and B2|B4, whose errors are `ρ_A` and `ρ_B` whatever `δ`). The sum of the
+//! squared errors is least at `δ = (ρ_A − ρ_B)/2` for both (`A` = N/S or "/", `B` = E/W or
+//! "\"); [`best_offset`] takes the integer `δ` next to it with the smallest largest error. With
+//! `ρ = 0` it is `δ = 0`: every patch in phase with the first.
+//!
+//! Placement: the first patch (Wang `DN[0]`, RW `PA[0]`) is drawn at random as in the faithful
+//! mode; every other patch goes to a lattice translate of its ideal position `ψ + c` (`ψ` its
+//! class's phase, `c` its first role's anchor), drawn from the same stream among the translates
+//! whose patch fits in the sample and lie within two (longer) basis vectors of the ideal position,
+//! preferring positions no other patch uses. If some patch has no translate in the sample, the
+//! first patch is drawn again (up to [`FIRST_DRAWS`] times).
+//!
+//! Real samples are only near-regular: the extracted lattice is an integer approximation of a
+//! period that also varies across the sample (on `metal_tread_studs` `(27, 0), (0, 26)` for
+//! a local period of 25–27 px), so a translate a few cells away can be several pixels out of
+//! phase, and the real residual of a translation vector is not the integer one. So each
+//! class-B patch, and then the second class-A patch, is [`refine`]d: moved by at most a fifth of
+//! the shortest lattice vector to where its overlap error against the other class's patches, in
+//! every pair of roles that meet in a tile, is least. On an exactly periodic sample with zero
+//! residual the translate itself has zero error and is kept, so the output is exactly in phase.
+//! `patch_candidates` works on top: each candidate is another random first patch.
+
+use crate::synth::lattice::{LatticeOptions, extract};
+use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use crate::synth::rng::Stream;
+use crate::image::RgbImage;
+
+pub type V = (i64, i64);
+
+fn cross(a: V, b: V) -> i64 {
+    a.0 * b.1 - a.1 * b.0
+}
+fn dot(a: V, b: V) -> i64 {
+    a.0 * b.0 + a.1 * b.1
+}
+fn sub(a: V, b: V) -> V {
+    (a.0 - b.0, a.1 - b.1)
+}
+/// Euclidean length in pixels.
+pub fn norm(a: V) -> f64 {
+    (dot(a, a) as f64).sqrt()
+}
+
+/// Whether `align = "lattice"`.
+pub fn wanted(p: &Params) -> bool {
+    p.str("align") == "lattice"
+}
+
+fn given(p: &Params) -> (V, V) {
+    ((p.int("t1_x"), p.int("t1_y")), (p.int("t2_x"), p.int("t2_y")))
+}
+
+/// The sample lattice used to align the patches.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Alignment {
+    /// The lattice vectors as given by the job or found by [`crate::synth::lattice::extract`].
+    pub t1: V,
+    pub t2: V,
+    /// `"given"` or `"extracted"`.
+    pub source: &'static str,
+    /// A Lagrange–Gauss reduced basis of the same lattice (nearest-vector searches need one).
+    reduced: (V, V),
+}
+
+impl Alignment {
+    /// From explicit vectors (`Err` when they do not span a lattice).
+    pub fn new(t1: V, t2: V, source: &'static str) -> Result<Alignment, String> {
+        if cross(t1, t2) == 0 {
+            return Err(format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice"));
+        }
+        let (mut a, mut b) = (t1, t2);
+        loop {
+            if dot(a, a) > dot(b, b) {
+                std::mem::swap(&mut a, &mut b);
+            }
+            let mu = (dot(a, b) as f64 / dot(a, a) as f64).round() as i64;
+            let shorter = (b.0 - mu * a.0, b.1 - mu * a.1);
+            if mu == 0 || dot(shorter, shorter) >= dot(b, b) {
+                break;
+            }
+            b = shorter;
+        }
+        Ok(Alignment { t1, t2, source, reduced: (a, b) })
+    }
+
+    /// From the params: `None` for `align = "none"`; the given `t1, t2`, or (all four zero) the
+    /// lattice extracted from the sample.
+    pub fn from_params(p: &Params, sample: &RgbImage) -> Result<Option<Alignment>, String> {
+        if !wanted(p) {
+            return Ok(None);
+        }
+        let (t1, t2) = given(p);
+        if t1 == (0, 0) && t2 == (0, 0) {
+            let l = extract(sample, &LatticeOptions::default()).map_err(|e| {
+                let why = e.strip_prefix("no lattice found; give t1/t2").unwrap_or(&e).trim();
+                format!("align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}", if why.is_empty() { String::new() } else { format!(" {why}") })
+            })?;
+            Alignment::new(l.t1, l.t2, "extracted").map(Some)
+        } else {
+            Alignment::new(t1, t2, "given").map(Some)
+        }
+    }
+
+    /// Real lattice coordinates `(α, β)` of `v = α·t1 + β·t2` in the reduced basis.
+    fn coords(&self, v: V) -> (f64, f64) {
+        let (a, b) = self.reduced;
+        let d = cross(a, b) as f64;
+        (cross(v, b) as f64 / d, cross(a, v) as f64 / d)
+    }
+
+    /// The lattice vector nearest to `v` (ties to the smallest coefficients, lexicographically).
+    pub fn nearest(&self, v: V) -> V {
+        let (a, b) = self.reduced;
+        let (al, be) = self.coords(v);
+        let mut best = (i64::MAX, (0i64, 0i64), (0i64, 0i64));
+        for i in al.floor() as i64 - 1..=al.ceil() as i64 + 1 {
+            for j in be.floor() as i64 - 1..=be.ceil() as i64 + 1 {
+                let l = (i * a.0 + j * b.0, i * a.1 + j * b.1);
+                let e = sub(v, l);
+                let key = (dot(e, e), (i, j), l);
+                if (key.0, key.1) < (best.0, best.1) {
+                    best = key;
+                }
+            }
+        }
+        best.2
+    }
+
+    /// `v` minus its nearest lattice vector: how far out of phase `v` puts a pattern.
+    pub fn residual(&self, v: V) -> V {
+        sub(v, self.nearest(v))
+    }
+
+    /// Every `p0 + lattice vector` inside the rectangle `lo ..= hi`, in row-major order.
+    pub fn translates(&self, p0: V, lo: V, hi: V) -> Vec<V> {
+        let (a, b) = self.reduced;
+        let corners = [lo, (hi.0, lo.1), (lo.0, hi.1), hi].map(|c| self.coords(sub(c, p0)));
+        let amin = corners.iter().map(|c| c.0).fold(f64::INFINITY, f64::min).floor() as i64;
+        let amax = corners.iter().map(|c| c.0).fold(f64::NEG_INFINITY, f64::max).ceil() as i64;
+        let bmin = corners.iter().map(|c| c.1).fold(f64::INFINITY, f64::min).floor() as i64;
+        let bmax = corners.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max).ceil() as i64;
+        let mut out = Vec::new();
+        for i in amin..=amax {
+            for j in bmin..=bmax {
+                let p = (p0.0 + i * a.0 + j * b.0, p0.1 + i * a.1 + j * b.1);
+                if p.0 >= lo.0 && p.0 <= hi.0 && p.1 >= lo.1 && p.1 <= hi.1 {
+                    out.push(p);
+                }
+            }
+        }
+        out.sort_by_key(|p| (p.1, p.0));
+        out
+    }
+
+    /// A lattice translate of `ideal` inside `lo ..= hi`, drawn from `st` (one `below` draw) among
+    /// the *near* ones not in `used` (at most two longer basis vectors from `ideal`, so that the
+    /// lattice's approximation error, which grows with distance, stays within [`refine`]'s
+    /// reach). When none is, the nearest unused one; when all are used, any near one. `Err` when
+    /// none fits.
+    pub fn place(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V]) -> Result<V, String> {
+        let mut all = self.translates(ideal, lo, hi);
+        if all.is_empty() {
+            return Err(format!("no lattice translate fits in the sample (patch positions {lo:?}..={hi:?})"));
+        }
+        let d2 = |p: &V| dot(sub(*p, ideal), sub(*p, ideal));
+        let reach = 4 * dot(self.reduced.1, self.reduced.1);
+        all.sort_by_key(|p| (d2(p), p.1, p.0));
+        let near = all.iter().take_while(|p| d2(p) <= reach).count().max(1);
+        let unused = |p: &&V| !used.contains(p);
+        let mut pool: Vec<V> = all[..near].iter().filter(unused).copied().collect();
+        if pool.is_empty() {
+            pool = all.iter().find(unused).map_or_else(|| all[..near].to_vec(), |&p| vec![p]);
+        }
+        pool.sort_by_key(|p| (p.1, p.0));
+        Ok(pool[st.below(pool.len() as u64) as usize])
+    }
+}
+
+/// How many first patches [`first_fitting`] draws before giving up.
+pub const FIRST_DRAWS: usize = 1000;
+
+/// `t1_x, t1_y, t2_x, t2_y`, shared by both tile methods (all 0: extract the lattice).
+pub const LATTICE_VECTOR_PARAMS: [ParamSpec; 4] = [
+    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
+    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
+    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
+    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
+];
+
+/// Draws first patches with `attempt` until one lets every other patch sit at a lattice translate
+/// inside the sample (on a sample only a little larger than the patches, some first positions
+/// leave another patch no translate): the first success, or a clear error after [`FIRST_DRAWS`].
+pub fn first_fitting<T>(al: &Alignment, mut attempt: impl FnMut() -> Result<T, String>) -> Result<T, String> {
+    let mut last = String::new();
+    for _ in 0..FIRST_DRAWS {
+        match attempt() {
+            Ok(v) => return Ok(v),
+            Err(e) => last = e,
+        }
+    }
+    Err(format!(
+        "align = \"lattice\": with the lattice t1 = {:?}, t2 = {:?} no first patch of {FIRST_DRAWS} drawn lets the other patches sit in phase inside the sample ({last}); use a smaller tile or overlap, or align = \"none\"",
+        al.t1, al.t2
+    ))
+}
+
+/// How far [`refine`] moves a lattice translate: a fifth of the shortest lattice vector, at least
+/// 2 pixels (well under the half-cell distance at which another texel would match).
+pub fn refine_radius(al: &Alignment) -> i64 {
+    ((norm(al.reduced.0) / 5.0).round() as i64).max(2)
+}
+
+/// Corrects a lattice translate for the sample not being exactly periodic on the integer lattice:
+/// the extracted lattice is an integer approximation of the period (on `metal_tread_studs`,
+/// `(27, 0), (0, 26)` for a local period of 25–27 px), and a patch's two roles are a real
+/// translation vector apart, whose real residual the integer lattice does not know. Among the
+/// positions `q` within `radius` of `p` (and inside `lo ..= hi`), returns the one with the
+/// smallest `cost(q) = (error, pixels)` as a mean (the overlap error against the patches already
+/// placed, in every role where they meet), ties to the smaller shift, then row-major.
+pub fn refine(p: V, lo: V, hi: V, radius: i64, cost: impl Fn(V) -> (u64, u64)) -> V {
+    // (error, pixels), tie key, position.
+    type Best = ((u64, u64), (i64, i64, i64), V);
+    let mut best: Option<Best> = None;
+    for dy in -radius..=radius {
+        for dx in -radius..=radius {
+            let q = (p.0 + dx, p.1 + dy);
+            if q.0 < lo.0 || q.0 > hi.0 || q.1 < lo.1 || q.1 > hi.1 {
+                continue;
+            }
+            let (e, n) = cost(q);
+            let n = n.max(1);
+            let tie = (dx * dx + dy * dy, dy, dx);
+            let better = match &best {
+                None => true,
+                Some(((be, bn), bt, _)) => (e as u128 * *bn as u128, tie) < (*be as u128 * n as u128, *bt),
+            };
+            if better {
+                best = Some(((e, n), tie, q));
+            }
+        }
+    }
+    best.map_or(p, |b| b.2)
+}
+
+/// Where a class-B role and a class-A role of a tile overlap: the two anchors (tile coordinates)
+/// and the tile pixels covered by both patches, where a cut between them can run.
+pub struct Overlap {
+    pub anchors: (V, V),
+    pub pixels: Vec<V>,
+}
+
+/// The overlap error (squared RGB distance, summed, and the pixel count) of a patch at `q` against
+/// the `partners` in every role pair of `overlaps`: the patch in the class-B role when `class_b`,
+/// else in the class-A role. Positions must keep every patch inside the sample.
+pub fn overlap_error(sample: &RgbImage, q: V, partners: &[V], overlaps: &[Overlap], class_b: bool) -> (u64, u64) {
+    let (mut err, mut count) = (0u64, 0u64);
+    for o in overlaps {
+        let (own, other) = if class_b { o.anchors } else { (o.anchors.1, o.anchors.0) };
+        for &d in partners {
+            for &(x, y) in &o.pixels {
+                let a = sample.get((q.0 - own.0 + x) as u32, (q.1 - own.1 + y) as u32);
+                let b = sample.get((d.0 - other.0 + x) as u32, (d.1 - other.1 + y) as u32);
+                err += crate::synth::primitives::overlap::pixel_error(a, b) as u64;
+                count += 1;
+            }
+        }
+    }
+    (err, count)
+}
+
+/// The integer class offset `δ` next to the real optimum `centre` whose phase errors (from
+/// `errors(δ)`) have the smallest largest length, then the smallest sum of squares.
+pub fn best_offset(centre: (f64, f64), errors: impl Fn(V) -> Vec<V>) -> V {
+    let xs = [centre.0.floor() as i64, centre.0.ceil() as i64];
+    let ys = [centre.1.floor() as i64, centre.1.ceil() as i64];
+    let mut best: Option<((i64, i64, V), V)> = None;
+    for &x in &xs {
+        for &y in &ys {
+            let e = errors((x, y));
+            let key = (e.iter().map(|&v| dot(v, v)).max().unwrap_or(0), e.iter().map(|&v| dot(v, v)).sum::<i64>(), (x, y));
+            if best.as_ref().is_none_or(|b| key < b.0) {
+                best = Some((key, (x, y)));
+            }
+        }
+    }
+    best.expect("four candidates").1
+}
+
+/// The phase residual of a tile size: the larger of its two translation vectors' residuals.
+pub fn residual_px(al: &Alignment, vectors: [V; 2]) -> f64 {
+    vectors.iter().map(|&v| norm(al.residual(v))).fold(0.0, f64::max)
+}
+
+/// Up to `n` tile sizes from `sizes` with the smallest phase residual (ties to the size closest to
+/// `current`, then the smaller): `(tile, residual in px)`.
+pub fn suggest(al: &Alignment, sizes: impl Iterator<Item = i64>, vectors: impl Fn(i64) -> [V; 2], current: i64, n: usize) -> Vec<(i64, f64)> {
+    let mut all: Vec<(i64, f64)> = sizes.map(|t| (t, residual_px(al, vectors(t)))).collect();
+    all.sort_by(|a, b| a.1.partial_cmp(&b.1).unwrap().then((a.0 - current).abs().cmp(&(b.0 - current).abs())).then(a.0.cmp(&b.0)));
+    all.truncate(n);
+    all
+}
+
+/// The `diagnostics.align` record: the lattice, each tile translation vector's residual, the class
+/// offset, each cut's phase error and suggested tile sizes.
+pub fn diagnostics(al: &Alignment, vectors: [V; 2], offset: V, errors: &[(&str, V)], suggested: &[(i64, f64)]) -> serde_json::Value {
+    let r3 = |x: f64| (x * 1000.0).round() / 1000.0;
+    serde_json::json!({
+        "mode": "lattice",
+        "lattice": { "t1": [al.t1.0, al.t1.1], "t2": [al.t2.0, al.t2.1], "source": al.source },
+        "translations": vectors.iter().map(|&v| {
+            let l = al.nearest(v);
+            let r = sub(v, l);
+            serde_json::json!({ "vector": [v.0, v.1], "nearest_lattice_vector": [l.0, l.1], "residual": [r.0, r.1], "residual_px": r3(norm(r)) })
+        }).collect::<Vec<_>>(),
+        "phase_residual_px": r3(residual_px(al, vectors)),
+        "class_offset": [offset.0, offset.1],
+        "cut_phase_errors_px": errors.iter().map(|(k, v)| (k.to_string(), serde_json::json!(r3(norm(*v))))).collect::<serde_json::Map<_, _>>(),
+        "suggested_tiles": suggested.iter().map(|&(t, r)| serde_json::json!({ "tile": t, "residual_px": r3(r) })).collect::<Vec<_>>(),
+    })
+}
+
+/// Parameter checks shared by both tile methods.
+pub fn check(p: &Params, sample: (u32, u32)) -> Vec<ParamError> {
+    let mut errors = Vec::new();
+    let (t1, t2) = given(p);
+    let is_given = t1 != (0, 0) || t2 != (0, 0);
+    if is_given && !wanted(p) {
+        errors.push(ParamError::new("t1_x", "t1_x..t2_y are only used with align = \"lattice\"; set align = \"lattice\" or remove them"));
+    }
+    if is_given && cross(t1, t2) == 0 {
+        errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
+    }
+    if is_given && (t1.0.abs() + t2.0.abs() > sample.0 as i64 || t1.1.abs() + t2.1.abs() > sample.1 as i64) {
+        errors.push(ParamError::new("t1_x", format!("a lattice cell spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
+    }
+    errors
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_vectors_residuals_and_suggestions() {
+        let al = Alignment::new((27, 0), (0, 26), "given").unwrap();
+        assert_eq!(al.residual((54, 0)), (0, 0));
+        assert_eq!(al.residual((0, 54)), (0, 2));
+        assert_eq!(residual_px(&al, [(54, 0), (0, 54)]), 2.0);
+        assert_eq!(residual_px(&al, [(64, 0), (0, 64)]), 12.0);
+        // A skewed, unreduced basis of the lattice (16, 0), (8, 16).
+        let sk = Alignment::new((16, 0), (40, 16), "given").unwrap();
+        assert_eq!(sk.residual((0, 32)), (0, 0));
+        assert_eq!(norm(sk.residual((0, 16))), 8.0);
+        let s = suggest(&al, (8..=100).step_by(2), |t| [(t, 0), (0, t)], 64, 3);
+        assert_eq!(s[0], (26, 1.0));
+        assert!(s.iter().all(|&(_, r)| r <= 2.0), "{s:?}");
+    }
+
+    #[test]
+    fn translates_stay_inside_and_are_congruent() {
+        let al = Alignment::new((38, -24), (36, 24), "given").unwrap();
+        let t = al.translates((500, -300), (10, 20), (150, 140));
+        assert!(t.len() > 5);
+        for &p in &t {
+            assert!(p.0 >= 10 && p.0 <= 150 && p.1 >= 20 && p.1 <= 140);
+            assert_eq!(al.residual(sub(p, (500, -300))), (0, 0));
+        }
+        let all = Alignment::new((38, -24), (36, 24), "given").unwrap().translates((0, 0), (-200, -200), (200, 200));
+        assert!(all.contains(&(74, 0)) && all.contains(&(0, 0)));
+    }
+
+    #[test]
+    fn no_fitting_translate_is_a_clear_error() {
+        let al = Alignment::new((10, 0), (0, 10), "given").unwrap();
+        let mut st = Stream::new(1, "test");
+        assert!(al.place(&mut st, (0, 0), (3, 3), (5, 5), &[]).is_err());
+        assert_eq!(al.place(&mut st, (0, 0), (3, 3), (12, 12), &[(10, 10)]), Ok((10, 10)));
+        let e = first_fitting::<()>(&al, || Err("no lattice translate fits".into())).unwrap_err();
+        assert!(e.contains("no first patch of 1000 drawn") && e.contains("use a smaller tile or overlap, or align = \"none\""), "{e}");
+    }
+
+    #[test]
+    fn offset_splits_the_residual() {
+        let d = best_offset((1.0, -1.0), |d| vec![d, (2 - d.0, 0 - d.1)]);
+        assert_eq!(d, (1, -1));
+        assert_eq!(best_offset((0.0, 0.0), |d| vec![d]), (0, 0));
+    }
+}

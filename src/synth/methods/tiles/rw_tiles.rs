@@ -1,0 +1,1069 @@
+//! RW-Tiles: rotational Wang tiles (paper 001; methods.md §3.2–3.9).
+//!
+//! A small tile set is built once from four square patches of the sample, then any output is
+//! filled by copying rows of the stored tiles. A tile is a rhombus (a square standing on a vertex)
+//! cut out of a *framework* of four overlapping square sub-blocks `B1..B4`; its four edges run
+//! along the sub-blocks' diagonals and are locked to them, so neighbouring tiles that share an edge
+//! colour (the same patch) continue each other seamlessly. Inside the tile the two-block strips
+//! are split by 8-neighbour shortest paths (B4) and the four-block centre by the reconstructed
+//! pocket rule of §3.4.
+//!
+//! The filling is keyed by position by default (`tiling = "keyed"`): the tile at lattice position
+//! `(i, j)` does not depend on the output size or on the thread count, so a smaller output is
+//! exactly a crop of a larger one with the same seed.
+//!
+//! `align = "lattice"` (not in the paper) places the patches in phase on the sample's lattice so
+//! that near-regular patterns continue through the seams ([`RwAlign`], [`super::align`]).
+
+use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use crate::synth::primitives::overlap::pixel_error;
+use crate::synth::primitives::shortest_path::{flood4, shortest_path};
+use crate::synth::methods::tiles::wang::{TileSet, Tiling, TilingOrder, tile_rect};
+use crate::synth::rng::Stream;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+use crate::image::RgbImage;
+use rayon::prelude::*;
+use std::time::Instant;
+
+pub struct RwTiles;
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "tile",
+        kind: ParamKind::Int { min: 8, max: 4096 },
+        default: Default::Int(64),
+        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap",
+    },
+    ParamSpec {
+        name: "overlap",
+        kind: ParamKind::Int { min: 2, max: 2048 },
+        default: Default::Int(8),
+        doc: "ov: overlap of the four sub-blocks (even, at most T/2 - 2) [gap: paper gives none]",
+    },
+    ParamSpec {
+        name: "tile_set",
+        kind: ParamKind::Choice(&["minimal", "complete"]),
+        default: Default::Str("minimal"),
+        doc: "minimal: the 8-tile parity set (paper); complete: all 16 edge colourings",
+    },
+    ParamSpec {
+        name: "pixel_error",
+        kind: ParamKind::Choice(&["squared", "euclidean"]),
+        default: Default::Str("squared"),
+        doc: "per-pixel cut cost: squared RGB distance (eq. 3) or its square root (the paper's prose), in fixed point",
+    },
+    ParamSpec {
+        name: "patch_candidates",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: Default::Int(1),
+        doc: "1: the four patches are drawn at random (paper); N > 1: N random patch choices are built and, among those whose patches all have at least half the sample's contrast, the one with the smallest total seam cost is kept (not in the paper; helps structured samples)",
+    },
+    ParamSpec {
+        name: "align",
+        kind: ParamKind::Choice(&["none", "lattice"]),
+        default: Default::Str("none"),
+        doc: "none: the four patches at independent random positions (paper); lattice: the first at random, the others at lattice translates of their in-phase positions, so the seams join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+    },
+    super::align::LATTICE_VECTOR_PARAMS[0],
+    super::align::LATTICE_VECTOR_PARAMS[1],
+    super::align::LATTICE_VECTOR_PARAMS[2],
+    super::align::LATTICE_VECTOR_PARAMS[3],
+    ParamSpec {
+        name: "tiling",
+        kind: ParamKind::Choice(&["keyed", "scanline"]),
+        default: Default::Str("keyed"),
+        doc: "keyed: per-row streams from the tile column of pixel (0,0), so pixels do not depend on the output size; scanline: one stream over the output's lattice range (methods.md 3.6 as written)",
+    },
+    crate::synth::methods::tiles::export::EXPORT_TILES_PARAM,
+];
+
+/// Per-pixel cut cost (B1, or its square root for `pixel_error = "euclidean"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelError {
+    Squared,
+    /// `round(1024·sqrt(e))`: the Euclidean distance in fixed point with 10 fractional bits
+    /// (IEEE `sqrt` is correctly rounded, so this is exact and platform independent).
+    Euclidean,
+}
+
+impl PixelError {
+    pub fn parse(name: &str) -> PixelError {
+        if name == "euclidean" { PixelError::Euclidean } else { PixelError::Squared }
+    }
+    #[inline]
+    pub fn eval(self, a: [u8; 3], b: [u8; 3]) -> u32 {
+        let e = pixel_error(a, b);
+        match self {
+            PixelError::Squared => e,
+            PixelError::Euclidean => ((e as f64).sqrt() * 1024.0).round() as u32,
+        }
+    }
+}
+
+/// Geometry of one RW-tile's framework (§3.2): sub-block side `s`, overlap `ov`, `h = s − ov`,
+/// framework side `f = 2s − ov`, rhombus `R = {u0 ≤ x+y < u0+2h, w0 ≤ y−x < w0+2h}`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry {
+    pub s: i32,
+    pub ov: i32,
+    pub h: i32,
+    pub f: i32,
+    pub u0: i32,
+    pub w0: i32,
+}
+
+/// Block numbers are 0-based here: `B1..B4` are 0..3.
+const UNSET: u8 = u8::MAX;
+
+impl Geometry {
+    /// From the tile size `T` (even) and the overlap `ov` (even): `s = T/2 + ov`.
+    pub fn new(tile: i32, ov: i32) -> Geometry {
+        let h = tile / 2;
+        let s = h + ov;
+        Geometry { s, ov, h, f: 2 * s - ov, u0: s - 1, w0: -h }
+    }
+
+    pub fn tile(&self) -> i32 {
+        2 * self.h
+    }
+
+    #[inline]
+    pub fn in_r(&self, x: i32, y: i32) -> bool {
+        let (u, w) = (x + y, y - x);
+        u >= self.u0 && u < self.u0 + 2 * self.h && w >= self.w0 && w < self.w0 + 2 * self.h
+    }
+
+    /// Framework origin of block `k` (0-based, clockwise from the top left).
+    pub fn origin(&self, k: usize) -> (i32, i32) {
+        let h = self.h;
+        [(0, 0), (h, 0), (h, h), (0, h)][k]
+    }
+
+    /// The block a tile-edge pixel is locked to (§3.2), for pixels of `R`.
+    pub fn lock(&self, x: i32, y: i32) -> Option<usize> {
+        let (u, w) = (x + y, y - x);
+        let (u_last, w_last) = (self.u0 + 2 * self.h - 1, self.w0 + 2 * self.h - 1);
+        // The E vertex (on the NE and SE edges) goes to B2 and the W vertex (SW and NW) to B4,
+        // so test B2 before B3 and B4 before B1.
+        if w == self.w0 {
+            Some(1)
+        } else if w == w_last {
+            Some(3)
+        } else if u == self.u0 {
+            Some(0)
+        } else if u == u_last {
+            Some(2)
+        } else {
+            None
+        }
+    }
+
+    /// Class of a coordinate: 0 below `h`, 1 in `[h, s)`, 2 from `s` on.
+    #[inline]
+    fn class(&self, v: i32) -> usize {
+        if v < self.h {
+            0
+        } else if v < self.s {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// The single block covering `(x, y)` when only one does.
+    fn single(&self, x: i32, y: i32) -> Option<usize> {
+        match (self.class(x), self.class(y)) {
+            (0, 0) => Some(0),
+            (2, 0) => Some(1),
+            (2, 2) => Some(2),
+            (0, 2) => Some(3),
+            _ => None,
+        }
+    }
+
+    #[inline]
+    fn idx(&self, x: i32, y: i32) -> usize {
+        (y * self.f + x) as usize
+    }
+}
+
+/// One built tile.
+#[derive(Clone, Debug)]
+pub struct RwTile {
+    /// Edge colours `[NW, NE, SE, SW]`.
+    pub colours: [u8; 4],
+    /// `f × f` RGB raster; only pixels of `R` are meaningful.
+    pub raster: Vec<u8>,
+    /// `f × f` block labels (0..3), `UNSET` outside `R`.
+    pub labels: Vec<u8>,
+    /// The centre block `k*` (0-based).
+    pub centre_block: usize,
+    /// Path costs of the four strip seams (N, E, S, W) and of the three centre pockets.
+    pub strip_costs: [u64; 4],
+    pub pocket_costs: Vec<u64>,
+}
+
+/// A built tile set.
+#[derive(Clone, Debug)]
+pub struct RwTileSet {
+    pub geometry: Geometry,
+    pub set: TileSet,
+    /// Patch corners: `PA[0], PA[1]` ("/" edges, NW and SE) and `PB[0], PB[1]` ("\" edges).
+    pub pa: [(u32, u32); 2],
+    pub pb: [(u32, u32); 2],
+    pub tiles: Vec<RwTile>,
+}
+
+/// Colours for block labels in [`RwTileSet::label_image`] (B1..B4, outside `R`).
+const LABEL_COLOURS: [[u8; 3]; 5] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [0, 0, 0]];
+
+impl RwTileSet {
+    /// Tile `k` as an image: its `f × f` framework with the pixels outside the rhombus black
+    /// (the building block for a tile-set export).
+    pub fn tile_image(&self, k: usize) -> RgbImage {
+        let f = self.geometry.f as u32;
+        RgbImage::from_raw(f, f, self.tiles[k].raster.clone()).expect("f × f raster")
+    }
+
+    /// Tile `k`'s block labels as colours (B1 red, B2 green, B3 blue, B4 yellow), for inspection.
+    pub fn label_image(&self, k: usize) -> RgbImage {
+        let f = self.geometry.f as u32;
+        let labels = &self.tiles[k].labels;
+        RgbImage::from_fn(f, f, |x, y| LABEL_COLOURS[(labels[(y * f + x) as usize] as usize).min(4)])
+    }
+}
+
+/// The strips of §3.3: (x range, y range, side A, side B, path label, start rule, target line).
+struct Strip {
+    xs: (i32, i32),
+    ys: (i32, i32),
+    a: usize,
+    b: usize,
+    path_label: usize,
+}
+
+/// Builds the tile set (§3.2–3.5). Patch corners come from stream `rwtiles/patches`.
+pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: PixelError, seed: u64) -> Result<RwTileSet, String> {
+    build_tile_set_searched(sample, tile, ov, set, err, seed, 1).map(|(s, _)| s)
+}
+
+/// Total seam cost of a tile set: every strip and pocket path cost, summed over the tiles.
+pub fn seam_cost(set: &RwTileSet) -> u64 {
+    set.tiles.iter().map(|t| t.strip_costs.iter().sum::<u64>() + t.pocket_costs.iter().sum::<u64>()).sum()
+}
+
+/// Mean squared deviation from the mean colour (summed over R, G, B) of the `w × h` rectangle at
+/// `(x, y)`: its contrast, in the units of B1's pixel error. Exact integer sums.
+pub fn contrast(sample: &RgbImage, (x, y): (u32, u32), w: u32, h: u32) -> f64 {
+    let n = (w as u64 * h as u64) as f64;
+    let mut sum = [0u64; 3];
+    let mut sq = [0u64; 3];
+    for yy in y..y + h {
+        for xx in x..x + w {
+            let p = sample.get(xx, yy);
+            for c in 0..3 {
+                sum[c] += p[c] as u64;
+                sq[c] += p[c] as u64 * p[c] as u64;
+            }
+        }
+    }
+    (0..3).map(|c| sq[c] as f64 / n - (sum[c] as f64 / n) * (sum[c] as f64 / n)).sum()
+}
+
+/// Whether every patch of a candidate is representative for `patch_candidates`: its contrast is
+/// at least half the whole sample's. Without this rule the cheapest seams come from flat patches
+/// (nothing to cut through), which turns a brick wall into plain bricks.
+pub fn representative(sample: &RgbImage, corners: &[(u32, u32)], side: u32) -> bool {
+    let whole = contrast(sample, (0, 0), sample.width(), sample.height());
+    corners.iter().all(|&p| contrast(sample, p, side, side) >= 0.5 * whole)
+}
+
+/// The candidate kept by `patch_candidates`: the smallest seam cost among the representative
+/// candidates (all candidates if none is), ties to the earliest.
+pub fn pick_candidate(costs: &[u64], representative: &[bool]) -> usize {
+    let any = representative.iter().any(|&r| r);
+    (0..costs.len()).filter(|&c| !any || representative[c]).min_by_key(|&c| (costs[c], c)).expect("at least one candidate")
+}
+
+/// Builds the tile set from `candidates` patch choices and keeps the one chosen by
+/// [`pick_candidate`] [not in the paper: `patch_candidates`]. Candidate `c`'s four
+/// patches are draws `8c .. 8c + 8` of stream `rwtiles/patches` (in the order `PA[0], PA[1],
+/// PB[0], PB[1]`, `x` then `y`), so with one candidate this is the paper's random choice. Returns
+/// the set and the index of the chosen candidate.
+pub fn build_tile_set_searched(
+    sample: &RgbImage,
+    tile: i32,
+    ov: i32,
+    set: TileSet,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+) -> Result<(RwTileSet, usize), String> {
+    build_tile_set_aligned(sample, tile, ov, set, err, seed, candidates, None)
+}
+
+/// One candidate's patch corners: `([PA[0], PA[1]], [PB[0], PB[1]])`.
+type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
+
+/// `align = "lattice"` for RW-Tiles (phase analysis in [`super::align`]). Class A are the
+/// "/" patches `PA` (framework origins `(0, 0)` as B1, `(h, h)` as B3: translation `h(1, 1)`),
+/// class B the "\" patches `PB` (`(h, 0)` as B2, `(0, h)` as B4: translation `h(−1, 1)`, the
+/// difference of the B4 and B2 phases). The phases are taken in the B1 and B2 roles,
+/// `ψ_A = PA`, `ψ_B = PB − (h, 0)`, `δ = ψ_A − ψ_B`.
+#[derive(Clone, Debug)]
+pub struct RwAlign {
+    pub lattice: Alignment,
+    /// `δ`.
+    pub offset: V,
+    /// Phase error of each seam: the strips B1|B2, B2|B3, B3|B4, B4|B1 and the centre's diagonal
+    /// pairs B1|B3, B2|B4, in pixels as a vector.
+    pub errors: [(&'static str, V); 6],
+}
+
+impl RwAlign {
+    /// The tile translation vectors `h(1, 1), h(−1, 1)` for tile `T = 2h`.
+    pub fn vectors(tile: i64) -> [V; 2] {
+        let h = tile / 2;
+        [(h, h), (-h, h)]
+    }
+
+    pub fn new(lattice: Alignment, g: &Geometry) -> RwAlign {
+        let [va, vb] = RwAlign::vectors(g.tile() as i64);
+        let (ra, rb) = (lattice.residual(va), lattice.residual(vb));
+        let errors = move |d: V| -> [(&'static str, V); 6] {
+            [
+                ("B1|B2", d),
+                ("B2|B3", (ra.0 - d.0, ra.1 - d.1)),
+                ("B3|B4", (d.0 - ra.0 + rb.0, d.1 - ra.1 + rb.1)),
+                ("B4|B1", (-d.0 - rb.0, -d.1 - rb.1)),
+                ("B1|B3", ra),
+                ("B2|B4", rb),
+            ]
+        };
+        let centre = ((ra.0 - rb.0) as f64 / 2.0, (ra.1 - rb.1) as f64 / 2.0);
+        let offset = best_offset(centre, |d| errors(d)[..4].iter().map(|e| e.1).collect());
+        RwAlign { lattice, offset, errors: errors(offset) }
+    }
+
+    /// Patch corners for one candidate: `PA[0]` is `first`; `PA[1]` a lattice translate of it,
+    /// `PB[0]`, `PB[1]` lattice translates of `ψ_A − δ + (h, 0)`, drawn from `st` (one draw each)
+    /// among the corners whose sub-block fits in the sample; then each `PB`, and after them `PA[1]`,
+    /// is [`align::refine`]d against the other class's patches, in all the roles where they
+    /// meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+        let (lo, hi) = ((0, 0), ((sample.width() as i32 - g.s) as i64, (sample.height() as i32 - g.s) as i64));
+        let h = g.h as i64;
+        let pa0 = (first.0 as i64, first.1 as i64);
+        let r = align::refine_radius(&self.lattice);
+        // A "\" patch, as B2 and as B4, meets both "/" patches, as B1 and as B3 (inside the rhombus).
+        let mut overlaps = Vec::new();
+        for b in [1, 3] {
+            for a in [0, 2] {
+                let (ob, oa) = (g.origin(b), g.origin(a));
+                let covers = |o: (i32, i32), x: i32, y: i32| x >= o.0 && x < o.0 + g.s && y >= o.1 && y < o.1 + g.s;
+                let pixels = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y) && covers(ob, x, y) && covers(oa, x, y));
+                let anchors = ((ob.0 as i64, ob.1 as i64), (oa.0 as i64, oa.1 as i64));
+                overlaps.push(Overlap { anchors, pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
+            }
+        }
+        let pa1 = self.lattice.place(st, pa0, lo, hi, &[pa0])?;
+        let ideal_b = (pa0.0 - self.offset.0 + h, pa0.1 - self.offset.1);
+        let fit_b = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[pa0, pa1], &overlaps, true));
+        let pb0 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1])?);
+        let pb1 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1, pb0])?);
+        let pa1 = align::refine(pa1, lo, hi, r, |q| overlap_error(sample, q, &[pb0, pb1], &overlaps, false));
+        let u = |p: V| (p.0 as u32, p.1 as u32);
+        Ok(([first, u(pa1)], [u(pb0), u(pb1)]))
+    }
+
+    /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
+    pub fn diagnostics(&self, g: &Geometry, sample: (u32, u32)) -> serde_json::Value {
+        let max_t = 2 * (sample.0.min(sample.1) as i64 - g.ov as i64);
+        let sizes = (8.max(2 * g.ov as i64 + 4)..=max_t).filter(|t| t % 2 == 0);
+        let suggested = align::suggest(&self.lattice, sizes, RwAlign::vectors, g.tile() as i64, 5);
+        align::diagnostics(&self.lattice, RwAlign::vectors(g.tile() as i64), self.offset, &self.errors, &suggested)
+    }
+}
+
+/// [`build_tile_set_searched`] with `align = "lattice"` when `align` is given: candidate `c`'s
+/// `PA[0]` is draws `x, y` of `rwtiles/patches` as before, and its other three patches take one
+/// draw each ([`RwAlign`]); a first patch that leaves another no lattice translate in the sample
+/// is drawn again ([`align::first_fitting`]).
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_aligned(
+    sample: &RgbImage,
+    tile: i32,
+    ov: i32,
+    set: TileSet,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+    align: Option<&RwAlign>,
+) -> Result<(RwTileSet, usize), String> {
+    let g = Geometry::new(tile, ov);
+    let (sw, sh) = (sample.width() as i32, sample.height() as i32);
+    if g.s > sw || g.s > sh {
+        return Err(format!("sub-block side {} (tile/2 + overlap) does not fit in the {sw}x{sh} sample", g.s));
+    }
+    let mut st = Stream::new(seed, "rwtiles/patches");
+    let draw = |st: &mut Stream| {
+        let x = st.below((sw - g.s + 1) as u64) as u32;
+        let y = st.below((sh - g.s + 1) as u64) as u32;
+        (x, y)
+    };
+    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+        .map(|_| match align {
+            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            Some(al) => align::first_fitting(&al.lattice, || {
+                let first = draw(&mut st);
+                al.place(sample, &g, &mut st, first)
+            }),
+        })
+        .collect();
+    let choices = choices?;
+    let built: Result<Vec<RwTileSet>, String> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+    let built = built?;
+    let costs: Vec<u64> = built.iter().map(seam_cost).collect();
+    let fit: Vec<bool> = choices.iter().map(|(pa, pb)| representative(sample, &[pa[0], pa[1], pb[0], pb[1]], g.s as u32)).collect();
+    let best = pick_candidate(&costs, &fit);
+    Ok((built.into_iter().nth(best).expect("index in range"), best))
+}
+
+/// Builds every tile of `set` from the given patch corners.
+pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: PixelError, pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> Result<RwTileSet, String> {
+    let tiles: Result<Vec<RwTile>, String> = (0..set.len())
+        .into_par_iter()
+        .map(|t| {
+            let c = set.colours(t);
+            let patches = [pa[c[0] as usize], pb[c[1] as usize], pa[c[2] as usize], pb[c[3] as usize]];
+            build_tile(sample, g, patches, err).map(|mut tile| {
+                tile.colours = c;
+                tile
+            })
+        })
+        .collect();
+    Ok(RwTileSet { geometry: *g, set, pa, pb, tiles: tiles? })
+}
+
+/// Builds one tile from the sample patches used as `B1..B4` (§3.2–3.4).
+pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err: PixelError) -> Result<RwTile, String> {
+    let f = g.f;
+    let n = (f * f) as usize;
+    let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
+        let (ox, oy) = g.origin(k);
+        sample.get((patches[k].0 as i32 + x - ox) as u32, (patches[k].1 as i32 + y - oy) as u32)
+    };
+    let mut labels = vec![UNSET; n];
+    let mut locked = vec![UNSET; n];
+    for y in 0..f {
+        for x in 0..f {
+            if !g.in_r(x, y) {
+                continue;
+            }
+            let i = g.idx(x, y);
+            if let Some(k) = g.lock(x, y) {
+                locked[i] = k as u8;
+                labels[i] = k as u8;
+            } else if let Some(k) = g.single(x, y) {
+                labels[i] = k as u8;
+            }
+        }
+    }
+
+    // §3.3: the four strips.
+    let (h, s) = (g.h, g.s);
+    let strips = [
+        Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 },  // O_n: B1 west / B2 east
+        Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 },  // O_e: B2 north / B3 south
+        Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 },  // O_s: B4 west / B3 east
+        Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 },  // O_w: B1 north / B4 south
+    ];
+    let mut ends = [(0i32, 0i32); 4];
+    let mut strip_costs = [0u64; 4];
+    let mut error = vec![0u32; n];
+    for (k, st) in strips.iter().enumerate() {
+        let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
+        let mut domain = vec![false; n];
+        let mut targets = vec![false; n];
+        let mut start: Option<(i32, i32)> = None;
+        for y in st.ys.0..st.ys.1 {
+            for x in st.xs.0..st.xs.1 {
+                if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
+                    continue;
+                }
+                let i = g.idx(x, y);
+                domain[i] = true;
+                error[i] = err.eval(px(st.a, x, y), px(st.b, x, y));
+                // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
+                // and the target line touching O_c.
+                let better = match (k, start) {
+                    (_, None) => true,
+                    (0, Some((bx, by))) => (y, x) < (by, bx),
+                    (1, Some((bx, by))) => (-x, y) < (-bx, by),
+                    (2, Some((bx, by))) => (-y, x) < (-by, bx),
+                    (_, Some((bx, by))) => (x, y) < (bx, by),
+                };
+                if better {
+                    start = Some((x, y));
+                }
+                targets[i] = match k {
+                    0 => y == h - 1,
+                    1 => x == s,
+                    2 => y == s,
+                    _ => x == h - 1,
+                };
+            }
+        }
+        let (sx, sy) = start.ok_or_else(|| format!("strip {k} has no free pixel (tile too small for the overlap)"))?;
+        let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
+            .ok_or_else(|| format!("no seam through strip {k}"))?;
+        strip_costs[k] = path.cost;
+        let end = *path.pixels.last().expect("non-empty path");
+        ends[k] = ((end % f as usize) as i32, (end / f as usize) as i32);
+        let mut on_path = vec![false; n];
+        for &p in &path.pixels {
+            on_path[p] = true;
+        }
+        // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
+        let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
+        let mut seeds = Vec::new();
+        for y in 0..f {
+            for x in 0..f {
+                let i = g.idx(x, y);
+                if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
+                    seeds.push(i);
+                }
+            }
+        }
+        let reached = flood4(f as usize, f as usize, &seeds, |i| {
+            let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
+            (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
+        });
+        for y in st.ys.0..st.ys.1 {
+            for x in st.xs.0..st.xs.1 {
+                let i = g.idx(x, y);
+                if !in_strip(x, y) || locked[i] != UNSET {
+                    continue;
+                }
+                labels[i] = if on_path[i] {
+                    st.path_label as u8
+                } else if reached[i] {
+                    st.a as u8
+                } else {
+                    st.b as u8
+                };
+            }
+        }
+    }
+
+    // §3.4: the centre O_c = [h, s)².
+    let q = [
+        (ends[0].0, ends[0].1 + 1), // q_n
+        (ends[1].0 - 1, ends[1].1), // q_e
+        (ends[2].0, ends[2].1 - 1), // q_s
+        (ends[3].0 + 1, ends[3].1), // q_w
+    ];
+    let in_c = |x: i32, y: i32| x >= h && x < s && y >= h && y < s;
+    let mut ae = [[0u64; 4]; 4];
+    for y in h..s {
+        for x in h..s {
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    let e = err.eval(px(a, x, y), px(b, x, y)) as u64;
+                    ae[a][b] += e;
+                    ae[b][a] += e;
+                }
+            }
+        }
+    }
+    let totals: Vec<u64> = (0..4).map(|k| ae[k].iter().sum()).collect();
+    let centre = (0..4).min_by_key(|&k| (totals[k], k)).expect("four blocks");
+    let corners = [(h, h), (s - 1, h), (s - 1, s - 1), (h, s - 1)];
+    let entries = [(q[3], q[0]), (q[0], q[1]), (q[1], q[2]), (q[2], q[3])];
+    let mut c_domain = vec![false; n];
+    for y in h..s {
+        for x in h..s {
+            c_domain[g.idx(x, y)] = true;
+        }
+    }
+    let mut pocket_costs = Vec::with_capacity(3);
+    for step in 1..4 {
+        let j = (centre + step) % 4;
+        let (e1, e2) = entries[j];
+        if !in_c(e1.0, e1.1) || !in_c(e2.0, e2.1) {
+            return Err(format!("centre entry pixels {e1:?}, {e2:?} outside O_c"));
+        }
+        let mut err_c = vec![0u32; n];
+        for y in h..s {
+            for x in h..s {
+                err_c[g.idx(x, y)] = err.eval(px(centre, x, y), px(j, x, y));
+            }
+        }
+        let mut target = vec![false; n];
+        target[g.idx(e2.0, e2.1)] = true;
+        let path = shortest_path(f as usize, f as usize, &c_domain, &err_c, g.idx(e1.0, e1.1), &target)
+            .ok_or_else(|| format!("no centre path for block {}", j + 1))?;
+        pocket_costs.push(path.cost);
+        let mut on_path = vec![false; n];
+        for &p in &path.pixels {
+            on_path[p] = true;
+        }
+        let cj = g.idx(corners[j].0, corners[j].1);
+        let pocket = if on_path[cj] {
+            on_path.clone()
+        } else {
+            let mut r = flood4(f as usize, f as usize, &[cj], |i| c_domain[i] && !on_path[i]);
+            for &p in &path.pixels {
+                r[p] = true;
+            }
+            r
+        };
+        for y in h..s {
+            for x in h..s {
+                let i = g.idx(x, y);
+                if pocket[i] && labels[i] == UNSET {
+                    labels[i] = j as u8;
+                }
+            }
+        }
+    }
+    for y in h..s {
+        for x in h..s {
+            let i = g.idx(x, y);
+            if labels[i] == UNSET {
+                labels[i] = centre as u8;
+            }
+        }
+    }
+
+    // Step 8: compose.
+    let mut raster = vec![0u8; n * 3];
+    for y in 0..f {
+        for x in 0..f {
+            if !g.in_r(x, y) {
+                continue;
+            }
+            let i = g.idx(x, y);
+            let k = labels[i];
+            if k == UNSET {
+                return Err(format!("tile pixel ({x},{y}) got no block"));
+            }
+            raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
+        }
+    }
+    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs })
+}
+
+/// Lattice position `(i, j)` of output pixel `(X, Y)` and its framework coordinates (§3.6).
+#[inline]
+pub fn locate(g: &Geometry, x: i64, y: i64) -> ((i64, i64), (i32, i32)) {
+    let (h, h2) = (g.h as i64, 2 * g.h as i64);
+    let i = (x + y - g.u0 as i64).div_euclid(h2);
+    let j = (y - x - g.w0 as i64).div_euclid(h2);
+    ((i, j), ((x - h * (i - j)) as i32, (y - h * (i + j)) as i32))
+}
+
+/// The lattice range covering a `width × height` output with its top-left pixel at the origin.
+pub fn lattice_range(g: &Geometry, width: u32, height: u32) -> ((i64, i64), (i64, i64)) {
+    let corners = [(0i64, 0i64), (width as i64 - 1, 0), (0, height as i64 - 1), (width as i64 - 1, height as i64 - 1)];
+    let ij: Vec<(i64, i64)> = corners.iter().map(|&(x, y)| locate(g, x, y).0).collect();
+    let i = (ij.iter().map(|p| p.0).min().unwrap(), ij.iter().map(|p| p.0).max().unwrap());
+    let j = (ij.iter().map(|p| p.1).min().unwrap(), ij.iter().map(|p| p.1).max().unwrap());
+    (i, j)
+}
+
+/// Places the tiles for a `width × height` output (B12 on the rhombus lattice, §3.6).
+pub fn tile_output(set: &RwTileSet, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
+    let (i, j) = lattice_range(&set.geometry, width, height);
+    // Pixel (0, 0) lies in lattice column j = 0 (w0 = −h), the keyed order's anchor.
+    let anchor = locate(&set.geometry, 0, 0).0.1;
+    tile_rect(set.set, order, i, j, anchor, seed, "rwtiles/tiling")
+}
+
+/// Renders the output by copying runs of tile rows (§3.6); rows are filled in parallel.
+pub fn render(set: &RwTileSet, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
+    let g = set.geometry;
+    let (f, h2) = (g.f as usize, 2 * g.h as i64);
+    let mut out = RgbImage::new(width, height);
+    let row_len = width as usize * 3;
+    out.as_raw_mut().par_chunks_mut(row_len).enumerate().for_each(|(y, row)| {
+        let y = y as i64;
+        let mut x = 0i64;
+        while x < width as i64 {
+            let ((i, j), (fx, fy)) = locate(&g, x, y);
+            let to_i = h2 - (x + y - g.u0 as i64).rem_euclid(h2);
+            let to_j = (y - x - g.w0 as i64).rem_euclid(h2) + 1;
+            let run = to_i.min(to_j).min(width as i64 - x) as usize;
+            let tile = &set.tiles[tiling.at(i, j)];
+            let src = (fy as usize * f + fx as usize) * 3;
+            row[x as usize * 3..(x as usize + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
+            x += run as i64;
+        }
+    });
+    out
+}
+
+/// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
+pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
+    let bands = |limit: u32| -> Vec<SeamBand> {
+        (0..)
+            .map(|m| m * g.h as u32)
+            .take_while(|&start| start < limit)
+            .filter_map(|start| {
+                let s = start.max(1);
+                let end = (start + g.ov as u32 + 1).min(limit);
+                (s < end).then_some(SeamBand { start: s, len: end - s })
+            })
+            .collect()
+    };
+    SeamGrid { columns: bands(width), rows: bands(height) }
+}
+
+impl Method for RwTiles {
+    fn name(&self) -> &'static str {
+        "rw-tiles"
+    }
+    fn algorithm_version(&self) -> u32 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "RW-Tiles (paper 001): rotational Wang tiles from square sub-blocks, shortest-path seams, keyed rhombus filling"
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        PARAMS
+    }
+
+    fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let mut errors = Vec::new();
+        let (tile, ov) = (p.int("tile"), p.int("overlap"));
+        if tile % 2 != 0 {
+            errors.push(ParamError::new("tile", format!("tile {tile} must be even (the rhombus' diagonals are 2·(sub-block − overlap))")));
+        }
+        if ov % 2 != 0 {
+            errors.push(ParamError::new("overlap", format!("overlap {ov} must be even (the E and W vertices must be pixels)")));
+        }
+        if 2 * ov + 4 > tile {
+            errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for tile {tile}: use at most {}", (tile - 4) / 2)));
+        }
+        errors.extend(align::check(p, sample));
+        let s = tile / 2 + ov;
+        let smaller = sample.0.min(sample.1) as i64;
+        if s > smaller {
+            errors.push(ParamError::new(
+                "tile",
+                format!(
+                    "tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); use tile at most {}",
+                    sample.0,
+                    sample.1,
+                    2 * (smaller - ov)
+                ),
+            ));
+        }
+        errors
+    }
+
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+        let p = req.params;
+        let (tile, ov) = (p.int("tile") as i32, p.int("overlap") as i32);
+        if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
+            return Err(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2"));
+        }
+        let set = TileSet::parse(p.str("tile_set"));
+        let err = PixelError::parse(p.str("pixel_error"));
+        let order = TilingOrder::parse(p.str("tiling"));
+        let t0 = Instant::now();
+        let candidates = p.int("patch_candidates") as usize;
+        let align = Alignment::from_params(p, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
+        let (tiles, chosen) = build_tile_set_aligned(req.sample, tile, ov, set, err, req.seed, candidates, align.as_ref())?;
+        let build = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
+        let image = render(&tiles, &tiling, req.width, req.height);
+        let fill = t1.elapsed().as_secs_f64();
+        let g = tiles.geometry;
+        let mut diagnostics = serde_json::json!({
+            "geometry": { "tile": g.tile(), "overlap": g.ov, "sub_block": g.s, "framework": g.f },
+            "patches": { "a": tiles.pa, "b": tiles.pb, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
+            "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
+                "colours_nw_ne_se_sw": t.colours,
+                "centre_block": t.centre_block + 1,
+                "strip_costs_n_e_s_w": t.strip_costs,
+                "pocket_costs": t.pocket_costs,
+            })).collect::<Vec<_>>(),
+            "lattice": { "i": [tiling.r0, tiling.r0 + tiling.rows as i64 - 1], "j": [tiling.c0, tiling.c0 + tiling.cols as i64 - 1] },
+            "usage": tiling.usage(set),
+        });
+        if let Some(al) = &align {
+            diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
+        Ok(Synthesis {
+            image,
+            seams: Some(seam_grid(&g, req.width, req.height)),
+            diagnostics,
+            phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
+            extras: if p.bool("export_tiles") { crate::synth::methods::tiles::export::export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::params::{ParamValue, resolve};
+
+    fn params(given: &[(&str, ParamValue)]) -> Params {
+        let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        resolve(PARAMS, &g).unwrap()
+    }
+
+    /// A textured sample whose every pixel is distinct, so a pixel's colour tells where it came from.
+    fn coded(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
+    }
+
+    #[test]
+    fn geometry_matches_the_spec_example() {
+        // s = 40, ov = 8: the rhombus spans x ∈ [4, 67], y ∈ [4, 66] and has 2h² pixels.
+        let g = Geometry::new(64, 8);
+        assert_eq!((g.s, g.h, g.f, g.u0, g.w0), (40, 32, 72, 39, -32));
+        let pts: Vec<(i32, i32)> = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y)).collect();
+        assert_eq!(pts.len(), 2 * 32 * 32);
+        assert_eq!(pts.iter().map(|p| p.0).min(), Some(4));
+        assert_eq!(pts.iter().map(|p| p.0).max(), Some(67));
+        assert_eq!(pts.iter().map(|p| p.1).min(), Some(4));
+        assert_eq!(pts.iter().map(|p| p.1).max(), Some(66));
+        // E vertex (67, 35) → B2, W vertex (4, 35) → B4.
+        assert_eq!(g.lock(67, 35), Some(1));
+        assert_eq!(g.lock(4, 35), Some(3));
+        // Every pixel of R is covered by the block it is locked to.
+        for &(x, y) in &pts {
+            if let Some(k) = g.lock(x, y) {
+                let (ox, oy) = g.origin(k);
+                assert!(x >= ox && x < ox + g.s && y >= oy && y < oy + g.s);
+            }
+        }
+    }
+
+    #[test]
+    fn every_output_pixel_maps_into_r() {
+        let g = Geometry::new(20, 4);
+        for y in -30..60i64 {
+            for x in -30..60i64 {
+                let ((i, j), (fx, fy)) = locate(&g, x, y);
+                assert!(g.in_r(fx, fy), "({x},{y}) → tile ({i},{j}) at ({fx},{fy})");
+            }
+        }
+    }
+
+    /// For every tile pixel, which patch (0..3: PA0, PA1, PB0, PB1) and which patch coordinates.
+    fn source(set: &RwTileSet, t: usize, x: i32, y: i32) -> (usize, i32, i32) {
+        let tile = &set.tiles[t];
+        let g = set.geometry;
+        let k = tile.labels[(y * g.f + x) as usize] as usize;
+        let patch = match k {
+            0 | 2 => tile.colours[k] as usize,
+            _ => 2 + tile.colours[k] as usize,
+        };
+        let (ox, oy) = g.origin(k);
+        (patch, x - ox, y - oy)
+    }
+
+    #[test]
+    fn tile_edges_are_seamless_by_construction() {
+        // §8: across every tile edge the two pixels on either side come from the same patch at
+        // patch coordinates one step apart, except at the E and W vertex pixels.
+        let sample = coded(120, 110);
+        for set_kind in [TileSet::Minimal, TileSet::Complete] {
+            let set = build_tile_set(&sample, 24, 4, set_kind, PixelError::Squared, 5).unwrap();
+            let tiling = tile_output(&set, TilingOrder::Keyed, 150, 130, 5);
+            assert_eq!(tiling.violations(set_kind), 0);
+            let g = set.geometry;
+            let mut checked = 0;
+            for y in 0..130i64 {
+                for x in 0..150i64 {
+                    let ((i, j), (fx, fy)) = locate(&g, x, y);
+                    let t = tiling.at(i, j);
+                    for (dx, dy) in [(1i64, 0i64), (0, 1)] {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 150 || ny >= 130 {
+                            continue;
+                        }
+                        let ((ni, nj), (nfx, nfy)) = locate(&g, nx, ny);
+                        if (ni, nj) == (i, j) {
+                            continue;
+                        }
+                        let vertex = |fx: i32, fy: i32| {
+                            let (u, w) = (fx + fy, fy - fx);
+                            (w == g.w0 && u == g.u0 + 2 * g.h - 1) || (u == g.u0 && w == g.w0 + 2 * g.h - 1)
+                        };
+                        if vertex(fx, fy) || vertex(nfx, nfy) {
+                            continue;
+                        }
+                        let a = source(&set, t, fx, fy);
+                        let b = source(&set, tiling.at(ni, nj), nfx, nfy);
+                        assert_eq!(a.0, b.0, "({x},{y})→({nx},{ny}): different patches");
+                        assert_eq!((a.1 + dx as i32, a.2 + dy as i32), (b.1, b.2), "({x},{y})→({nx},{ny})");
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 500);
+        }
+    }
+
+    #[test]
+    fn construction_succeeds_for_every_patch_choice() {
+        // §8 property test over random seeds (patch positions), on a textured sample and a flat one.
+        let sample = RgbImage::from_fn(96, 80, |x, y| {
+            let v = ((x * 13 + y * 7) % 29 + (x / 9 + y / 5) % 3 * 60) as u8;
+            [v, v / 2 + (y % 7) as u8 * 9, 200 - v]
+        });
+        let flat = RgbImage::from_fn(40, 40, |_, _| [9, 9, 9]);
+        for seed in 0..40 {
+            for (tile, ov) in [(24, 4), (32, 8), (40, 6)] {
+                let set = build_tile_set(&sample, tile, ov, TileSet::Complete, PixelError::Squared, seed).unwrap();
+                for t in &set.tiles {
+                    let g = set.geometry;
+                    let in_r = (0..g.f * g.f).filter(|&i| g.in_r(i % g.f, i / g.f)).count();
+                    assert_eq!(t.labels.iter().filter(|&&l| l != UNSET).count(), in_r);
+                }
+            }
+        }
+        build_tile_set(&flat, 24, 4, TileSet::Minimal, PixelError::Euclidean, 1).unwrap();
+    }
+
+    #[test]
+    fn a_small_output_is_a_crop_of_a_large_one_and_threads_do_not_matter() {
+        let sample = coded(128, 128);
+        let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
+        let small = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9 }).unwrap();
+        let big = RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap();
+        assert_eq!(small.image.dimensions(), (300, 200));
+        assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
+        assert_eq!(single.image, big.image);
+        assert_eq!(single.diagnostics, big.diagnostics);
+        let other = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10 }).unwrap();
+        assert_ne!(other.image, small.image);
+        // Every output pixel is a sample pixel (no blending).
+        let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        assert!(big.image.as_raw().chunks_exact(3).all(|c| colours.contains(&[c[0], c[1], c[2]])));
+    }
+
+    #[test]
+    fn rejects_odd_sizes_wide_overlaps_and_tiles_larger_than_the_sample() {
+        let p = params(&[("tile", ParamValue::Int(63)), ("overlap", ParamValue::Int(3))]);
+        let keys: Vec<String> = RwTiles.check(&p, (128, 128), (100, 100)).into_iter().map(|e| e.key).collect();
+        assert_eq!(keys, vec!["tile", "overlap"]);
+        let p = params(&[("tile", ParamValue::Int(64)), ("overlap", ParamValue::Int(32))]);
+        assert!(RwTiles.check(&p, (256, 256), (100, 100)).iter().any(|e| e.message.contains("too wide")));
+        let p = params(&[("tile", ParamValue::Int(128))]);
+        let e = RwTiles.check(&p, (64, 64), (100, 100));
+        assert_eq!(e.len(), 1);
+        assert!(e[0].message.contains("larger than the sample"), "{}", e[0].message);
+        assert!(RwTiles.check(&params(&[]), (128, 128), (8192, 8192)).is_empty());
+    }
+
+    #[test]
+    fn patch_search_keeps_the_cheapest_candidate_and_starts_with_the_paper_draw() {
+        let sample = RgbImage::from_fn(96, 96, |x, y| {
+            let mortar = x % 24 < 3 || y % 16 < 3;
+            let v = if mortar { 200 } else { 90 + ((x * 7 + y * 13) % 23) as u8 };
+            [v, (v as u32 * 3 / 4) as u8, (v as u32 / 2) as u8]
+        });
+        let plain = build_tile_set(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4).unwrap();
+        let (one, c) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 1).unwrap();
+        assert_eq!((one.pa, one.pb, c), (plain.pa, plain.pb, 0));
+        let (best, _) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap();
+        let fit = |s: &RwTileSet| representative(&sample, &[s.pa[0], s.pa[1], s.pb[0], s.pb[1]], s.geometry.s as u32);
+        assert!(fit(&best) || !fit(&plain));
+        if fit(&plain) {
+            assert!(seam_cost(&best) <= seam_cost(&plain));
+        }
+        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let again = one_thread.install(|| build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap());
+        assert_eq!((again.0.pa, again.0.pb, again.1), (best.pa, best.pb, again.1));
+    }
+
+    /// A sample periodic on the lattice `(16, 0), (8, 16)` whose pixels are distinct within a period.
+    fn periodic(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let (u, v) = ((x + 16 - (y / 16) % 2 * 8) % 16, y % 16);
+            [(u * 16 + v) as u8, (u * 9 + v * 5) as u8, 77]
+        })
+    }
+
+    fn aligned(extra: &[(&str, ParamValue)]) -> Params {
+        let mut given = vec![
+            ("tile", ParamValue::Int(64)),
+            ("align", ParamValue::Str("lattice".into())),
+            ("t1_x", ParamValue::Int(16)),
+            ("t2_x", ParamValue::Int(8)),
+            ("t2_y", ParamValue::Int(16)),
+        ];
+        given.extend(extra.iter().cloned());
+        params(&given)
+    }
+
+    #[test]
+    fn lattice_alignment_makes_a_periodic_sample_seamless() {
+        // h(1, 1) = (32, 32) and h(−1, 1) are lattice vectors of (16, 0), (8, 16): zero phase
+        // residual, so every seam joins in-phase content (cost 0) and the output is periodic.
+        let sample = periodic(128, 112);
+        for candidates in [1, 5] {
+            let p = aligned(&[("patch_candidates", ParamValue::Int(candidates))]);
+            for seed in 0..6 {
+                let out = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed }).unwrap();
+                assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
+                assert_eq!(out.diagnostics["patches"]["seam_cost"], 0, "{candidates} seed {seed}");
+                let img = out.image;
+                for y in 0..180 - 16 {
+                    for x in 0..200 - 16 {
+                        assert_eq!(img.get(x, y), img.get(x + 16, y), "({x},{y})");
+                        if x >= 8 {
+                            assert_eq!(img.get(x, y), img.get(x - 8, y + 16), "({x},{y})");
+                        }
+                    }
+                }
+            }
+        }
+        let none = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(64))]), seed: 1 }).unwrap();
+        assert!(none.diagnostics["patches"]["seam_cost"].as_u64().unwrap() > 0);
+        assert!(none.diagnostics.get("align").is_none());
+    }
+
+    #[test]
+    fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
+        let sample = periodic(128, 112);
+        let p = aligned(&[("tile", ParamValue::Int(48)), ("patch_candidates", ParamValue::Int(6))]);
+        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3 };
+        let many = RwTiles.synthesize(&req).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| RwTiles.synthesize(&req).unwrap());
+        assert_eq!(single.image, many.image);
+        assert_eq!(single.diagnostics, many.diagnostics);
+        // h = 24: (24, 24) is 8 px from (24, 16) + ... ; tile 64 has no residual.
+        let a = &many.diagnostics["align"];
+        assert_eq!(a["phase_residual_px"], 8.0);
+        assert_eq!(a["suggested_tiles"][0]["tile"], 64);
+        assert_eq!(a["suggested_tiles"][0]["residual_px"], 0.0);
+        let mut st = Stream::new(3, "noise");
+        let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
+        let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
+        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
+        let errs = RwTiles.check(&aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]), (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
+    }
+
+    #[test]
+    fn seam_bands_repeat_every_half_tile() {
+        let g = Geometry::new(64, 8);
+        let sg = seam_grid(&g, 100, 70);
+        assert_eq!(sg.columns, vec![SeamBand { start: 1, len: 8 }, SeamBand { start: 32, len: 9 }, SeamBand { start: 64, len: 9 }, SeamBand { start: 96, len: 4 }]);
+        assert_eq!(sg.rows.len(), 3);
+    }
+}

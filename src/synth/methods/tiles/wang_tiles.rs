@@ -1,0 +1,872 @@
+//! Cohen et al. (2003) Wang tiles, the baseline of paper 001 (methods.md §3.10).
+//!
+//! Square `T × T` tiles, two colours per edge class. Each edge colour is a *diamond* of the
+//! sample (half-diagonal `a = T/2 + ov/2`) centred on the tile edge's midpoint; the tile above (or
+//! to the left) with the same edge colour reads the same sample pixels, so tile edges are seamless
+//! by construction. Inside a tile the four diamonds overlap along the tile's diagonals and are
+//! stitched by four cuts from the tile corners to the centre pixel: by default the quilting DP run
+//! in the 45°-rotated frame (`cut = "dp"`, as paper 001 describes Cohen's tiles), or the
+//! 8-neighbour shortest path of B4 (`cut = "shortest_path"`, the ablation that isolates RW-Tiles'
+//! geometry from its cut). Filling is B12's scanline tiling, keyed per row, and copying tile rows.
+//!
+//! `align = "lattice"` (not in the paper) places the diamonds in phase on the sample's lattice so
+//! that near-regular patterns continue through the cuts ([`WangAlign`], [`super::align`]).
+
+use super::rw_tiles::{PixelError, pick_candidate, representative};
+use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use crate::synth::primitives::shortest_path::{flood4, shortest_path};
+use crate::synth::methods::tiles::wang::{TileSet, Tiling, TilingOrder, tile_rect};
+use crate::synth::rng::Stream;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+use crate::image::RgbImage;
+use rayon::prelude::*;
+use std::time::Instant;
+
+pub struct WangTiles;
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "tile",
+        kind: ParamKind::Int { min: 8, max: 4096 },
+        default: Default::Int(64),
+        doc: "T: side of the square tiles (even); the diamonds span T + overlap pixels",
+    },
+    ParamSpec {
+        name: "overlap",
+        kind: ParamKind::Int { min: 2, max: 2048 },
+        default: Default::Int(8),
+        doc: "ov: how much the diamonds are enlarged so that they overlap (even, at most T/2) [gap]",
+    },
+    ParamSpec {
+        name: "cut",
+        kind: ParamKind::Choice(&["dp", "shortest_path"]),
+        default: Default::Str("dp"),
+        doc: "dp: quilting DP staircase from each tile corner to the centre (Cohen / paper 001); shortest_path: B4 Dijkstra (ablation)",
+    },
+    ParamSpec {
+        name: "tile_set",
+        kind: ParamKind::Choice(&["minimal", "complete"]),
+        default: Default::Str("minimal"),
+        doc: "minimal: the 8-tile parity set; complete: all 16 edge colourings",
+    },
+    ParamSpec {
+        name: "pixel_error",
+        kind: ParamKind::Choice(&["squared", "euclidean"]),
+        default: Default::Str("squared"),
+        doc: "per-pixel cut cost: squared RGB distance or its square root (fixed point)",
+    },
+    ParamSpec {
+        name: "patch_candidates",
+        kind: ParamKind::Int { min: 1, max: 4096 },
+        default: Default::Int(1),
+        doc: "1: the four diamonds are drawn at random (Cohen); N > 1: N random choices are built and, among those whose diamonds all have at least half the sample's contrast, the one with the smallest total cut cost is kept (not in the paper)",
+    },
+    ParamSpec {
+        name: "align",
+        kind: ParamKind::Choice(&["none", "lattice"]),
+        default: Default::Str("none"),
+        doc: "none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+    },
+    super::align::LATTICE_VECTOR_PARAMS[0],
+    super::align::LATTICE_VECTOR_PARAMS[1],
+    super::align::LATTICE_VECTOR_PARAMS[2],
+    super::align::LATTICE_VECTOR_PARAMS[3],
+    ParamSpec {
+        name: "tiling",
+        kind: ParamKind::Choice(&["keyed", "scanline"]),
+        default: Default::Str("keyed"),
+        doc: "keyed: one stream per tile row, so pixels do not depend on the output size; scanline: one stream over all tiles (depends on the output width)",
+    },
+    crate::synth::methods::tiles::export::EXPORT_TILES_PARAM,
+];
+
+const UNSET: u8 = u8::MAX;
+const N: usize = 0;
+const E: usize = 1;
+const S: usize = 2;
+const W: usize = 3;
+
+/// Which cut stitches two diamonds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cut {
+    Dp,
+    ShortestPath,
+}
+
+/// Geometry of a Cohen tile: side `t`, overlap `ov`, diamond half-diagonal `a = t/2 + ov/2`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry {
+    pub t: i32,
+    pub ov: i32,
+    pub a: i32,
+}
+
+impl Geometry {
+    pub fn new(t: i32, ov: i32) -> Geometry {
+        Geometry { t, ov, a: t / 2 + ov / 2 }
+    }
+
+    /// Tile coordinates of diamond `d`'s centre (the midpoint of edge N, E, S or W).
+    pub fn centre(&self, d: usize) -> (i32, i32) {
+        let (t, m) = (self.t, self.t / 2);
+        [(m, 0), (t, m), (m, t), (0, m)][d]
+    }
+
+    /// Whether pixel `(x, y)` (centre at `(x + ½, y + ½)`) lies in diamond `d`.
+    #[inline]
+    pub fn in_diamond(&self, d: usize, x: i32, y: i32) -> bool {
+        let (cx, cy) = self.centre(d);
+        (2 * x + 1 - 2 * cx).abs() + (2 * y + 1 - 2 * cy).abs() <= 2 * self.a
+    }
+
+    /// The diamond an edge pixel is locked to (corners to the clockwise-first edge).
+    pub fn lock(&self, x: i32, y: i32) -> Option<usize> {
+        let l = self.t - 1;
+        if y == 0 && x > 0 {
+            Some(N)
+        } else if x == l && y > 0 {
+            Some(E)
+        } else if y == l && x < l {
+            Some(S)
+        } else if x == 0 {
+            Some(W)
+        } else {
+            None
+        }
+    }
+
+    /// Tile corner where the cut between diamonds `k` and `k + 1` starts.
+    pub fn corner(&self, k: usize) -> (i32, i32) {
+        let l = self.t - 1;
+        [(l, 0), (l, l), (0, l), (0, 0)][k]
+    }
+}
+
+/// One built tile.
+#[derive(Clone, Debug)]
+pub struct WangTile {
+    /// Edge colours `[N, W, S, E]` (B12's `[a, b, c, d]`).
+    pub colours: [u8; 4],
+    /// `t × t` RGB raster.
+    pub raster: Vec<u8>,
+    /// `t × t` diamond labels (N, E, S, W = 0..3).
+    pub labels: Vec<u8>,
+    /// Sum of `E` over each cut's pixels (N|E, E|S, S|W, W|N).
+    pub cut_costs: [u64; 4],
+    /// Pixels no flood reached (labelled with the first covering diamond); 0 in practice.
+    pub fallback_pixels: usize,
+}
+
+/// A built tile set.
+#[derive(Clone, Debug)]
+pub struct WangTileSet {
+    pub geometry: Geometry,
+    pub set: TileSet,
+    /// Sample centres of the N/S diamonds (`DN[0], DN[1]`) and of the E/W diamonds.
+    pub dn: [(u32, u32); 2],
+    pub de: [(u32, u32); 2],
+    pub tiles: Vec<WangTile>,
+}
+
+impl WangTileSet {
+    /// Tile `k` as a `t × t` image (the building block for a tile-set export).
+    pub fn tile_image(&self, k: usize) -> RgbImage {
+        let t = self.geometry.t as u32;
+        RgbImage::from_raw(t, t, self.tiles[k].raster.clone()).expect("t × t raster")
+    }
+
+    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow), for inspection.
+    pub fn label_image(&self, k: usize) -> RgbImage {
+        const COLOURS: [[u8; 3]; 4] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40]];
+        let t = self.geometry.t as u32;
+        RgbImage::from_fn(t, t, |x, y| COLOURS[self.tiles[k].labels[(y * t + x) as usize] as usize])
+    }
+}
+
+/// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
+/// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
+pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, String> {
+    build_tile_set_searched(sample, t, ov, set, cut, err, seed, 1).map(|(s, _)| s)
+}
+
+/// Total cut cost of a tile set (every cut of every tile).
+pub fn seam_cost(set: &WangTileSet) -> u64 {
+    set.tiles.iter().map(|t| t.cut_costs.iter().sum::<u64>()).sum()
+}
+
+/// Builds the tile set from `candidates` diamond choices (draws `8c .. 8c + 8` of `wang/patches`
+/// for candidate `c`) and keeps the one chosen by [`super::rw_tiles::pick_candidate`] (representative = every
+/// diamond's bounding square has at least half the sample's contrast)
+/// [not in Cohen et al.: `patch_candidates`]. Returns the set and the chosen candidate's index.
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_searched(
+    sample: &RgbImage,
+    t: i32,
+    ov: i32,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+) -> Result<(WangTileSet, usize), String> {
+    build_tile_set_aligned(sample, t, ov, set, cut, err, seed, candidates, None)
+}
+
+/// One candidate's diamond centres: `([DN[0], DN[1]], [DE[0], DE[1]])`.
+type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
+
+/// `align = "lattice"` for Wang tiles (phase analysis in [`super::align`]). Class A are the
+/// N/S diamonds (anchors `(m, 0)` as N, `(m, t)` as S: translation `(0, t)`), class B the E/W
+/// diamonds (anchors `(0, m)` as W, `(t, m)` as E: translation `(t, 0)`). The phases are taken in
+/// the N and W roles, `ψ_A = DN − (m, 0)`, `ψ_B = DE − (0, m)`, `δ = ψ_A − ψ_B`.
+#[derive(Clone, Debug)]
+pub struct WangAlign {
+    pub lattice: Alignment,
+    /// `δ`.
+    pub offset: V,
+    /// Phase error of each cut (N|E, E|S, S|W, W|N), in pixels as a vector.
+    pub errors: [(&'static str, V); 4],
+}
+
+impl WangAlign {
+    /// The tile translation vectors `(t, 0), (0, t)`.
+    pub fn vectors(t: i64) -> [V; 2] {
+        [(t, 0), (0, t)]
+    }
+
+    pub fn new(lattice: Alignment, g: &Geometry) -> WangAlign {
+        let t = g.t as i64;
+        let (ra, rb) = (lattice.residual((0, t)), lattice.residual((t, 0)));
+        let errors = move |d: V| -> [(&'static str, V); 4] {
+            [
+                ("N|E", (d.0 + rb.0, d.1 + rb.1)),
+                ("E|S", (ra.0 - rb.0 - d.0, ra.1 - rb.1 - d.1)),
+                ("S|W", (d.0 - ra.0, d.1 - ra.1)),
+                ("W|N", (-d.0, -d.1)),
+            ]
+        };
+        let centre = ((ra.0 - rb.0) as f64 / 2.0, (ra.1 - rb.1) as f64 / 2.0);
+        let offset = best_offset(centre, |d| errors(d).iter().map(|e| e.1).collect());
+        WangAlign { lattice, offset, errors: errors(offset) }
+    }
+
+    /// Diamond centres for one candidate: `DN[0]` is `first`; `DN[1]` a lattice translate of it,
+    /// `DE[0]`, `DE[1]` lattice translates of `ψ_A − δ + (0, m)`, drawn from `st` (one draw
+    /// each) among the centres whose diamond fits in the sample; then each `DE`, and after them
+    /// `DN[1]`, is [`align::refine`]d against the other class's diamonds, in all the roles
+    /// where they meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+        let (a, m) = (g.a as i64, (g.t / 2) as i64);
+        let (lo, hi) = ((a, a), (sample.width() as i64 - a, sample.height() as i64 - a));
+        let dn0 = (first.0 as i64, first.1 as i64);
+        let r = align::refine_radius(&self.lattice);
+        let psi_a = (dn0.0 - m, dn0.1);
+        // An E/W diamond, as W and as E, meets both N/S diamonds, as N and as S.
+        let mut overlaps = Vec::new();
+        for e in [W, E] {
+            for n in [N, S] {
+                let pixels = (0..g.t).flat_map(|y| (0..g.t).map(move |x| (x, y))).filter(|&(x, y)| g.in_diamond(e, x, y) && g.in_diamond(n, x, y));
+                let anchor = |d: usize| (g.centre(d).0 as i64, g.centre(d).1 as i64);
+                overlaps.push(Overlap { anchors: (anchor(e), anchor(n)), pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
+            }
+        }
+        let dn1 = self.lattice.place(st, dn0, lo, hi, &[dn0])?;
+        let ideal_e = (psi_a.0 - self.offset.0, psi_a.1 - self.offset.1 + m);
+        let fit_e = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[dn0, dn1], &overlaps, true));
+        let de0 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1])?);
+        let de1 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1, de0])?);
+        let dn1 = align::refine(dn1, lo, hi, r, |q| overlap_error(sample, q, &[de0, de1], &overlaps, false));
+        let u = |p: V| (p.0 as u32, p.1 as u32);
+        Ok(([first, u(dn1)], [u(de0), u(de1)]))
+    }
+
+    /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
+    pub fn diagnostics(&self, g: &Geometry, sample: (u32, u32)) -> serde_json::Value {
+        let max_t = sample.0.min(sample.1) as i64 - g.ov as i64;
+        let sizes = (8.max(2 * g.ov as i64)..=max_t).filter(|t| t % 2 == 0);
+        let suggested = align::suggest(&self.lattice, sizes, WangAlign::vectors, g.t as i64, 5);
+        align::diagnostics(&self.lattice, WangAlign::vectors(g.t as i64), self.offset, &self.errors, &suggested)
+    }
+}
+
+/// [`build_tile_set_searched`] with `align = "lattice"` when `align` is given: candidate `c`'s
+/// `DN[0]` is draws `x, y` of `wang/patches` as before, and its other three diamonds take one
+/// draw each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
+/// is drawn again ([`align::first_fitting`]).
+#[allow(clippy::too_many_arguments)]
+pub fn build_tile_set_aligned(
+    sample: &RgbImage,
+    t: i32,
+    ov: i32,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    seed: u64,
+    candidates: usize,
+    align: Option<&WangAlign>,
+) -> Result<(WangTileSet, usize), String> {
+    let g = Geometry::new(t, ov);
+    let (sw, sh) = (sample.width() as i32, sample.height() as i32);
+    if 2 * g.a > sw || 2 * g.a > sh {
+        return Err(format!("diamonds of {0}x{0} (tile + overlap) do not fit in the {sw}x{sh} sample", 2 * g.a));
+    }
+    let mut st = Stream::new(seed, "wang/patches");
+    let draw = |st: &mut Stream| {
+        let x = g.a as u32 + st.below((sw - 2 * g.a + 1) as u64) as u32;
+        let y = g.a as u32 + st.below((sh - 2 * g.a + 1) as u64) as u32;
+        (x, y)
+    };
+    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+        .map(|_| match align {
+            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            Some(al) => align::first_fitting(&al.lattice, || {
+                let first = draw(&mut st);
+                al.place(sample, &g, &mut st, first)
+            }),
+        })
+        .collect();
+    let choices = choices?;
+    let built: Result<Vec<WangTileSet>, String> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+    let built = built?;
+    let costs: Vec<u64> = built.iter().map(seam_cost).collect();
+    let a = g.a as u32;
+    let fit: Vec<bool> = choices
+        .iter()
+        .map(|(dn, de)| representative(sample, &[dn[0], dn[1], de[0], de[1]].map(|(x, y)| (x - a, y - a)), 2 * a))
+        .collect();
+    let best = pick_candidate(&costs, &fit);
+    Ok((built.into_iter().nth(best).expect("index in range"), best))
+}
+
+/// Builds every tile of `set` from the given diamond centres.
+pub fn build_from_diamonds(
+    sample: &RgbImage,
+    g: &Geometry,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    dn: [(u32, u32); 2],
+    de: [(u32, u32); 2],
+) -> Result<WangTileSet, String> {
+    let tiles: Result<Vec<WangTile>, String> = (0..set.len())
+        .into_par_iter()
+        .map(|k| {
+            let c = set.colours(k);
+            // [N, W, S, E] colours → diamonds in N, E, S, W order.
+            let q = [dn[c[0] as usize], de[c[3] as usize], dn[c[2] as usize], de[c[1] as usize]];
+            build_tile(sample, g, q, cut, err).map(|mut tile| {
+                tile.colours = c;
+                tile
+            })
+        })
+        .collect();
+    Ok(WangTileSet { geometry: *g, set, dn, de, tiles: tiles? })
+}
+
+/// DP staircase cut (§3.10) from `corner` to `centre` over `domain` (`t × t`, row-major).
+fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error: &[u32]) -> Option<Vec<usize>> {
+    let (sx, sy) = ((centre.0 - corner.0).signum(), (centre.1 - corner.1).signum());
+    let (na, nb) = ((centre.0 - corner.0).abs() as usize + 1, (centre.1 - corner.1).abs() as usize + 1);
+    let pix = |a: usize, b: usize| ((corner.1 + sy * b as i32) * t + corner.0 + sx * a as i32) as usize;
+    let mut c = vec![u64::MAX; na * nb];
+    for b in 0..nb {
+        for a in 0..na {
+            let p = pix(a, b);
+            if !(domain[p] || (a == 0 && b == 0)) {
+                continue;
+            }
+            let best = if a == 0 && b == 0 {
+                0
+            } else {
+                let h = if a > 0 { c[b * na + a - 1] } else { u64::MAX };
+                let v = if b > 0 { c[(b - 1) * na + a] } else { u64::MAX };
+                h.min(v)
+            };
+            if best != u64::MAX {
+                c[b * na + a] = best + error[p] as u64;
+            }
+        }
+    }
+    let (mut a, mut b) = (na - 1, nb - 1);
+    if c[b * na + a] == u64::MAX {
+        return None;
+    }
+    let mut path = vec![pix(a, b)];
+    while a > 0 || b > 0 {
+        let h = if a > 0 { c[b * na + a - 1] } else { u64::MAX };
+        let v = if b > 0 { c[(b - 1) * na + a] } else { u64::MAX };
+        if h <= v {
+            a -= 1;
+        } else {
+            b -= 1;
+        }
+        path.push(pix(a, b));
+    }
+    path.reverse();
+    Some(path)
+}
+
+/// Builds one tile from the sample centres of its N, E, S, W diamonds.
+pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, String> {
+    let t = g.t;
+    let n = (t * t) as usize;
+    let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
+        let (cx, cy) = g.centre(d);
+        sample.get((q[d].0 as i32 + x - cx) as u32, (q[d].1 as i32 + y - cy) as u32)
+    };
+    let mut labels = vec![UNSET; n];
+    let mut is_cut = vec![false; n];
+    let mut locked = vec![UNSET; n];
+    for y in 0..t {
+        for x in 0..t {
+            if let Some(d) = g.lock(x, y) {
+                locked[(y * t + x) as usize] = d as u8;
+            }
+        }
+    }
+    let centre = (t / 2, t / 2);
+    let mut cut_costs = [0u64; 4];
+    for k in 0..4 {
+        let (d1, d2) = (k, (k + 1) % 4);
+        let corner = g.corner(k);
+        let mut domain = vec![false; n];
+        let mut error = vec![0u32; n];
+        for y in 0..t {
+            for x in 0..t {
+                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) {
+                    let i = (y * t + x) as usize;
+                    domain[i] = true;
+                    error[i] = err.eval(px(d1, x, y), px(d2, x, y));
+                }
+            }
+        }
+        let ci = (corner.1 * t + corner.0) as usize;
+        if !domain[ci] {
+            return Err(format!("tile corner {corner:?} is not in both diamonds"));
+        }
+        let centre_i = (centre.1 * t + centre.0) as usize;
+        let path = match cut {
+            Cut::Dp => dp_cut(t, corner, centre, &domain, &error),
+            Cut::ShortestPath => {
+                let mut target = vec![false; n];
+                target[centre_i] = true;
+                shortest_path(t as usize, t as usize, &domain, &error, ci, &target).map(|p| p.pixels)
+            }
+        }
+        .ok_or_else(|| format!("no cut between diamonds {d1} and {d2}"))?;
+        cut_costs[k] = path.iter().map(|&p| error[p] as u64).sum();
+        for &p in &path {
+            is_cut[p] = true;
+            if labels[p] == UNSET {
+                labels[p] = d1 as u8;
+            }
+        }
+    }
+    for i in 0..n {
+        if locked[i] != UNSET {
+            labels[i] = locked[i];
+        }
+    }
+    // Floods from each diamond's single-coverage region, bounded by the cuts.
+    for d in 0..4 {
+        let mut seeds = Vec::new();
+        for y in 0..t {
+            for x in 0..t {
+                let i = (y * t + x) as usize;
+                let single = (0..4).all(|o| (o == d) == g.in_diamond(o, x, y));
+                if single && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
+                    seeds.push(i);
+                }
+            }
+        }
+        let reached = flood4(t as usize, t as usize, &seeds, |i| {
+            let (x, y) = ((i % t as usize) as i32, (i / t as usize) as i32);
+            g.in_diamond(d, x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
+        });
+        for i in 0..n {
+            if reached[i] && labels[i] == UNSET {
+                labels[i] = d as u8;
+            }
+        }
+    }
+    let mut fallback_pixels = 0;
+    let mut raster = vec![0u8; n * 3];
+    for y in 0..t {
+        for x in 0..t {
+            let i = (y * t + x) as usize;
+            if labels[i] == UNSET {
+                fallback_pixels += 1;
+                labels[i] = (0..4).find(|&d| g.in_diamond(d, x, y)).ok_or_else(|| format!("pixel ({x},{y}) in no diamond"))? as u8;
+            }
+            raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
+        }
+    }
+    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels })
+}
+
+/// Places the tiles for a `width × height` output (rows `0..`, columns `0..`, B12).
+pub fn tile_output(set: &WangTileSet, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
+    let t = set.geometry.t as i64;
+    let rows = (height as i64 - 1) / t;
+    let cols = (width as i64 - 1) / t;
+    tile_rect(set.set, order, (0, rows), (0, cols), 0, seed, "wang/tiling")
+}
+
+/// Renders by copying tile rows; output rows are filled in parallel.
+pub fn render(set: &WangTileSet, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
+    let t = set.geometry.t as usize;
+    let mut out = RgbImage::new(width, height);
+    out.as_raw_mut().par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
+        let (r, ty) = (y / t, y % t);
+        let mut x = 0usize;
+        while x < width as usize {
+            let run = (t - x % t).min(width as usize - x);
+            let tile = &set.tiles[tiling.at(r as i64, (x / t) as i64)];
+            let src = (ty * t + x % t) * 3;
+            row[x * 3..(x + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
+            x += run;
+        }
+    });
+    out
+}
+
+/// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
+/// tile corners and where a tile-edge mismatch would show.
+pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
+    let half = (g.ov / 2) as u32;
+    let bands = |limit: u32| -> Vec<SeamBand> {
+        (1..)
+            .map(|k| k * g.t as u32)
+            .take_while(|&edge| edge < limit)
+            .map(|edge| {
+                let start = edge - half;
+                SeamBand { start, len: (2 * half + 1).min(limit - start) }
+            })
+            .collect()
+    };
+    SeamGrid { columns: bands(width), rows: bands(height) }
+}
+
+impl Method for WangTiles {
+    fn name(&self) -> &'static str {
+        "wang-tiles"
+    }
+    fn algorithm_version(&self) -> u32 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "Cohen et al. Wang tiles (paper 001's baseline): diamond samples, DP or shortest-path cuts, keyed scanline tiling"
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        PARAMS
+    }
+
+    fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let mut errors = Vec::new();
+        let (t, ov) = (p.int("tile"), p.int("overlap"));
+        if t % 2 != 0 {
+            errors.push(ParamError::new("tile", format!("tile {t} must be even (the diamonds are centred on the edge midpoints)")));
+        }
+        if ov % 2 != 0 {
+            errors.push(ParamError::new("overlap", format!("overlap {ov} must be even (each diamond grows by overlap/2)")));
+        }
+        if ov * 2 > t {
+            errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the tile ({t}); use at most {}", t / 2)));
+        }
+        errors.extend(align::check(p, sample));
+        let need = t + ov - ov % 2;
+        let smaller = sample.0.min(sample.1) as i64;
+        if need > smaller {
+            errors.push(ParamError::new(
+                "tile",
+                format!(
+                    "tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); use tile at most {}",
+                    sample.0,
+                    sample.1,
+                    smaller - ov
+                ),
+            ));
+        }
+        errors
+    }
+
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+        let p = req.params;
+        let (t, ov) = (p.int("tile") as i32, p.int("overlap") as i32);
+        if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
+            return Err(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2"));
+        }
+        let cut = if p.str("cut") == "shortest_path" { Cut::ShortestPath } else { Cut::Dp };
+        let set = TileSet::parse(p.str("tile_set"));
+        let err = PixelError::parse(p.str("pixel_error"));
+        let order = TilingOrder::parse(p.str("tiling"));
+        let t0 = Instant::now();
+        let candidates = p.int("patch_candidates") as usize;
+        let align = Alignment::from_params(p, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
+        let (tiles, chosen) = build_tile_set_aligned(req.sample, t, ov, set, cut, err, req.seed, candidates, align.as_ref())?;
+        let build = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
+        let image = render(&tiles, &tiling, req.width, req.height);
+        let fill = t1.elapsed().as_secs_f64();
+        let g = tiles.geometry;
+        let mut diagnostics = serde_json::json!({
+            "geometry": { "tile": g.t, "overlap": g.ov, "diamond_half_diagonal": g.a },
+            "diamond_centres": { "ns": tiles.dn, "ew": tiles.de, "candidate": chosen, "seam_cost": seam_cost(&tiles) },
+            "tiles": tiles.tiles.iter().map(|t| serde_json::json!({
+                "colours_n_w_s_e": t.colours,
+                "cut_costs": t.cut_costs,
+                "fallback_pixels": t.fallback_pixels,
+            })).collect::<Vec<_>>(),
+            "grid": { "rows": tiling.rows, "cols": tiling.cols },
+            "usage": tiling.usage(set),
+        });
+        if let Some(al) = &align {
+            diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
+        Ok(Synthesis {
+            image,
+            seams: Some(seam_grid(&g, req.width, req.height)),
+            diagnostics,
+            phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
+            extras: if p.bool("export_tiles") { crate::synth::methods::tiles::export::export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::params::{ParamValue, resolve};
+
+    fn params(given: &[(&str, ParamValue)]) -> Params {
+        let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        resolve(PARAMS, &g).unwrap()
+    }
+
+    fn coded(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
+    }
+
+    #[test]
+    fn every_tile_pixel_is_in_its_diamond_and_edges_are_locked() {
+        let sample = coded(100, 90);
+        for cut in [Cut::Dp, Cut::ShortestPath] {
+            let set = build_tile_set(&sample, 32, 8, TileSet::Complete, cut, PixelError::Squared, 3).unwrap();
+            let g = set.geometry;
+            for tile in &set.tiles {
+                assert_eq!(tile.fallback_pixels, 0, "{cut:?}");
+                for y in 0..g.t {
+                    for x in 0..g.t {
+                        let d = tile.labels[(y * g.t + x) as usize] as usize;
+                        assert!(g.in_diamond(d, x, y));
+                        if let Some(l) = g.lock(x, y) {
+                            assert_eq!(d, l);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn dp_cut_is_a_monotone_staircase_and_no_cheaper_than_dijkstra_allows() {
+        let sample = RgbImage::from_fn(80, 80, |x, y| {
+            let v = ((x * 13 + y * 7) % 29 + (x / 9 + y / 5) % 3 * 60) as u8;
+            [v, v / 2, 200 - v]
+        });
+        let g = Geometry::new(32, 8);
+        let t = g.t;
+        let q = [(30, 30), (40, 44), (50, 36), (36, 50)];
+        for k in 0..4 {
+            let (d1, d2) = (k, (k + 1) % 4);
+            let n = (t * t) as usize;
+            let mut domain = vec![false; n];
+            let mut error = vec![0u32; n];
+            for y in 0..t {
+                for x in 0..t {
+                    if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) {
+                        let i = (y * t + x) as usize;
+                        domain[i] = true;
+                        let p = |d: usize| {
+                            let (cx, cy) = g.centre(d);
+                            sample.get((q[d].0 + x - cx) as u32, (q[d].1 + y - cy) as u32)
+                        };
+                        error[i] = crate::synth::primitives::overlap::pixel_error(p(d1), p(d2));
+                    }
+                }
+            }
+            let corner = g.corner(k);
+            let path = dp_cut(t, corner, (t / 2, t / 2), &domain, &error).unwrap();
+            let steps = (t / 2 - corner.0).abs() + (t / 2 - corner.1).abs();
+            assert_eq!(path.len() as i32, steps + 1, "one pixel per L1 distance");
+            for w in path.windows(2) {
+                let (ax, ay) = (w[0] as i32 % t, w[0] as i32 / t);
+                let (bx, by) = (w[1] as i32 % t, w[1] as i32 / t);
+                assert_eq!((bx - ax).abs() + (by - ay).abs(), 1);
+            }
+            // Dijkstra's edge-weight cost is never above the DP path's.
+            let ci = (corner.1 * t + corner.0) as usize;
+            let mut target = vec![false; n];
+            target[((t / 2) * t + t / 2) as usize] = true;
+            let sp = shortest_path(t as usize, t as usize, &domain, &error, ci, &target).unwrap();
+            assert!(sp.cost <= crate::synth::primitives::shortest_path::path_cost(&error, &path));
+        }
+    }
+
+    #[test]
+    fn tile_edges_are_seamless_except_at_corners() {
+        // Across every tile edge the two pixels read adjacent sample pixels of the same diamond
+        // (the coded sample makes the colour tell the position), except at tile corners.
+        let sample = coded(100, 90);
+        let p = params(&[("tile", ParamValue::Int(32))]);
+        let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4 }).unwrap().image;
+        for y in 0..160u32 {
+            for x in 0..200u32 {
+                let corner = |v: u32| v % 32 == 0 || v % 32 == 31;
+                if corner(x) && corner(y) {
+                    continue;
+                }
+                if x % 32 == 31 && x + 1 < 200 {
+                    let (a, b) = (out.get(x, y), out.get(x + 1, y));
+                    assert_eq!((a[0] + 1, a[1]), (b[0], b[1]), "({x},{y}) → right");
+                }
+                if y % 32 == 31 && y + 1 < 160 {
+                    let (a, b) = (out.get(x, y), out.get(x, y + 1));
+                    assert_eq!((a[0], a[1] + 1), (b[0], b[1]), "({x},{y}) → down");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_small_output_is_a_crop_of_a_large_one_and_threads_do_not_matter() {
+        let sample = coded(128, 128);
+        for cut in ["dp", "shortest_path"] {
+            let p = params(&[("tile", ParamValue::Int(40)), ("cut", ParamValue::Str(cut.into()))]);
+            let small = WangTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9 }).unwrap();
+            let big = WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap();
+            assert_eq!(small.image.dimensions(), (300, 200));
+            assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let single = one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
+            assert_eq!(single.image, big.image);
+            assert_eq!(single.diagnostics, big.diagnostics);
+        }
+    }
+
+    #[test]
+    fn patch_search_keeps_the_cheapest_candidate_and_starts_with_the_paper_draw() {
+        let sample = coded(100, 90);
+        let plain = build_tile_set(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2).unwrap();
+        let (best, c) = build_tile_set_searched(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2, 12).unwrap();
+        let a = best.geometry.a as u32;
+        let fit = |s: &WangTileSet| representative(&sample, &[s.dn[0], s.dn[1], s.de[0], s.de[1]].map(|(x, y)| (x - a, y - a)), 2 * a);
+        assert!(fit(&best) || !fit(&plain));
+        if fit(&plain) {
+            assert!(seam_cost(&best) <= seam_cost(&plain));
+        }
+        assert!(c < 12);
+        let (one, c1) = build_tile_set_searched(&sample, 32, 8, TileSet::Minimal, Cut::Dp, PixelError::Squared, 2, 1).unwrap();
+        assert_eq!((one.dn, one.de, c1), (plain.dn, plain.de, 0));
+    }
+
+    /// A sample periodic on the lattice `(16, 0), (8, 16)` whose pixels are distinct within a period.
+    fn periodic(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let (u, v) = ((x + 16 - (y / 16) % 2 * 8) % 16, y % 16);
+            [(u * 16 + v) as u8, (u * 9 + v * 5) as u8, 77]
+        })
+    }
+
+    fn aligned(extra: &[(&str, ParamValue)]) -> Params {
+        let mut given = vec![
+            ("tile", ParamValue::Int(32)),
+            ("align", ParamValue::Str("lattice".into())),
+            ("t1_x", ParamValue::Int(16)),
+            ("t2_x", ParamValue::Int(8)),
+            ("t2_y", ParamValue::Int(16)),
+        ];
+        given.extend(extra.iter().cloned());
+        params(&given)
+    }
+
+    #[test]
+    fn lattice_alignment_makes_a_periodic_sample_seamless() {
+        // (32, 0) and (0, 32) are lattice vectors of (16, 0), (8, 16): zero phase residual, so
+        // every cut joins in-phase content (cost 0) and the output is periodic on the lattice.
+        let sample = periodic(128, 112);
+        for cut in ["dp", "shortest_path"] {
+            for candidates in [1, 5] {
+                let p = aligned(&[("cut", ParamValue::Str(cut.into())), ("patch_candidates", ParamValue::Int(candidates))]);
+                for seed in 0..6 {
+                    let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed }).unwrap();
+                    assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
+                    assert_eq!(out.diagnostics["diamond_centres"]["seam_cost"], 0, "{cut} {candidates} seed {seed}");
+                    let img = out.image;
+                    for y in 0..180 - 16 {
+                        for x in 0..200 - 16 {
+                            assert_eq!(img.get(x, y), img.get(x + 16, y), "({x},{y})");
+                            if x >= 8 {
+                                assert_eq!(img.get(x, y), img.get(x - 8, y + 16), "({x},{y})");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // The faithful mode puts the diamonds out of phase.
+        let none = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(32))]), seed: 1 }).unwrap();
+        assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
+        assert!(none.diagnostics.get("align").is_none());
+    }
+
+    #[test]
+    fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
+        let sample = periodic(128, 112);
+        let p = aligned(&[("tile", ParamValue::Int(40)), ("patch_candidates", ParamValue::Int(6))]);
+        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3 };
+        let many = WangTiles.synthesize(&req).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| WangTiles.synthesize(&req).unwrap());
+        assert_eq!(single.image, many.image);
+        assert_eq!(single.diagnostics, many.diagnostics);
+        // Tile 40: (40, 0) is 8 px from the nearest lattice vector (32, 0) or (48, 0), and (0, 40)
+        // is 8 px from (0, 32) + ... : the residual is reported, with tile sizes that have none.
+        let a = &many.diagnostics["align"];
+        assert_eq!(a["lattice"]["source"], "given");
+        assert_eq!(a["lattice"]["t1"], serde_json::json!([16, 0]));
+        assert_eq!(a["phase_residual_px"], 8.0);
+        assert_eq!(a["suggested_tiles"][0]["tile"], 32);
+        assert_eq!(a["suggested_tiles"][0]["residual_px"], 0.0);
+    }
+
+    #[test]
+    fn lattice_alignment_errors_are_clear() {
+        let mut st = Stream::new(3, "noise");
+        let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
+        let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
+        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
+        let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
+        let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
+        let unused = params(&[("t1_x", ParamValue::Int(16)), ("t2_y", ParamValue::Int(16))]);
+        let errs = WangTiles.check(&unused, (128, 128), (64, 64));
+        assert!(errs.iter().any(|e| e.message.contains("only used with align = \"lattice\"")), "{errs:?}");
+    }
+
+    #[test]
+    fn rejects_odd_sizes_and_tiles_larger_than_the_sample() {
+        let p = params(&[("tile", ParamValue::Int(63)), ("overlap", ParamValue::Int(3))]);
+        let keys: Vec<String> = WangTiles.check(&p, (128, 128), (100, 100)).into_iter().map(|e| e.key).collect();
+        assert_eq!(keys, vec!["tile", "overlap"]);
+        let p = params(&[("tile", ParamValue::Int(128))]);
+        let e = WangTiles.check(&p, (128, 128), (100, 100));
+        assert_eq!(e.len(), 1);
+        assert!(e[0].message.contains("larger than the sample"), "{}", e[0].message);
+        assert!(WangTiles.check(&params(&[]), (128, 128), (8192, 8192)).is_empty());
+    }
+}

@@ -1,0 +1,172 @@
+//! The raster grid of overlapping square blocks shared by image quilting and patch sampling:
+//! how many blocks cover an output, where each one's overlap with earlier blocks lies, how a
+//! block is pasted over that overlap (boundary cut, feathering or plain overwrite), and where the
+//! seams can be for the seam-visibility metric.
+
+use super::boundary_cut::{horizontal_cut, vertical_cut};
+use super::feather;
+use super::overlap::{Rect, error_surface};
+use crate::image::RgbImage;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+
+/// Blocks of side `block` at stride `block − overlap`, enough to cover an output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockGrid {
+    pub block: u32,
+    pub overlap: u32,
+    pub cols: u32,
+    pub rows: u32,
+}
+
+impl BlockGrid {
+    /// The fewest blocks covering `width × height` (the canvas is cropped to it afterwards).
+    pub fn new(block: u32, overlap: u32, width: u32, height: u32) -> BlockGrid {
+        let stride = block - overlap;
+        let count = |len: u32| if len <= block { 1 } else { (len - overlap).div_ceil(stride) };
+        BlockGrid { block, overlap, cols: count(width), rows: count(height) }
+    }
+
+    pub fn stride(&self) -> u32 {
+        self.block - self.overlap
+    }
+
+    /// The canvas the blocks fill: `n·B − (n−1)·overlap` per side.
+    pub fn canvas(&self) -> (u32, u32) {
+        (self.cols * self.stride() + self.overlap, self.rows * self.stride() + self.overlap)
+    }
+
+    /// Canvas position of block `(bi, bj)` (row, column).
+    pub fn origin(&self, bi: u32, bj: u32) -> (u32, u32) {
+        (bj * self.stride(), bi * self.stride())
+    }
+
+    /// The overlap of block `(bi, bj)` with earlier blocks, as disjoint rectangles relative to the
+    /// block: the left strip, the top strip, or their L-shaped union.
+    pub fn overlap_regions(&self, bi: u32, bj: u32) -> Vec<Rect> {
+        let (b, w) = (self.block, self.overlap);
+        let mut regions = Vec::with_capacity(2);
+        if bj > 0 {
+            regions.push(Rect::new(0, 0, w, b));
+        }
+        if bi > 0 {
+            let x0 = if bj > 0 { w } else { 0 };
+            regions.push(Rect::new(x0, 0, b - x0, w));
+        }
+        regions
+    }
+
+    /// Seam bands of the cropped `width × height` output: each overlap band, boundaries included.
+    pub fn seam_grid(&self, width: u32, height: u32) -> SeamGrid {
+        let bands = |count: u32, limit: u32| -> Vec<SeamBand> {
+            (1..count)
+                .map(|k| k * self.stride())
+                .filter(|&start| start < limit)
+                .map(|start| SeamBand { start: start.max(1), len: (self.overlap + 1).min(limit - start) })
+                .collect()
+        };
+        SeamGrid { columns: bands(self.cols, width), rows: bands(self.rows, height) }
+    }
+}
+
+/// How a new block meets the output over its overlap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OverlapRule {
+    /// Minimum-error boundary cut (B3; the L case as two independent cuts).
+    Cut,
+    /// Liang et al.'s linear ramp (B5), the minimum of the two ramps in the corner.
+    Feather,
+    /// The new block overwrites the overlap.
+    Overwrite,
+}
+
+/// Pastes the `block × block` sample patch at `src` onto the canvas at `dst`; `left`/`top` say
+/// which overlaps exist.
+#[allow(clippy::too_many_arguments)]
+pub fn paste_block(
+    canvas: &mut RgbImage,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    rule: OverlapRule,
+) {
+    let (b, ov) = (block as usize, overlap as usize);
+    // With a cut: for each row, the first column taken from the new block; for each column, the first row.
+    let mut first_col = vec![0usize; b];
+    let mut first_row = vec![0usize; b];
+    if rule == OverlapRule::Cut && left {
+        first_col = vertical_cut(&error_surface(sample, src, canvas, dst, overlap, block), b, ov);
+    }
+    if rule == OverlapRule::Cut && top {
+        first_row = horizontal_cut(&error_surface(sample, src, canvas, dst, block, overlap), ov, b);
+    }
+    for y in 0..block {
+        for x in 0..block {
+            let new = sample.get(src.0 + x, src.1 + y);
+            let (cx, cy) = (dst.0 + x, dst.1 + y);
+            let in_left = left && x < overlap;
+            let in_top = top && y < overlap;
+            if rule == OverlapRule::Feather && (in_left || in_top) {
+                let mut alpha: f64 = 1.0;
+                if in_left {
+                    alpha = alpha.min(feather::new_weight(x, overlap));
+                }
+                if in_top {
+                    alpha = alpha.min(feather::new_weight(y, overlap));
+                }
+                canvas.put(cx, cy, feather::blend(canvas.get(cx, cy), new, alpha));
+            } else if x as usize >= first_col[y as usize] && y as usize >= first_row[x as usize] {
+                canvas.put(cx, cy, new);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_covers_the_output_with_the_fewest_blocks() {
+        // 9 blocks of 50 with overlap 8 give 9·50 − 8·8 = 386 (paper 003's protocol).
+        let g = BlockGrid::new(50, 8, 386, 386);
+        assert_eq!((g.cols, g.rows), (9, 9));
+        assert_eq!(g.canvas(), (386, 386));
+        let g = BlockGrid::new(40, 10, 512, 100);
+        assert!(g.canvas().0 >= 512 && g.canvas().0 - 30 < 512);
+        assert_eq!(BlockGrid::new(50, 8, 20, 50).cols, 1);
+        assert_eq!(g.origin(2, 3), (90, 60));
+    }
+
+    #[test]
+    fn overlap_regions_are_the_strips_or_the_l() {
+        let g = BlockGrid::new(20, 4, 100, 100);
+        assert!(g.overlap_regions(0, 0).is_empty());
+        assert_eq!(g.overlap_regions(0, 1), vec![Rect::new(0, 0, 4, 20)]);
+        assert_eq!(g.overlap_regions(1, 0), vec![Rect::new(0, 0, 20, 4)]);
+        assert_eq!(g.overlap_regions(1, 1), vec![Rect::new(0, 0, 4, 20), Rect::new(4, 0, 16, 4)]);
+    }
+
+    #[test]
+    fn seam_bands_follow_the_block_grid() {
+        let g = BlockGrid::new(50, 8, 386, 386);
+        let s = g.seam_grid(386, 386);
+        assert_eq!(s.columns.len(), 8);
+        assert_eq!(s.columns[0], SeamBand { start: 42, len: 9 });
+    }
+
+    #[test]
+    fn overwrite_copies_and_feather_blends_only_the_overlap() {
+        let sample = RgbImage::from_fn(10, 10, |_, _| [200, 200, 200]);
+        let mut canvas = RgbImage::new(10, 10);
+        paste_block(&mut canvas, &sample, (0, 0), (0, 0), 6, 2, true, false, OverlapRule::Feather);
+        assert_eq!(canvas.get(0, 0), feather::blend([0, 0, 0], [200, 200, 200], feather::new_weight(0, 2)));
+        assert_eq!(canvas.get(2, 0), [200, 200, 200]);
+        let mut c2 = RgbImage::new(10, 10);
+        paste_block(&mut c2, &sample, (0, 0), (0, 0), 6, 2, true, true, OverlapRule::Overwrite);
+        assert_eq!(c2.get(0, 0), [200, 200, 200]);
+    }
+}

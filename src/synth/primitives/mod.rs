@@ -1,0 +1,12 @@
+//! Image building blocks shared by the methods (methods.md §1), written and tested once.
+
+pub mod block_grid;
+pub mod boundary_cut;
+pub mod color;
+pub mod correlation;
+pub mod edges;
+pub mod feather;
+pub mod overlap;
+pub mod overlap_search;
+pub mod pso;
+pub mod shortest_path;
