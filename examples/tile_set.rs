@@ -14,7 +14,7 @@ use texsyn::image::io::{self as imageio, DecodeLimits, Encoding, Format};
 use texsyn::synth::methods::tiles::rw_tiles::{self, PixelError};
 use texsyn::synth::methods::tiles::wang::{TileSet, TilingOrder};
 
-fn main() -> Result<(), String> {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out_dir = std::env::args().nth(1).map(PathBuf::from).unwrap_or_else(|| PathBuf::from("."));
     std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let crop = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/crops/pebbles_beige_128.png");

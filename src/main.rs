@@ -329,7 +329,7 @@ fn main() -> ExitCode {
             match texsyn::synth::lattice::extract(&loaded.image, &texsyn::synth::lattice::LatticeOptions::default()) {
                 Err(e) => {
                     if json {
-                        println!("{}", serde_json::json!({"sample": sample.display().to_string(), "lattice": null, "error": e}));
+                        println!("{}", serde_json::json!({"sample": sample.display().to_string(), "lattice": null, "error": e.to_string()}));
                     }
                     eprintln!("{}: {e}", sample.display());
                     ExitCode::from(1)

@@ -6,6 +6,7 @@
 //! for reliability, so a stochastic sample fails loudly ("no lattice found; give t1/t2") instead of
 //! producing a meaningless lattice. Everything is integer offsets of the ACF grid, as in the paper.
 
+use crate::synth::error::SynthError;
 use crate::image::RgbImage;
 use crate::metrics::{AcfForm, autocorrelation, centred_gray};
 
@@ -59,15 +60,15 @@ fn len(a: (i64, i64)) -> f64 {
 }
 
 /// Finds `t1, t2`; `Err` explains why the sample is not near-regular enough.
-pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String> {
+pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthError> {
     const NONE: &str = "no lattice found; give t1/t2";
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w < 8 || h < 8 {
-        return Err(format!("{NONE} (the sample is too small to show a period)"));
+        return Err(SynthError::Sample(format!("{NONE} (the sample is too small to show a period)")));
     }
     let plane = centred_gray(img);
     let (rx, ry) = (w / 2, h / 2);
-    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased).map_err(|e| format!("{NONE} ({e}: the sample is flat)"))?;
+    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased).map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
     let (rx, ry) = (rx as i64, ry as i64);
     let a = |dx: i64, dy: i64| acf.get(dx, dy);
     let inside = |dx: i64, dy: i64| dx.abs() <= rx && dy.abs() <= ry;
@@ -133,10 +134,10 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String>
             .min_by(|x, y| dot(x.0, x.0).cmp(&dot(y.0, y.0)).then(y.1.partial_cmp(&x.1).unwrap()).then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1))))
             .map(|p| p.0)
     };
-    let t1 = shortest(&mut c.iter()).ok_or_else(|| format!("{NONE} (no dominant autocorrelation peak)"))?;
+    let t1 = shortest(&mut c.iter()).ok_or_else(|| SynthError::Sample(format!("{NONE} (no dominant autocorrelation peak)")))?;
     let sin_min = opts.min_angle_deg.to_radians().sin();
     let t2 = shortest(&mut c.iter().filter(|p| (cross(t1, p.0).abs() as f64) >= len(t1) * len(p.0) * sin_min))
-        .ok_or_else(|| format!("{NONE} (the autocorrelation peaks lie along one direction only)"))?;
+        .ok_or_else(|| SynthError::Sample(format!("{NONE} (the autocorrelation peaks lie along one direction only)")))?;
     // 7. Lagrange–Gauss reduction.
     let (t1, t2) = reduce(t1, t2);
     // 8. Reliability.
@@ -171,13 +172,13 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, String>
         })
         .count();
     if peak1 < opts.min_peak || peak2 < opts.min_peak {
-        return Err(format!(
+        return Err(SynthError::Sample(format!(
             "{NONE} (the candidate vectors ({}, {}) and ({}, {}) have weak autocorrelation peaks {:.3} and {:.3}, below {}; the sample is not near-regular enough)",
             t1.0, t1.1, t2.0, t2.1, peak1, peak2, opts.min_peak
-        ));
+        )));
     }
     if explained * 2 < c.len() {
-        return Err(format!("{NONE} (the lattice ({}, {}), ({}, {}) explains only {explained} of {} dominant peaks)", t1.0, t1.1, t2.0, t2.1, c.len()));
+        return Err(SynthError::Sample(format!("{NONE} (the lattice ({}, {}), ({}, {}) explains only {explained} of {} dominant peaks)", t1.0, t1.1, t2.0, t2.1, c.len())));
     }
     let (t1, t2) = canonical(t1, t2);
     Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained })
@@ -284,9 +285,9 @@ mod tests {
             let v = st.below(256) as u8;
             [v, v, v]
         });
-        assert!(extract(&noise, &LatticeOptions::default()).unwrap_err().contains("no lattice found; give t1/t2"));
+        assert!(extract(&noise, &LatticeOptions::default()).unwrap_err().to_string().contains("no lattice found; give t1/t2"));
         let flat = RgbImage::from_fn(64, 64, |_, _| [9, 9, 9]);
-        assert!(extract(&flat, &LatticeOptions::default()).unwrap_err().contains("no lattice found"));
+        assert!(extract(&flat, &LatticeOptions::default()).unwrap_err().to_string().contains("no lattice found"));
     }
 
     #[test]

@@ -6,6 +6,7 @@
 
 use crate::image::RgbImage;
 use crate::image::seam_grid::SeamGrid;
+use crate::synth::error::SynthError;
 use crate::synth::params::{ParamError, ParamSpec, Params};
 
 /// What a method is asked to do.
@@ -77,6 +78,6 @@ pub trait Method: Send + Sync {
         Vec::new()
     }
     /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
-    fn synthesize(&self, request: &Request) -> Result<Synthesis, String>;
+    fn synthesize(&self, request: &Request) -> Result<Synthesis, SynthError>;
 }
 

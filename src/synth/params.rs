@@ -4,6 +4,7 @@
 //! default, documentation). The same table drives job-file validation, default filling, the
 //! `texsyn methods` listing and re-running from a manifest, so the four can never disagree.
 
+pub use crate::synth::error::SynthError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -76,7 +77,8 @@ pub enum Default {
     Bool(bool),
     Str(&'static str),
     /// Computed from the other (already resolved) parameters, e.g. `overlap = round(block / 6)`.
-    Derived { rule: &'static str, compute: fn(&Params) -> ParamValue },
+    /// `compute` sees the explicitly given and fixed values; `None` when it cannot be derived.
+    Derived { rule: &'static str, compute: fn(&Params) -> Option<ParamValue> },
 }
 
 impl Default {
@@ -185,44 +187,69 @@ impl Params {
         self.0.get(name)
     }
 
-    /// An integer parameter. Panics if the method asks for one it did not declare as an integer,
-    /// which is a programming error caught by the method's tests.
-    pub fn int(&self, name: &str) -> i64 {
+    /// An integer parameter. Params are resolved against the method's own table before a method
+    /// reads them, so a wrong type here means the table and the reader disagree: reported as a
+    /// [`SynthError::Param`] naming the key, never a panic.
+    pub fn int(&self, name: &str) -> Result<i64, SynthError> {
         match self.0.get(name) {
-            Some(ParamValue::Int(v)) => *v,
-            other => panic!("parameter {name} is not a resolved integer: {other:?}"),
+            Some(ParamValue::Int(v)) => Ok(*v),
+            other => Err(not_resolved(name, "an integer", other)),
         }
     }
 
-    pub fn float(&self, name: &str) -> f64 {
+    pub fn float(&self, name: &str) -> Result<f64, SynthError> {
         match self.0.get(name) {
-            Some(ParamValue::Float(v)) => *v,
-            Some(ParamValue::Int(v)) => *v as f64,
-            other => panic!("parameter {name} is not a resolved float: {other:?}"),
+            Some(ParamValue::Float(v)) => Ok(*v),
+            Some(ParamValue::Int(v)) => Ok(*v as f64),
+            other => Err(not_resolved(name, "a number", other)),
         }
     }
 
     /// An [`ParamKind::IntOr`] parameter: `Some(n)`, or `None` for its word.
-    pub fn int_or_word(&self, name: &str) -> Option<i64> {
+    pub fn int_or_word(&self, name: &str) -> Result<Option<i64>, SynthError> {
         match self.0.get(name) {
-            Some(ParamValue::Int(v)) => Some(*v),
-            Some(ParamValue::Str(_)) => None,
-            other => panic!("parameter {name} is not a resolved integer or word: {other:?}"),
+            Some(ParamValue::Int(v)) => Ok(Some(*v)),
+            Some(ParamValue::Str(_)) => Ok(None),
+            other => Err(not_resolved(name, "an integer or a word", other)),
         }
     }
 
-    pub fn bool(&self, name: &str) -> bool {
+    pub fn bool(&self, name: &str) -> Result<bool, SynthError> {
         match self.0.get(name) {
-            Some(ParamValue::Bool(v)) => *v,
-            other => panic!("parameter {name} is not a resolved boolean: {other:?}"),
+            Some(ParamValue::Bool(v)) => Ok(*v),
+            other => Err(not_resolved(name, "a boolean", other)),
         }
     }
 
-    pub fn str(&self, name: &str) -> &str {
+    pub fn str(&self, name: &str) -> Result<&str, SynthError> {
         match self.0.get(name) {
-            Some(ParamValue::Str(v)) => v,
-            other => panic!("parameter {name} is not a resolved string: {other:?}"),
+            Some(ParamValue::Str(v)) => Ok(v),
+            other => Err(not_resolved(name, "a string", other)),
         }
+    }
+
+    // Transitional panicking readers, removed once every method reads a typed config.
+    pub(crate) fn int_unchecked(&self, name: &str) -> i64 {
+        self.int(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+    pub(crate) fn float_unchecked(&self, name: &str) -> f64 {
+        self.float(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+    pub(crate) fn int_or_word_unchecked(&self, name: &str) -> Option<i64> {
+        self.int_or_word(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+    pub(crate) fn bool_unchecked(&self, name: &str) -> bool {
+        self.bool(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+    pub(crate) fn str_unchecked(&self, name: &str) -> &str {
+        self.str(name).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// A [`ParamKind::Choice`] parameter parsed into its enum (see [`choice!`]). A word the enum
+    /// does not know is an error naming the key, never a silent fallback.
+    pub fn choice<C: Choice>(&self, name: &str) -> Result<C, SynthError> {
+        let word = self.str(name)?;
+        C::parse(word).ok_or_else(|| SynthError::param(name, format!("{word:?} is not one of {}", C::NAMES.join(" | "))))
     }
 
     pub fn to_json(&self) -> serde_json::Value {
@@ -271,7 +298,10 @@ pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Pa
             if out.contains_key(spec.name) {
                 continue;
             }
-            let v = compute(&Params(out.clone()));
+            let Some(v) = compute(&Params(out.clone())) else {
+                errors.push(ParamError::new(spec.name, format!("its default ({rule}) cannot be computed from the other parameters; set it explicitly")));
+                continue;
+            };
             match spec.check(&v) {
                 Ok(v) => {
                     out.insert(spec.name.to_string(), v);
@@ -327,7 +357,7 @@ mod tests {
             kind: ParamKind::Int { min: 2, max: 50 },
             default: Default::Derived {
                 rule: "round(block / 6)",
-                compute: |p| ParamValue::Int((p.int("block") as f64 / 6.0).round() as i64),
+                compute: |p| Some(ParamValue::Int((p.int("block").ok()? as f64 / 6.0).round() as i64)),
             },
             doc: "",
         },
@@ -342,9 +372,10 @@ mod tests {
     #[test]
     fn fills_fixed_and_derived_defaults() {
         let p = resolve(SPECS, &given(&[("block", ParamValue::Int(30))])).unwrap();
-        assert_eq!(p.int("overlap"), 5);
-        assert_eq!(p.float("tolerance"), 0.1);
-        assert_eq!(p.str("cut"), "dp");
+        assert_eq!(p.int("overlap").unwrap(), 5);
+        assert_eq!(p.float("tolerance").unwrap(), 0.1);
+        assert_eq!(p.str("cut").unwrap(), "dp");
+        assert!(p.int("cut").unwrap_err().to_string().contains("`cut`"));
     }
 
     #[test]
@@ -385,8 +416,8 @@ mod tests {
     fn int_or_word_takes_a_number_in_range_or_its_word_only() {
         const S: &[ParamSpec] =
             &[ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 64, word: "cover" }, default: Default::Str("cover"), doc: "" }];
-        assert_eq!(resolve(S, &[]).unwrap().int_or_word("rows"), None);
-        assert_eq!(resolve(S, &given(&[("rows", ParamValue::Int(8))])).unwrap().int_or_word("rows"), Some(8));
+        assert_eq!(resolve(S, &[]).unwrap().int_or_word("rows").unwrap(), None);
+        assert_eq!(resolve(S, &given(&[("rows", ParamValue::Int(8))])).unwrap().int_or_word("rows").unwrap(), Some(8));
         let zero = resolve(S, &given(&[("rows", ParamValue::Int(0))])).unwrap_err();
         assert!(zero[0].message.contains("out of range: allowed 1..=64, or \"cover\""), "{}", zero[0].message);
         let word = resolve(S, &given(&[("rows", ParamValue::Str("auto".into()))])).unwrap_err();
@@ -401,4 +432,71 @@ mod tests {
         assert_eq!(nearest("zzzzzz", &["tolerance", "block"]), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
     }
+}
+
+fn not_resolved(name: &str, expected: &str, found: Option<&ParamValue>) -> SynthError {
+    let found = found.map_or("nothing", ParamValue::type_name);
+    SynthError::param(name, format!("expected {expected}, found {found} (the method's parameter table and its reader disagree)"))
+}
+
+/// A parameter whose value is one of a fixed set of words, as an enum. Declared with [`choice!`],
+/// which gives the words once: the same list is the [`ParamKind::Choice`] of the method's table
+/// (what job files may say) and the parser of its typed config.
+pub trait Choice: Sized + Copy + 'static {
+    /// The words, in declaration order.
+    const NAMES: &'static [&'static str];
+    fn parse(word: &str) -> Option<Self>;
+    fn name(self) -> &'static str;
+}
+
+/// Declares a [`Choice`] enum: `choice! { pub enum Cut { Dp = "dp", None = "none" } }`.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! choice {
+    ($(#[$meta:meta])* $vis:vis enum $name:ident { $($(#[$vmeta:meta])* $variant:ident = $word:literal),+ $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        $vis enum $name { $($(#[$vmeta])* $variant),+ }
+        impl $crate::synth::params::Choice for $name {
+            const NAMES: &'static [&'static str] = &[$($word),+];
+            fn parse(word: &str) -> Option<Self> {
+                match word { $($word => Some($name::$variant),)+ _ => None }
+            }
+            fn name(self) -> &'static str {
+                match self { $($name::$variant => $word),+ }
+            }
+        }
+    };
+}
+pub use choice;
+
+/// A method's typed configuration: the same parameters as its [`ParamSpec`] table, as Rust
+/// fields. `Default` gives the table's defaults (derived ones as `None`: computed at resolution);
+/// [`MethodConfig::to_params`] feeds the table's validation, so a bad value gets the same message
+/// from Rust as from a job file; [`MethodConfig::from_params`] reads resolved parameters back.
+pub trait MethodConfig: Sized + Clone + std::fmt::Debug + std::default::Default {
+    /// The method's name in job files.
+    const METHOD: &'static str;
+    /// The given values, as a job file's `[params]` would hold them (unset derived ones omitted).
+    fn to_params(&self) -> Vec<(String, ParamValue)>;
+    /// Reads fully resolved parameters.
+    fn from_params(p: &Params) -> Result<Self, SynthError>;
+}
+
+/// Shorthands for [`MethodConfig::to_params`].
+pub fn int(name: &str, v: impl Into<i64>) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Int(v.into()))
+}
+pub fn float(name: &str, v: f64) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Float(v))
+}
+pub fn boolean(name: &str, v: bool) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Bool(v))
+}
+pub fn word<C: Choice>(name: &str, v: C) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Str(v.name().to_string()))
+}
+/// An [`ParamKind::IntOr`] value: the number, or the word when `None`.
+pub fn int_or(name: &str, v: Option<i64>, word: &str) -> (String, ParamValue) {
+    (name.to_string(), v.map_or_else(|| ParamValue::Str(word.to_string()), ParamValue::Int))
 }

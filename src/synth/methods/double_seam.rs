@@ -7,6 +7,7 @@
 //! agreement of a binary edge map. The chosen block is pasted verbatim, without blending or a cut.
 //! Comparing two lines instead of a whole overlap is the paper's speed argument.
 
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
@@ -28,14 +29,14 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
         },
         doc: "virtual overlap g: grid stride is block − g (paper: 8 for B = 50, 17 for B = 100)",
     },
     ParamSpec {
         name: "aux_dist",
         kind: ParamKind::Int { min: 1, max: 2048 },
-        default: Default::Derived { rule: "overlap", compute: |p| ParamValue::Int(p.int("overlap")) },
+        default: Default::Derived { rule: "overlap", compute: |p| Some(ParamValue::Int(p.int("overlap").ok()?)) },
         doc: "spacing of the auxiliary seam line from the true one, 1..=overlap (overlap − 1 keeps it inside the window)",
     },
     ParamSpec { name: "alpha", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.25), doc: "weight of the hue correlation (alpha + beta + gamma = 1)" },
@@ -116,7 +117,7 @@ impl Method for DoubleSeam {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let (block, g, aux) = (p.int("block"), p.int("overlap"), p.int("aux_dist"));
+        let (block, g, aux) = (p.int_unchecked("block"), p.int_unchecked("overlap"), p.int_unchecked("aux_dist"));
         let smaller = sample.0.min(sample.1) as i64;
         let mut errors = super::check_block_and_overlap(block, g, sample);
         if aux > g {
@@ -130,36 +131,36 @@ impl Method for DoubleSeam {
             ));
         }
         for w in ["alpha", "beta", "gamma"] {
-            let v = p.float(w);
+            let v = p.float_unchecked(w);
             if v <= 0.0 || v >= 1.0 {
                 errors.push(ParamError::new(w, format!("{w} must be strictly between 0 and 1, got {v}")));
             }
         }
-        let sum = p.float("alpha") + p.float("beta") + p.float("gamma");
+        let sum = p.float_unchecked("alpha") + p.float_unchecked("beta") + p.float_unchecked("gamma");
         if (sum - 1.0).abs() > 1e-9 {
             errors.push(ParamError::new("alpha", format!("alpha + beta + gamma must be 1, got {sum}")));
         }
         errors
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let p = req.params;
         let s = Settings {
-            block: p.int("block") as i32,
-            g: p.int("overlap") as i32,
-            a: (p.int("overlap") - 1 - p.int("aux_dist")) as i32,
-            weights: [p.float("alpha"), p.float("beta"), p.float("gamma")],
-            mu: p.float("mu"),
-            tau: p.float("tau_f"),
-            eps: p.float("eps_f"),
-            circular: p.str("hue_mode") == "circular",
-            clamp: p.bool("clamp_negative"),
-            level_penalty: p.float("level_penalty"),
+            block: p.int_unchecked("block") as i32,
+            g: p.int_unchecked("overlap") as i32,
+            a: (p.int_unchecked("overlap") - 1 - p.int_unchecked("aux_dist")) as i32,
+            weights: [p.float_unchecked("alpha"), p.float_unchecked("beta"), p.float_unchecked("gamma")],
+            mu: p.float_unchecked("mu"),
+            tau: p.float_unchecked("tau_f"),
+            eps: p.float_unchecked("eps_f"),
+            circular: p.str_unchecked("hue_mode") == "circular",
+            clamp: p.bool_unchecked("clamp_negative"),
+            level_penalty: p.float_unchecked("level_penalty"),
         };
         let sample = req.sample;
         let (sw, sh) = (sample.width() as i32, sample.height() as i32);
         if s.block > sw || s.block > sh {
-            return Err(format!("block {} does not fit in the {sw}x{sh} sample", s.block));
+            return Err(SynthError::Failed(format!("block {} does not fit in the {sw}x{sh} sample", s.block)));
         }
         let planes = HsiPlanes::of(sample);
         let edges = otsu_edges(&sobel4(&planes.i, sw as usize, sh as usize));
@@ -196,7 +197,7 @@ impl Method for DoubleSeam {
                     let members: Vec<(i32, i32)> =
                         positions.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(p, _)| *p).collect();
                     if members.is_empty() {
-                        return Err(format!("no candidate position at grid ({bi}, {bj}) (all scores undefined)"));
+                        return Err(SynthError::Failed(format!("no candidate position at grid ({bi}, {bj}) (all scores undefined)")));
                     }
                     set_sizes.push(members.len());
                     f_max_sum += f_max;
@@ -492,7 +493,7 @@ mod tests {
         let sample = structured();
         let p = params(&[("block", ParamValue::Int(24)), ("clamp_negative", ParamValue::Bool(false))]);
         let s = Settings { block: 24, g: 4, a: -1, weights: [0.25, 0.25, 0.5], mu: 2.0, tau: 1.6, eps: 0.05, circular: false, clamp: false, level_penalty: 0.0 };
-        assert_eq!(p.int("overlap"), 4);
+        assert_eq!(p.int_unchecked("overlap"), 4);
         let planes = HsiPlanes::of(&sample);
         let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
         let prep = Prepared { rgb: &sample, w: 96, planes, edges };

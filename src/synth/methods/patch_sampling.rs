@@ -39,6 +39,7 @@
 //! streams and every error is an exact integer, so the pixels are those of a raster-order run on
 //! any number of threads.
 
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
@@ -66,7 +67,7 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
         },
         doc: "w_E: width of the boundary zone shared with the already synthesised output (paper: not given; at most block / 2)",
     },
@@ -257,43 +258,43 @@ impl Search {
 
 impl Settings {
     fn from(p: &Params) -> Settings {
-        let search = match p.str("search") {
+        let search = match p.str_unchecked("search") {
             "cpso" => Search::Cpso,
             "pso" => Search::Pso,
             _ => Search::Exhaustive,
         };
         let chaos = (search == Search::Cpso).then(|| ChaosParams {
-            distance_threshold: p.float("distance_threshold"),
-            variance_threshold: p.float("variance_threshold"),
-            mu: p.float("logistic_mu"),
-            steps: p.int("chaos_steps") as u32,
-            rediversify: if p.str("rediversify") == "none" { Rediversify::None } else { Rediversify::WorseHalf },
+            distance_threshold: p.float_unchecked("distance_threshold"),
+            variance_threshold: p.float_unchecked("variance_threshold"),
+            mu: p.float_unchecked("logistic_mu"),
+            steps: p.int_unchecked("chaos_steps") as u32,
+            rediversify: if p.str_unchecked("rediversify") == "none" { Rediversify::None } else { Rediversify::WorseHalf },
         });
         let swarm = SwarmParams {
-            particles: p.int("particles") as usize,
-            max_iterations: p.int("iterations") as u32,
-            c1: p.float("c1"),
-            c2: p.float("c2"),
-            inertia: p.float("inertia"),
-            vmax_fraction: p.float("vmax"),
+            particles: p.int_unchecked("particles") as usize,
+            max_iterations: p.int_unchecked("iterations") as u32,
+            c1: p.float_unchecked("c1"),
+            c2: p.float_unchecked("c2"),
+            inertia: p.float_unchecked("inertia"),
+            vmax_fraction: p.float_unchecked("vmax"),
             stop_below: None,
-            update: if p.str("update") == "asynchronous" { UpdateOrder::Asynchronous } else { UpdateOrder::Synchronous },
+            update: if p.str_unchecked("update") == "asynchronous" { UpdateOrder::Asynchronous } else { UpdateOrder::Synchronous },
             chaos,
             trace: false,
         };
-        let (fx, fy) = (p.int("first_x"), p.int("first_y"));
+        let (fx, fy) = (p.int_unchecked("first_x"), p.int_unchecked("first_y"));
         Settings {
             search,
             swarm,
-            delta_rms: p.float("delta_rms"),
-            tolerance: p.float("tolerance"),
-            polish_radius: p.int("polish_radius") as u32,
-            cut: p.str("blend") == "cut",
-            near_best: p.str("candidates") == "near-best",
-            direct: p.str("engine") == "direct",
+            delta_rms: p.float_unchecked("delta_rms"),
+            tolerance: p.float_unchecked("tolerance"),
+            polish_radius: p.int_unchecked("polish_radius") as u32,
+            cut: p.str_unchecked("blend") == "cut",
+            near_best: p.str_unchecked("candidates") == "near-best",
+            direct: p.str_unchecked("engine") == "direct",
             first: (fx >= 0 && fy >= 0).then_some((fx as u32, fy as u32)),
-            per_block: p.bool("diagnostics") || p.bool("record_optimum"),
-            optimum: p.bool("record_optimum"),
+            per_block: p.bool_unchecked("diagnostics") || p.bool_unchecked("record_optimum"),
+            optimum: p.bool_unchecked("record_optimum"),
         }
     }
 }
@@ -337,14 +338,14 @@ impl Method for PatchSampling {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let block = p.int("block");
+        let block = p.int_unchecked("block");
         let smaller = sample.0.min(sample.1) as i64;
-        let mut errors = super::check_block_and_overlap(block, p.int("overlap"), sample);
-        let search = p.str("search");
-        if search != "exhaustive" && p.float("vmax") <= 0.0 {
+        let mut errors = super::check_block_and_overlap(block, p.int_unchecked("overlap"), sample);
+        let search = p.str_unchecked("search");
+        if search != "exhaustive" && p.float_unchecked("vmax") <= 0.0 {
             errors.push(ParamError::new("vmax", "vmax must be greater than 0: with 0 the particles never move"));
         }
-        let (fx, fy) = (p.int("first_x"), p.int("first_y"));
+        let (fx, fy) = (p.int_unchecked("first_x"), p.int_unchecked("first_y"));
         if (fx < 0) != (fy < 0) {
             let (set, unset) = if fx >= 0 { ("first_x", "first_y") } else { ("first_y", "first_x") };
             errors.push(ParamError::new(unset, format!("{set} is set but {unset} is not; give both or neither")));
@@ -362,15 +363,15 @@ impl Method for PatchSampling {
         errors
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
-        let block = req.params.int("block") as u32;
-        let overlap = req.params.int("overlap") as u32;
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
+        let block = req.params.int_unchecked("block") as u32;
+        let overlap = req.params.int_unchecked("overlap") as u32;
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
-            return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
+            return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
         if overlap * 2 > block || overlap == 0 {
-            return Err(format!("overlap {overlap} must be in 1..={}", block / 2));
+            return Err(SynthError::Failed(format!("overlap {overlap} must be in 1..={}", block / 2)));
         }
         let settings = Settings::from(req.params);
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
@@ -380,7 +381,7 @@ impl Method for PatchSampling {
         let first = match settings.first {
             Some((x, y)) => {
                 if x >= nx || y >= ny {
-                    return Err(format!("the first block ({x}, {y}) does not fit in the sample"));
+                    return Err(SynthError::Failed(format!("the first block ({x}, {y}) does not fit in the sample")));
                 }
                 (x, y)
             }
@@ -740,11 +741,11 @@ mod tests {
     #[test]
     fn paper_layout_and_defaults() {
         let p = params(&[]);
-        assert_eq!((p.int("block"), p.int("overlap"), p.int("particles"), p.int("iterations")), (30, 5, 20, 300));
-        assert_eq!((p.float("c1"), p.float("c2"), p.float("inertia"), p.float("vmax")), (1.47, 1.47, 0.729, 0.2));
-        assert_eq!((p.float("distance_threshold"), p.float("variance_threshold")), (0.01, 0.001));
-        assert_eq!((p.float("logistic_mu"), p.int("chaos_steps"), p.float("delta_rms")), (4.0, 200, 10.0));
-        assert_eq!(p.str("search"), "cpso");
+        assert_eq!((p.int_unchecked("block"), p.int_unchecked("overlap"), p.int_unchecked("particles"), p.int_unchecked("iterations")), (30, 5, 20, 300));
+        assert_eq!((p.float_unchecked("c1"), p.float_unchecked("c2"), p.float_unchecked("inertia"), p.float_unchecked("vmax")), (1.47, 1.47, 0.729, 0.2));
+        assert_eq!((p.float_unchecked("distance_threshold"), p.float_unchecked("variance_threshold")), (0.01, 0.001));
+        assert_eq!((p.float_unchecked("logistic_mu"), p.int_unchecked("chaos_steps"), p.float_unchecked("delta_rms")), (4.0, 200, 10.0));
+        assert_eq!(p.str_unchecked("search"), "cpso");
         // 256 px with B = 30, w_E = 5 needs 11 × 11 blocks (§4.2 step 2).
         let l = BlockGrid::new(30, 5, 256, 256);
         assert_eq!((l.cols, l.rows), (11, 11));

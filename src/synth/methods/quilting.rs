@@ -7,6 +7,7 @@
 //! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
 //! last row and column of blocks are cropped.
 
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
@@ -28,7 +29,7 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| ParamValue::Int(((p.int("block") as f64) / 6.0).round().max(1.0) as i64),
+            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
         },
         doc: "width of the overlap between neighbouring blocks (at most block / 2)",
     },
@@ -73,28 +74,28 @@ impl Method for Quilting {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let mut errors = super::check_block_and_overlap(p.int("block"), p.int("overlap"), sample);
-        if p.str("blend") == "feather" && p.str("cut") != "none" {
+        let mut errors = super::check_block_and_overlap(p.int_unchecked("block"), p.int_unchecked("overlap"), sample);
+        if p.str_unchecked("blend") == "feather" && p.str_unchecked("cut") != "none" {
             errors.push(ParamError::new("blend", "blend = \"feather\" replaces the boundary cut; also set cut = \"none\""));
         }
         errors
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
-        let block = req.params.int("block") as u32;
-        let overlap = req.params.int("overlap") as u32;
-        let tolerance = req.params.float("tolerance");
-        let rule = if req.params.str("blend") == "feather" {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
+        let block = req.params.int_unchecked("block") as u32;
+        let overlap = req.params.int_unchecked("overlap") as u32;
+        let tolerance = req.params.float_unchecked("tolerance");
+        let rule = if req.params.str_unchecked("blend") == "feather" {
             OverlapRule::Feather
-        } else if req.params.str("cut") == "dp" {
+        } else if req.params.str_unchecked("cut") == "dp" {
             OverlapRule::Cut
         } else {
             OverlapRule::Overwrite
         };
-        let direct = req.params.str("search") == "direct";
+        let direct = req.params.str_unchecked("search") == "direct";
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
-            return Err(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height()));
+            return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();

@@ -43,6 +43,7 @@
 //! against the (possibly moved) even ones: each individual's own fitness never decreases when it
 //! moves (its old origin is a candidate), every lattice edge has one odd and one even end so the
 //! total edge fitness never decreases either, and the result does not depend on thread count.
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
 use crate::synth::lattice::{LatticeOptions, extract};
@@ -342,9 +343,9 @@ pub(crate) fn build_table(sample: &RgbImage, g: &Geometry, texels: &[(i64, i64)]
 }
 
 /// Lattice vectors from the params, or extracted from the sample.
-pub(crate) fn lattice_vectors(p: &Params, sample: &RgbImage) -> Result<((i64, i64), (i64, i64), &'static str), String> {
-    let t1 = (p.int("t1_x"), p.int("t1_y"));
-    let t2 = (p.int("t2_x"), p.int("t2_y"));
+pub(crate) fn lattice_vectors(p: &Params, sample: &RgbImage) -> Result<((i64, i64), (i64, i64), &'static str), SynthError> {
+    let t1 = (p.int_unchecked("t1_x"), p.int_unchecked("t1_y"));
+    let t2 = (p.int_unchecked("t2_x"), p.int_unchecked("t2_y"));
     if t1 == (0, 0) && t2 == (0, 0) {
         let l = extract(sample, &LatticeOptions::default())?;
         Ok((l.t1, l.t2, "extracted"))
@@ -355,8 +356,8 @@ pub(crate) fn lattice_vectors(p: &Params, sample: &RgbImage) -> Result<((i64, i6
 
 pub(crate) fn check_lattice_params(p: &Params, sample: (u32, u32)) -> Vec<ParamError> {
     let mut errors = Vec::new();
-    let t1 = (p.int("t1_x"), p.int("t1_y"));
-    let t2 = (p.int("t2_x"), p.int("t2_y"));
+    let t1 = (p.int_unchecked("t1_x"), p.int_unchecked("t1_y"));
+    let t2 = (p.int_unchecked("t2_x"), p.int_unchecked("t2_y"));
     let given = t1 != (0, 0) || t2 != (0, 0);
     if given && cross(t1, t2) == 0 {
         errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
@@ -368,7 +369,7 @@ pub(crate) fn check_lattice_params(p: &Params, sample: (u32, u32)) -> Vec<ParamE
             errors.push(ParamError::new("t1_x", format!("a texel spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
         }
     }
-    if p.int_or_word("rows").is_none() != p.int_or_word("cols").is_none() {
+    if p.int_or_word_unchecked("rows").is_none() != p.int_or_word_unchecked("cols").is_none() {
         errors.push(ParamError::new("rows", "give both rows and cols as numbers, or neither (\"cover\": as many as cover the output)"));
     }
     errors
@@ -376,7 +377,7 @@ pub(crate) fn check_lattice_params(p: &Params, sample: (u32, u32)) -> Vec<ParamE
 
 /// Where the output lattice sits: its size and the output position of cell (0, 0)'s origin.
 pub(crate) fn place(g: &Geometry, p: &Params, width: u32, height: u32) -> (usize, usize, (i64, i64)) {
-    let (rows, cols) = (p.int_or_word("rows").unwrap_or(0), p.int_or_word("cols").unwrap_or(0));
+    let (rows, cols) = (p.int_or_word_unchecked("rows").unwrap_or(0), p.int_or_word_unchecked("cols").unwrap_or(0));
     if rows == 0 || cols == 0 {
         let corners = [(0, 0), (width as i64 - 1, 0), (0, height as i64 - 1), (width as i64 - 1, height as i64 - 1)];
         let cells: Vec<(i64, i64)> = corners.iter().map(|&c| g.cell_of(c)).collect();
@@ -406,7 +407,7 @@ pub(crate) fn render(
     width: u32,
     height: u32,
     fill_black: bool,
-) -> Result<RgbImage, String> {
+) -> Result<RgbImage, SynthError> {
     let mut out = RgbImage::new(width, height);
     let mut uncovered = 0u64;
     if shape.exact {
@@ -444,9 +445,9 @@ pub(crate) fn render(
         uncovered = covered.iter().filter(|&&b| !b).count() as u64;
     }
     if uncovered > 0 && !fill_black {
-        return Err(format!(
+        return Err(SynthError::Failed(format!(
             "the {rows}x{cols} lattice leaves {uncovered} of the {width}x{height} output pixels uncovered; use more rows/cols, rows = cols = \"cover\", or fill = \"black\""
-        ));
+        )));
     }
     Ok(out)
 }
@@ -682,7 +683,7 @@ impl Method for Coevolution {
         check_lattice_params(p, sample)
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let p = req.params;
         let sample = req.sample;
         let started = Instant::now();
@@ -691,13 +692,13 @@ impl Method for Coevolution {
         let started = Instant::now();
         let g = Geometry::new(t1, t2);
         let (w, h) = (sample.width() as i64, sample.height() as i64);
-        let shape = Shape::new(&g, p.str("mask"));
+        let shape = Shape::new(&g, p.str_unchecked("mask"));
         let texels = texels_within(&g, shape.bbox, w, h);
         let s = texels.len();
         if s < 2 {
-            return Err(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed"));
+            return Err(SynthError::Failed(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed")));
         }
-        let rho = p.float("rho");
+        let rho = p.float_unchecked("rho");
         let (sh, sv) = (Strips::new(&g, rho, true), Strips::new(&g, rho, false));
         let (th, tv) = (build_table(sample, &g, &texels, &sh), build_table(sample, &g, &texels, &sv));
         let tables_seconds = started.elapsed().as_secs_f64();
@@ -733,9 +734,9 @@ impl Method for Coevolution {
             assign[i] = k;
         }
         let mut history = vec![mean_fitness(hv, &assign, rows, cols)];
-        let iter_max = p.int("iter_max") as usize;
-        let m_window = p.int("window") as usize;
-        let (c_tol, t_m) = (p.float("c_tol"), p.float("t_m"));
+        let iter_max = p.int_unchecked("iter_max") as usize;
+        let m_window = p.int_unchecked("window") as usize;
+        let (c_tol, t_m) = (p.float_unchecked("c_tol"), p.float_unchecked("t_m"));
         let mut iterations = 0;
         for iter in 1..=iter_max {
             iterations = iter;
@@ -780,7 +781,7 @@ impl Method for Coevolution {
         let n = rows * cols;
         let mut origins: Vec<(i64, i64)> = assign.iter().map(|&k| texels[k]).collect();
         let mut moved = vec![false; n];
-        let r_mut = p.int("r_mut");
+        let r_mut = p.int_unchecked("r_mut");
         let mut mutation = None;
         if r_mut > 0 {
             let omega = iter_max as f64 / (iterations + iter_max) as f64;
@@ -809,7 +810,7 @@ impl Method for Coevolution {
             }));
         }
 
-        let mut image = render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, p.str("fill") == "black")?;
+        let mut image = render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, p.str_unchecked("fill") == "black")?;
         let ph = pair_shifts(sample, &g, &th, &sh, &assign, &origins, &moved, rows, cols);
         let pv = pair_shifts(sample, &g, &tv, &sv, &assign, &origins, &moved, rows, cols);
         feather_strips(&mut image, sample, &g, &origins, rows, cols, p0, [(&ph, &sh), (&pv, &sv)]);
@@ -946,10 +947,10 @@ mod tests {
         assert!(text.iter().any(|m| m.contains("rows and cols")), "{text:?}");
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(64, 64, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
-        let e = Coevolution.synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1 }).unwrap_err();
+        let e = Coevolution.synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1 }).unwrap_err().to_string();
         assert!(e.contains("no lattice found; give t1/t2"), "{e}");
         let small = params(&[("t1_x", ParamValue::Int(20)), ("t2_x", ParamValue::Int(6)), ("t2_y", ParamValue::Int(16)), ("rows", ParamValue::Int(2)), ("cols", ParamValue::Int(2))]);
-        let e = Coevolution.synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1 }).unwrap_err();
+        let e = Coevolution.synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1 }).unwrap_err().to_string();
         assert!(e.contains("uncovered"), "{e}");
     }
 

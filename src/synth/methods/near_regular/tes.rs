@@ -8,6 +8,7 @@
 //! Efros–Freeman cuts on the rectangular overlaps.
 
 use super::coevolution::{F_PEN, Geometry, LATTICE_PARAMS, check_lattice_params, converged, lattice_vectors, texels};
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
@@ -184,7 +185,7 @@ impl Method for Tes {
         check_lattice_params(p, sample)
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let p = req.params;
         let sample = req.sample;
         let started = Instant::now();
@@ -195,7 +196,7 @@ impl Method for Tes {
         let tex = texels(&g, sample.width() as i64, sample.height() as i64);
         let s = tex.len();
         if s < 2 {
-            return Err(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed"));
+            return Err(SynthError::Failed(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed")));
         }
         let (x0, x1, y0, y1) = g.bbox;
         let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
@@ -207,22 +208,22 @@ impl Method for Tes {
             ovw: ((bw as f64 / 6.0).round() as i64).max(2).min(bw),
             ovh: ((bh as f64 / 6.0).round() as i64).max(2).min(bh),
         };
-        let (rows, cols) = match (p.int_or_word("rows"), p.int_or_word("cols")) {
+        let (rows, cols) = match (p.int_or_word_unchecked("rows"), p.int_or_word_unchecked("cols")) {
             (None, _) | (_, None) => ((req.height as u64).div_ceil(bh as u64) as usize, (req.width as u64).div_ceil(bw as u64) as usize),
             (Some(r), Some(c)) => (r as usize, c as usize),
         };
-        if ((cols as i64) * bw < req.width as i64 || (rows as i64) * bh < req.height as i64) && p.str("fill") != "black" {
-            return Err(format!(
+        if ((cols as i64) * bw < req.width as i64 || (rows as i64) * bh < req.height as i64) && p.str_unchecked("fill") != "black" {
+            return Err(SynthError::Failed(format!(
                 "the {rows}x{cols} grid of {bw}x{bh} blocks does not cover the {}x{} output; use more rows/cols, rows = cols = \"cover\", or fill = \"black\"",
                 req.width, req.height
-            ));
+            )));
         }
         let mut init = Stream::new(req.seed, "tes/init");
         let mut grid = Grid { rows, cols, cell: (0..rows * cols).map(|_| init.below_usize(s)).collect() };
         let mut history = vec![grid.mean(&blocks).0];
-        let iter_max = p.int("iter_max") as usize;
-        let m_window = p.int("window") as usize;
-        let t_m = p.float("t_m");
+        let iter_max = p.int_unchecked("iter_max") as usize;
+        let m_window = p.int_unchecked("window") as usize;
+        let t_m = p.float_unchecked("t_m");
         let mut iterations = 0;
         for iter in 1..=iter_max {
             iterations = iter;

@@ -51,6 +51,7 @@
 //! residual the translate itself has zero error and is kept, so the output is exactly in phase.
 //! `patch_candidates` works on top: each candidate is another random first patch.
 
+use crate::synth::error::SynthError;
 use crate::synth::lattice::{LatticeOptions, extract};
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::synth::rng::Stream;
@@ -74,11 +75,11 @@ pub fn norm(a: V) -> f64 {
 
 /// Whether `align = "lattice"`.
 pub fn wanted(p: &Params) -> bool {
-    p.str("align") == "lattice"
+    p.str_unchecked("align") == "lattice"
 }
 
 fn given(p: &Params) -> (V, V) {
-    ((p.int("t1_x"), p.int("t1_y")), (p.int("t2_x"), p.int("t2_y")))
+    ((p.int_unchecked("t1_x"), p.int_unchecked("t1_y")), (p.int_unchecked("t2_x"), p.int_unchecked("t2_y")))
 }
 
 /// The sample lattice used to align the patches.
@@ -95,9 +96,9 @@ pub struct Alignment {
 
 impl Alignment {
     /// From explicit vectors (`Err` when they do not span a lattice).
-    pub fn new(t1: V, t2: V, source: &'static str) -> Result<Alignment, String> {
+    pub fn new(t1: V, t2: V, source: &'static str) -> Result<Alignment, SynthError> {
         if cross(t1, t2) == 0 {
-            return Err(format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice"));
+            return Err(SynthError::Failed(format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
         }
         let (mut a, mut b) = (t1, t2);
         loop {
@@ -116,15 +117,16 @@ impl Alignment {
 
     /// From the params: `None` for `align = "none"`; the given `t1, t2`, or (all four zero) the
     /// lattice extracted from the sample.
-    pub fn from_params(p: &Params, sample: &RgbImage) -> Result<Option<Alignment>, String> {
+    pub fn from_params(p: &Params, sample: &RgbImage) -> Result<Option<Alignment>, SynthError> {
         if !wanted(p) {
             return Ok(None);
         }
         let (t1, t2) = given(p);
         if t1 == (0, 0) && t2 == (0, 0) {
             let l = extract(sample, &LatticeOptions::default()).map_err(|e| {
+                let e = e.to_string();
                 let why = e.strip_prefix("no lattice found; give t1/t2").unwrap_or(&e).trim();
-                format!("align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}", if why.is_empty() { String::new() } else { format!(" {why}") })
+                SynthError::Sample(format!("align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}", if why.is_empty() { String::new() } else { format!(" {why}") }))
             })?;
             Alignment::new(l.t1, l.t2, "extracted").map(Some)
         } else {
@@ -188,10 +190,10 @@ impl Alignment {
     /// lattice's approximation error, which grows with distance, stays within [`refine`]'s
     /// reach). When none is, the nearest unused one; when all are used, any near one. `Err` when
     /// none fits.
-    pub fn place(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V]) -> Result<V, String> {
+    pub fn place(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V]) -> Result<V, SynthError> {
         let mut all = self.translates(ideal, lo, hi);
         if all.is_empty() {
-            return Err(format!("no lattice translate fits in the sample (patch positions {lo:?}..={hi:?})"));
+            return Err(SynthError::Failed(format!("no lattice translate fits in the sample (patch positions {lo:?}..={hi:?})")));
         }
         let d2 = |p: &V| dot(sub(*p, ideal), sub(*p, ideal));
         let reach = 4 * dot(self.reduced.1, self.reduced.1);
@@ -221,18 +223,18 @@ pub const LATTICE_VECTOR_PARAMS: [ParamSpec; 4] = [
 /// Draws first patches with `attempt` until one lets every other patch sit at a lattice translate
 /// inside the sample (on a sample only a little larger than the patches, some first positions
 /// leave another patch no translate): the first success, or a clear error after [`FIRST_DRAWS`].
-pub fn first_fitting<T>(al: &Alignment, mut attempt: impl FnMut() -> Result<T, String>) -> Result<T, String> {
+pub fn first_fitting<T>(al: &Alignment, mut attempt: impl FnMut() -> Result<T, SynthError>) -> Result<T, SynthError> {
     let mut last = String::new();
     for _ in 0..FIRST_DRAWS {
         match attempt() {
             Ok(v) => return Ok(v),
-            Err(e) => last = e,
+            Err(e) => last = e.to_string(),
         }
     }
-    Err(format!(
+    Err(SynthError::Failed(format!(
         "align = \"lattice\": with the lattice t1 = {:?}, t2 = {:?} no first patch of {FIRST_DRAWS} drawn lets the other patches sit in phase inside the sample ({last}); use a smaller tile or overlap, or align = \"none\"",
         al.t1, al.t2
-    ))
+    )))
 }
 
 /// How far [`refine`] moves a lattice translate: a fifth of the shortest lattice vector, at least
@@ -406,7 +408,7 @@ mod tests {
         let mut st = Stream::new(1, "test");
         assert!(al.place(&mut st, (0, 0), (3, 3), (5, 5), &[]).is_err());
         assert_eq!(al.place(&mut st, (0, 0), (3, 3), (12, 12), &[(10, 10)]), Ok((10, 10)));
-        let e = first_fitting::<()>(&al, || Err("no lattice translate fits".into())).unwrap_err();
+        let e = first_fitting::<()>(&al, || Err(SynthError::Failed("no lattice translate fits".into()))).unwrap_err().to_string();
         assert!(e.contains("no first patch of 1000 drawn") && e.contains("use a smaller tile or overlap, or align = \"none\""), "{e}");
     }
 

@@ -16,6 +16,7 @@
 //! that near-regular patterns continue through the seams ([`RwAlign`], [`super::align`]).
 
 use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::synth::primitives::overlap::pixel_error;
@@ -245,7 +246,7 @@ struct Strip {
 }
 
 /// Builds the tile set (§3.2–3.5). Patch corners come from stream `rwtiles/patches`.
-pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: PixelError, seed: u64) -> Result<RwTileSet, String> {
+pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: PixelError, seed: u64) -> Result<RwTileSet, SynthError> {
     build_tile_set_searched(sample, tile, ov, set, err, seed, 1).map(|(s, _)| s)
 }
 
@@ -300,7 +301,7 @@ pub fn build_tile_set_searched(
     err: PixelError,
     seed: u64,
     candidates: usize,
-) -> Result<(RwTileSet, usize), String> {
+) -> Result<(RwTileSet, usize), SynthError> {
     build_tile_set_aligned(sample, tile, ov, set, err, seed, candidates, None)
 }
 
@@ -352,7 +353,7 @@ impl RwAlign {
     /// among the corners whose sub-block fits in the sample; then each `PB`, and after them `PA[1]`,
     /// is [`align::refine`]d against the other class's patches, in all the roles where they
     /// meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, SynthError> {
         let (lo, hi) = ((0, 0), ((sample.width() as i32 - g.s) as i64, (sample.height() as i32 - g.s) as i64));
         let h = g.h as i64;
         let pa0 = (first.0 as i64, first.1 as i64);
@@ -401,11 +402,11 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&RwAlign>,
-) -> Result<(RwTileSet, usize), String> {
+) -> Result<(RwTileSet, usize), SynthError> {
     let g = Geometry::new(tile, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if g.s > sw || g.s > sh {
-        return Err(format!("sub-block side {} (tile/2 + overlap) does not fit in the {sw}x{sh} sample", g.s));
+        return Err(SynthError::Failed(format!("sub-block side {} (tile/2 + overlap) does not fit in the {sw}x{sh} sample", g.s)));
     }
     let mut st = Stream::new(seed, "rwtiles/patches");
     let draw = |st: &mut Stream| {
@@ -413,7 +414,7 @@ pub fn build_tile_set_aligned(
         let y = st.below((sh - g.s + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+    let choices: Result<Vec<Choice>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
             None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
             Some(al) => align::first_fitting(&al.lattice, || {
@@ -423,7 +424,7 @@ pub fn build_tile_set_aligned(
         })
         .collect();
     let choices = choices?;
-    let built: Result<Vec<RwTileSet>, String> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+    let built: Result<Vec<RwTileSet>, SynthError> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let fit: Vec<bool> = choices.iter().map(|(pa, pb)| representative(sample, &[pa[0], pa[1], pb[0], pb[1]], g.s as u32)).collect();
@@ -432,8 +433,8 @@ pub fn build_tile_set_aligned(
 }
 
 /// Builds every tile of `set` from the given patch corners.
-pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: PixelError, pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> Result<RwTileSet, String> {
-    let tiles: Result<Vec<RwTile>, String> = (0..set.len())
+pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: PixelError, pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> Result<RwTileSet, SynthError> {
+    let tiles: Result<Vec<RwTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|t| {
             let c = set.colours(t);
@@ -448,7 +449,7 @@ pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: Pi
 }
 
 /// Builds one tile from the sample patches used as `B1..B4` (§3.2–3.4).
-pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err: PixelError) -> Result<RwTile, String> {
+pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err: PixelError) -> Result<RwTile, SynthError> {
     let f = g.f;
     let n = (f * f) as usize;
     let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
@@ -516,9 +517,9 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
                 };
             }
         }
-        let (sx, sy) = start.ok_or_else(|| format!("strip {k} has no free pixel (tile too small for the overlap)"))?;
+        let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
         let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
-            .ok_or_else(|| format!("no seam through strip {k}"))?;
+            .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
         strip_costs[k] = path.cost;
         let end = *path.pixels.last().expect("non-empty path");
         ends[k] = ((end % f as usize) as i32, (end / f as usize) as i32);
@@ -593,7 +594,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         let j = (centre + step) % 4;
         let (e1, e2) = entries[j];
         if !in_c(e1.0, e1.1) || !in_c(e2.0, e2.1) {
-            return Err(format!("centre entry pixels {e1:?}, {e2:?} outside O_c"));
+            return Err(SynthError::Failed(format!("centre entry pixels {e1:?}, {e2:?} outside O_c")));
         }
         let mut err_c = vec![0u32; n];
         for y in h..s {
@@ -604,7 +605,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         let mut target = vec![false; n];
         target[g.idx(e2.0, e2.1)] = true;
         let path = shortest_path(f as usize, f as usize, &c_domain, &err_c, g.idx(e1.0, e1.1), &target)
-            .ok_or_else(|| format!("no centre path for block {}", j + 1))?;
+            .ok_or_else(|| SynthError::Failed(format!("no centre path for block {}", j + 1)))?;
         pocket_costs.push(path.cost);
         let mut on_path = vec![false; n];
         for &p in &path.pixels {
@@ -648,7 +649,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
             let i = g.idx(x, y);
             let k = labels[i];
             if k == UNSET {
-                return Err(format!("tile pixel ({x},{y}) got no block"));
+                return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
             }
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
         }
@@ -737,7 +738,7 @@ impl Method for RwTiles {
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         let mut errors = Vec::new();
-        let (tile, ov) = (p.int("tile"), p.int("overlap"));
+        let (tile, ov) = (p.int_unchecked("tile"), p.int_unchecked("overlap"));
         if tile % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {tile} must be even (the rhombus' diagonals are 2·(sub-block − overlap))")));
         }
@@ -764,17 +765,17 @@ impl Method for RwTiles {
         errors
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let p = req.params;
-        let (tile, ov) = (p.int("tile") as i32, p.int("overlap") as i32);
+        let (tile, ov) = (p.int_unchecked("tile") as i32, p.int_unchecked("overlap") as i32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
-            return Err(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2"));
+            return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
-        let set = TileSet::parse(p.str("tile_set"));
-        let err = PixelError::parse(p.str("pixel_error"));
-        let order = TilingOrder::parse(p.str("tiling"));
+        let set = TileSet::parse(p.str_unchecked("tile_set"));
+        let err = PixelError::parse(p.str_unchecked("pixel_error"));
+        let order = TilingOrder::parse(p.str_unchecked("tiling"));
         let t0 = Instant::now();
-        let candidates = p.int("patch_candidates") as usize;
+        let candidates = p.int_unchecked("patch_candidates") as usize;
         let align = Alignment::from_params(p, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
         let (tiles, chosen) = build_tile_set_aligned(req.sample, tile, ov, set, err, req.seed, candidates, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
@@ -803,7 +804,7 @@ impl Method for RwTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
-            extras: if p.bool("export_tiles") { crate::synth::methods::tiles::export::export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+            extras: if p.bool_unchecked("export_tiles") { crate::synth::methods::tiles::export::export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }
@@ -1053,7 +1054,7 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err().to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let errs = RwTiles.check(&aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]), (128, 128), (64, 64));
         assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");

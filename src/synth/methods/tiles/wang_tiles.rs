@@ -14,6 +14,7 @@
 
 use super::rw_tiles::{PixelError, pick_candidate, representative};
 use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
+use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
 use crate::synth::primitives::shortest_path::{flood4, shortest_path};
@@ -187,7 +188,7 @@ impl WangTileSet {
 
 /// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
 /// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
-pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, String> {
+pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, SynthError> {
     build_tile_set_searched(sample, t, ov, set, cut, err, seed, 1).map(|(s, _)| s)
 }
 
@@ -210,7 +211,7 @@ pub fn build_tile_set_searched(
     err: PixelError,
     seed: u64,
     candidates: usize,
-) -> Result<(WangTileSet, usize), String> {
+) -> Result<(WangTileSet, usize), SynthError> {
     build_tile_set_aligned(sample, t, ov, set, cut, err, seed, candidates, None)
 }
 
@@ -257,7 +258,7 @@ impl WangAlign {
     /// each) among the centres whose diamond fits in the sample; then each `DE`, and after them
     /// `DN[1]`, is [`align::refine`]d against the other class's diamonds, in all the roles
     /// where they meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, String> {
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, SynthError> {
         let (a, m) = (g.a as i64, (g.t / 2) as i64);
         let (lo, hi) = ((a, a), (sample.width() as i64 - a, sample.height() as i64 - a));
         let dn0 = (first.0 as i64, first.1 as i64);
@@ -306,11 +307,11 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&WangAlign>,
-) -> Result<(WangTileSet, usize), String> {
+) -> Result<(WangTileSet, usize), SynthError> {
     let g = Geometry::new(t, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
     if 2 * g.a > sw || 2 * g.a > sh {
-        return Err(format!("diamonds of {0}x{0} (tile + overlap) do not fit in the {sw}x{sh} sample", 2 * g.a));
+        return Err(SynthError::Failed(format!("diamonds of {0}x{0} (tile + overlap) do not fit in the {sw}x{sh} sample", 2 * g.a)));
     }
     let mut st = Stream::new(seed, "wang/patches");
     let draw = |st: &mut Stream| {
@@ -318,7 +319,7 @@ pub fn build_tile_set_aligned(
         let y = g.a as u32 + st.below((sh - 2 * g.a + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Result<Vec<Choice>, String> = (0..candidates.max(1))
+    let choices: Result<Vec<Choice>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
             None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
             Some(al) => align::first_fitting(&al.lattice, || {
@@ -328,7 +329,7 @@ pub fn build_tile_set_aligned(
         })
         .collect();
     let choices = choices?;
-    let built: Result<Vec<WangTileSet>, String> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+    let built: Result<Vec<WangTileSet>, SynthError> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let a = g.a as u32;
@@ -349,8 +350,8 @@ pub fn build_from_diamonds(
     err: PixelError,
     dn: [(u32, u32); 2],
     de: [(u32, u32); 2],
-) -> Result<WangTileSet, String> {
-    let tiles: Result<Vec<WangTile>, String> = (0..set.len())
+) -> Result<WangTileSet, SynthError> {
+    let tiles: Result<Vec<WangTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
@@ -409,7 +410,7 @@ fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error
 }
 
 /// Builds one tile from the sample centres of its N, E, S, W diamonds.
-pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, String> {
+pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, SynthError> {
     let t = g.t;
     let n = (t * t) as usize;
     let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
@@ -444,7 +445,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         }
         let ci = (corner.1 * t + corner.0) as usize;
         if !domain[ci] {
-            return Err(format!("tile corner {corner:?} is not in both diamonds"));
+            return Err(SynthError::Failed(format!("tile corner {corner:?} is not in both diamonds")));
         }
         let centre_i = (centre.1 * t + centre.0) as usize;
         let path = match cut {
@@ -455,7 +456,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
                 shortest_path(t as usize, t as usize, &domain, &error, ci, &target).map(|p| p.pixels)
             }
         }
-        .ok_or_else(|| format!("no cut between diamonds {d1} and {d2}"))?;
+        .ok_or_else(|| SynthError::Failed(format!("no cut between diamonds {d1} and {d2}")))?;
         cut_costs[k] = path.iter().map(|&p| error[p] as u64).sum();
         for &p in &path {
             is_cut[p] = true;
@@ -498,7 +499,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             let i = (y * t + x) as usize;
             if labels[i] == UNSET {
                 fallback_pixels += 1;
-                labels[i] = (0..4).find(|&d| g.in_diamond(d, x, y)).ok_or_else(|| format!("pixel ({x},{y}) in no diamond"))? as u8;
+                labels[i] = (0..4).find(|&d| g.in_diamond(d, x, y)).ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
             }
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
         }
@@ -565,7 +566,7 @@ impl Method for WangTiles {
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         let mut errors = Vec::new();
-        let (t, ov) = (p.int("tile"), p.int("overlap"));
+        let (t, ov) = (p.int_unchecked("tile"), p.int_unchecked("overlap"));
         if t % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {t} must be even (the diamonds are centred on the edge midpoints)")));
         }
@@ -592,18 +593,18 @@ impl Method for WangTiles {
         errors
     }
 
-    fn synthesize(&self, req: &Request) -> Result<Synthesis, String> {
+    fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let p = req.params;
-        let (t, ov) = (p.int("tile") as i32, p.int("overlap") as i32);
+        let (t, ov) = (p.int_unchecked("tile") as i32, p.int_unchecked("overlap") as i32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
-            return Err(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2"));
+            return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
-        let cut = if p.str("cut") == "shortest_path" { Cut::ShortestPath } else { Cut::Dp };
-        let set = TileSet::parse(p.str("tile_set"));
-        let err = PixelError::parse(p.str("pixel_error"));
-        let order = TilingOrder::parse(p.str("tiling"));
+        let cut = if p.str_unchecked("cut") == "shortest_path" { Cut::ShortestPath } else { Cut::Dp };
+        let set = TileSet::parse(p.str_unchecked("tile_set"));
+        let err = PixelError::parse(p.str_unchecked("pixel_error"));
+        let order = TilingOrder::parse(p.str_unchecked("tiling"));
         let t0 = Instant::now();
-        let candidates = p.int("patch_candidates") as usize;
+        let candidates = p.int_unchecked("patch_candidates") as usize;
         let align = Alignment::from_params(p, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
         let (tiles, chosen) = build_tile_set_aligned(req.sample, t, ov, set, cut, err, req.seed, candidates, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
@@ -631,7 +632,7 @@ impl Method for WangTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
-            extras: if p.bool("export_tiles") { crate::synth::methods::tiles::export::export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+            extras: if p.bool_unchecked("export_tiles") { crate::synth::methods::tiles::export::export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }
@@ -848,7 +849,7 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err();
+        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err().to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
         let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
