@@ -9,6 +9,45 @@
 use crate::synth::error::SynthError;
 use crate::image::RgbImage;
 use crate::metrics::{AcfForm, autocorrelation, centred_gray};
+use crate::synth::params::{Default, ParamKind, ParamSpec, Params};
+
+/// `t1_x, t1_y, t2_x, t2_y`: the lattice a job may give instead of having it extracted. Declared
+/// once here for every method that uses a lattice (co-evolution, TES, lattice-aligned tiles).
+pub const VECTOR_PARAMS: [ParamSpec; 4] = [
+    ParamSpec {
+        name: "t1_x",
+        kind: ParamKind::Int { min: -4096, max: 4096 },
+        default: Default::Int(0),
+        doc: "lattice vector t1 (x); t1 = t2 = 0 (default) extracts the lattice from the sample",
+    },
+    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
+    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
+    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
+];
+
+/// The lattice vectors a job gave ([`VECTOR_PARAMS`]), or `None` when all four are 0 (extract).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, std::default::Default)]
+pub struct GivenVectors {
+    pub t1: (i64, i64),
+    pub t2: (i64, i64),
+}
+
+impl GivenVectors {
+    /// Reads [`VECTOR_PARAMS`] from resolved parameters.
+    pub fn from_params(p: &Params) -> Result<Option<GivenVectors>, crate::synth::error::SynthError> {
+        let v = GivenVectors { t1: (p.int("t1_x")?, p.int("t1_y")?), t2: (p.int("t2_x")?, p.int("t2_y")?) };
+        Ok(if v.t1 == (0, 0) && v.t2 == (0, 0) { None } else { Some(v) })
+    }
+
+    /// The four parameters, for a typed config's `to_params` (nothing when `None`: the defaults).
+    pub fn to_params(v: Option<GivenVectors>) -> Vec<(String, crate::synth::params::ParamValue)> {
+        use crate::synth::params::int;
+        match v {
+            None => Vec::new(),
+            Some(v) => vec![int("t1_x", v.t1.0), int("t1_y", v.t1.1), int("t2_x", v.t2.0), int("t2_y", v.t2.1)],
+        }
+    }
+}
 
 /// Parameters of the extraction (methods.md §2.2 defaults).
 #[derive(Clone, Copy, Debug)]
@@ -23,7 +62,7 @@ pub struct LatticeOptions {
     pub min_peak: f64,
 }
 
-impl Default for LatticeOptions {
+impl std::default::Default for LatticeOptions {
     fn default() -> Self {
         LatticeOptions { max_peaks: 16, min_length: 4.0, min_angle_deg: 20.0, min_peak: 0.10 }
     }
