@@ -6,6 +6,7 @@
 //! deliberate act: `bless` prints every digest it changes.
 
 use crate::digest::Digest;
+use crate::error::Error;
 use crate::batch::manifest::{JobRecord, Manifest};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -19,11 +20,11 @@ fn golden_path(dir: &Path, rec: &JobRecord) -> PathBuf {
     dir.join(format!("{stem}.json"))
 }
 
-fn read_golden(path: &Path) -> Result<GoldenFile, String> {
+fn read_golden(path: &Path) -> Result<GoldenFile, Error> {
     match std::fs::read(path) {
-        Ok(b) => serde_json::from_slice(&b).map_err(|e| format!("{}: not a golden file: {e}", path.display())),
+        Ok(b) => serde_json::from_slice(&b).map_err(|e| Error::manifest(path, format!("not a golden file: {e}"))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(GoldenFile::new()),
-        Err(e) => Err(format!("{}: {e}", path.display())),
+        Err(e) => Err(Error::io(path, "read", e)),
     }
 }
 
@@ -42,7 +43,7 @@ impl CheckReport {
 }
 
 /// Compares the manifest's pixel digests with `golden/`.
-pub fn check(dir: &Path, manifest: &Manifest) -> Result<CheckReport, String> {
+pub fn check(dir: &Path, manifest: &Manifest) -> Result<CheckReport, Error> {
     let mut report = CheckReport::default();
     let mut cache: BTreeMap<PathBuf, GoldenFile> = BTreeMap::new();
     for rec in &manifest.jobs {
@@ -74,7 +75,7 @@ pub fn check(dir: &Path, manifest: &Manifest) -> Result<CheckReport, String> {
 }
 
 /// Writes the manifest's pixel digests into `golden/`; returns one line per change.
-pub fn bless(dir: &Path, manifest: &Manifest) -> Result<Vec<String>, String> {
+pub fn bless(dir: &Path, manifest: &Manifest) -> Result<Vec<String>, Error> {
     let mut files: BTreeMap<PathBuf, GoldenFile> = BTreeMap::new();
     let mut changes = Vec::new();
     for rec in &manifest.jobs {
@@ -101,7 +102,7 @@ pub fn bless(dir: &Path, manifest: &Manifest) -> Result<Vec<String>, String> {
     }
     for (path, content) in files {
         if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, "create", e))?;
         }
         let mut text = serde_json::to_string_pretty(&content).expect("golden serialises");
         text.push('\n');

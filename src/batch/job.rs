@@ -6,6 +6,7 @@
 //! line, column and key, so that a user fixes a job directory in one pass.
 
 use crate::digest::Digest;
+use crate::error::Error;
 use crate::image::io::Format;
 use crate::synth::method::Method;
 use crate::synth::methods;
@@ -125,7 +126,7 @@ pub struct InvalidJob {
 
 /// The result of reading job files: runnable jobs and invalid ones, both sorted by id.
 #[derive(Debug, Default)]
-pub struct Plan {
+pub struct JobSet {
     pub jobs: Vec<Job>,
     pub invalid: Vec<InvalidJob>,
 }
@@ -141,13 +142,13 @@ pub struct JobFile {
 
 /// Finds job files: each argument is a `.toml` file (its root is its directory) or a directory
 /// searched recursively for `*.toml` (its root is itself). Sorted, without duplicates.
-pub fn discover(args: &[PathBuf]) -> Result<Vec<JobFile>, String> {
+pub fn discover(args: &[PathBuf]) -> Result<Vec<JobFile>, Error> {
     let mut found: BTreeMap<String, JobFile> = BTreeMap::new();
     for arg in args {
-        let meta = std::fs::metadata(arg).map_err(|e| format!("{}: {e}", arg.display()))?;
+        let meta = std::fs::metadata(arg).map_err(|e| Error::io(arg, "read", e))?;
         if meta.is_dir() {
             let mut files = Vec::new();
-            walk(arg, &mut files).map_err(|e| format!("{}: {e}", arg.display()))?;
+            walk(arg, &mut files).map_err(|e| Error::io(arg, "search", e))?;
             for f in files {
                 let rel = slash_path(f.strip_prefix(arg).expect("walk stays under root"));
                 add(&mut found, JobFile { path: f, rel })?;
@@ -162,7 +163,7 @@ pub fn discover(args: &[PathBuf]) -> Result<Vec<JobFile>, String> {
 
 /// Adds a job file unless it is already there; two *different* files with the same id (same path
 /// relative to their roots) would make ids, outputs and golden files ambiguous, so that is refused.
-fn add(found: &mut BTreeMap<String, JobFile>, f: JobFile) -> Result<(), String> {
+fn add(found: &mut BTreeMap<String, JobFile>, f: JobFile) -> Result<(), Error> {
     match found.get(&f.rel) {
         None => {
             found.insert(f.rel.clone(), f);
@@ -176,12 +177,12 @@ fn add(found: &mut BTreeMap<String, JobFile>, f: JobFile) -> Result<(), String> 
             if same {
                 Ok(())
             } else {
-                Err(format!(
+                Err(Error::Usage(format!(
                     "{} and {} both have the job id `{}` (ids are paths relative to the directory given); run them from a common parent directory",
                     existing.path.display(),
                     f.path.display(),
                     f.rel
-                ))
+                )))
             }
         }
     }
@@ -212,8 +213,8 @@ fn slash_path(p: &Path) -> String {
 
 /// Reads, validates and expands job files into a plan. Problems never abort the plan: they make
 /// the affected jobs invalid, with all their errors.
-pub fn plan(files: &[JobFile]) -> Plan {
-    let mut plan = Plan::default();
+pub fn read_all(files: &[JobFile]) -> JobSet {
+    let mut plan = JobSet::default();
     for f in files {
         match read_job_file(f) {
             Ok(jobs) => plan.jobs.extend(jobs),
@@ -227,7 +228,7 @@ pub fn plan(files: &[JobFile]) -> Plan {
 }
 
 /// Two jobs writing the same file would race; all of them are made invalid.
-fn reject_shared_outputs(plan: &mut Plan) {
+fn reject_shared_outputs(plan: &mut JobSet) {
     let mut by_output: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for (i, j) in plan.jobs.iter().enumerate() {
         by_output.entry(j.output.path.clone()).or_default().push(i);
@@ -871,7 +872,7 @@ mod tests {
     fn a_complete_job_parses_with_defaults_filled() {
         let d = tmpdir("ok");
         let f = write(&d, "a.toml", "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 7\n[output]\npath = \"x/a.png\"\nwidth = 100\nheight = 80\n[params]\nblock = 30\n");
-        let plan = plan(&[f]);
+        let plan = read_all(&[f]);
         assert!(plan.invalid.is_empty(), "{:?}", plan.invalid);
         let j = &plan.jobs[0];
         assert_eq!(j.id, "a.toml");
@@ -888,7 +889,7 @@ mod tests {
             "s.toml",
             "sample = \"s.png\"\nmethod = \"quilting\"\n[output]\npath = \"o/{block}_{seed}.png\"\nwidth = 60\nheight = 60\n[sweep]\nseed = { from = 1, to = 3 }\nblock = [20, 30]\n",
         );
-        let plan = plan(&[f]);
+        let plan = read_all(&[f]);
         assert!(plan.invalid.is_empty(), "{:?}", plan.invalid);
         let ids: Vec<&str> = plan.jobs.iter().map(|j| j.id.as_str()).collect();
         assert_eq!(ids.len(), 6);
@@ -906,7 +907,7 @@ mod tests {
             "bad.toml",
             "sample = \"missing.png\"\nmethod = \"quilting\"\nseed = -1\ncolour = 1\n[output]\npath = \"../x.png\"\nwidth = 0\nheight = 10\n[params]\nblok = 3\n",
         );
-        let plan = plan(&[f]);
+        let plan = read_all(&[f]);
         let errs = &plan.invalid[0].errors;
         let text: Vec<String> = errs.iter().map(|e| e.to_string()).collect();
         let all = text.join("\n");
@@ -924,7 +925,7 @@ mod tests {
         let all = write(&d, "all.toml", &format!("metrics = true\n{head}"));
         let some = write(&d, "some.toml", &format!("metrics = [\"kl_gray\", \"verbatim\"]\n{head}").replace("o.png", "p.png"));
         let bad = write(&d, "bad.toml", &format!("metrics = [\"kl_grey\"]\n{head}").replace("o.png", "q.png"));
-        let plan = plan(&[all, some, bad]);
+        let plan = read_all(&[all, some, bad]);
         assert_eq!(plan.jobs[0].metrics.len(), crate::metrics::METRIC_NAMES.len());
         assert_eq!(plan.jobs[1].metrics, vec!["kl_gray", "verbatim"]);
         let msg = plan.invalid[0].errors[0].to_string();
@@ -935,7 +936,7 @@ mod tests {
     fn malformed_toml_names_line_and_column() {
         let d = tmpdir("toml");
         let f = write(&d, "m.toml", "sample = \"s.png\"\nmethod = quilting\n");
-        let plan = plan(&[f]);
+        let plan = read_all(&[f]);
         let e = &plan.invalid[0].errors[0];
         assert_eq!(e.position.unwrap().0, 2);
         assert!(e.message.contains("malformed TOML"), "{}", e.message);
@@ -947,7 +948,7 @@ mod tests {
         let a = write(&d, "x/same.toml", "");
         let b = write(&d, "y/same.toml", "");
         let err = discover(&[d.join("x"), d.join("y")]).unwrap_err();
-        assert!(err.contains("both have the job id `same.toml`"), "{err}");
+        assert!(err.to_string().contains("both have the job id `same.toml`"), "{err}");
         // The same file named twice is fine.
         assert_eq!(discover(&[a.path.clone(), a.path.clone(), d.join("x")]).unwrap().len(), 1);
         let _ = b;
@@ -967,7 +968,7 @@ mod tests {
         let body = "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"same.png\"\nwidth = 60\nheight = 60\n";
         let a = write(&d, "a.toml", body);
         let b = write(&d, "b.toml", body);
-        let plan = plan(&[a, b]);
+        let plan = read_all(&[a, b]);
         assert!(plan.jobs.is_empty());
         assert_eq!(plan.invalid.len(), 2);
         assert!(plan.invalid[0].errors[0].message.contains("also written by b.toml"));

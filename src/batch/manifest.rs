@@ -8,6 +8,7 @@
 //! canonical JSON, so it can be recomputed by any tool.
 
 use crate::digest::Digest;
+use crate::error::Error;
 use crate::image::seam_grid::SeamGrid;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -185,11 +186,11 @@ impl Manifest {
         deterministic_digest(&self.tool, &self.jobs)
     }
 
-    pub fn load(path: &Path) -> Result<Manifest, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read manifest: {e}", path.display()))?;
-        let m: Manifest = serde_json::from_slice(&bytes).map_err(|e| format!("{}: not a texsyn manifest: {e}", path.display()))?;
+    pub fn load(path: &Path) -> Result<Manifest, Error> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, "read manifest", e))?;
+        let m: Manifest = serde_json::from_slice(&bytes).map_err(|e| Error::manifest(path, format!("not a texsyn manifest: {e}")))?;
         if m.format != FORMAT {
-            return Err(format!("{}: unsupported manifest format `{}` (expected {FORMAT})", path.display(), m.format));
+            return Err(Error::manifest(path, format!("unsupported manifest format `{}` (expected {FORMAT})", m.format)));
         }
         Ok(m)
     }

@@ -1,10 +1,19 @@
-//! The batch pipeline: job files → plan → execute → manifest, and the checks that read a
-//! manifest back (verify, golden).
+//! The batch pipeline, in the order a run goes through it:
+//!
+//! 1. [`job`]: job files → validated jobs (sweeps expanded, every problem with file:line:key);
+//! 2. [`plan`]: samples decoded, method checks, content keys, and for each job *run (why)* or
+//!    *up to date* — data, printed by `--dry-run`;
+//! 3. [`execute`]: one job synthesised, scored and written (shared by `run` and `verify`);
+//! 4. [`run`]: the plan executed in parallel under the output directory's lock ([`outdir`]),
+//!    the [`manifest`] rewritten as jobs finish, progress sent to an [`observer`];
+//! 5. [`verify`] re-executes a manifest's jobs; [`golden`] compares its digests with `golden/`.
 
+pub mod execute;
 pub mod golden;
 pub mod job;
 pub mod manifest;
+pub mod observer;
 pub mod outdir;
-pub mod progress;
+pub mod plan;
 pub mod run;
 pub mod verify;

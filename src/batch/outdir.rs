@@ -6,6 +6,7 @@
 //! so a killed run never leaves it stuck. Paths are checked to resolve inside the directory, so a
 //! symlink planted in it cannot redirect a write elsewhere.
 
+use crate::error::Error;
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -25,9 +26,9 @@ static COUNTER: AtomicU64 = AtomicU64::new(0);
 
 impl OutDir {
     /// Creates the directory if needed and takes its lock, or explains who holds it.
-    pub fn open(root: &Path) -> Result<OutDir, String> {
-        std::fs::create_dir_all(root).map_err(|e| format!("cannot create output directory {}: {e}", root.display()))?;
-        let canonical = root.canonicalize().map_err(|e| format!("{}: {e}", root.display()))?;
+    pub fn open(root: &Path) -> Result<OutDir, Error> {
+        std::fs::create_dir_all(root).map_err(|e| Error::io(root, "create output directory", e))?;
+        let canonical = root.canonicalize().map_err(|e| Error::io(root, "resolve", e))?;
         let lock_path = root.join(LOCK_NAME);
         let mut lock = OpenOptions::new()
             .read(true)
@@ -35,19 +36,14 @@ impl OutDir {
             .create(true)
             .truncate(false)
             .open(&lock_path)
-            .map_err(|e| format!("cannot open lock file {}: {e}", lock_path.display()))?;
+            .map_err(|e| Error::io(&lock_path, "open lock file", e))?;
         match lock.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
-                let holder = std::fs::read_to_string(&lock_path).unwrap_or_default();
-                let holder = holder.trim();
-                let who = if holder.is_empty() { String::new() } else { format!(" (process {holder})") };
-                return Err(format!(
-                    "another texsyn run is using the output directory {}{who}; wait for it to finish or choose another --out",
-                    root.display()
-                ));
+                let holder = std::fs::read_to_string(&lock_path).ok().and_then(|s| s.trim().parse().ok());
+                return Err(Error::Locked { dir: root.to_path_buf(), holder });
             }
-            Err(std::fs::TryLockError::Error(e)) => return Err(format!("cannot lock {}: {e}", lock_path.display())),
+            Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&lock_path, "lock", e)),
         }
         lock.set_len(0).ok();
         let _ = write!(lock, "{}", std::process::id());
@@ -62,27 +58,27 @@ impl OutDir {
 
     /// The absolute path of a relative output path, after checking that its directory resolves
     /// inside the output directory (creating the directories as needed).
-    pub fn resolve(&self, rel: &str) -> Result<PathBuf, String> {
+    pub fn resolve(&self, rel: &str) -> Result<PathBuf, Error> {
         let path = self.root.join(rel);
         let parent = path.parent().expect("a file inside the root has a parent");
-        std::fs::create_dir_all(parent).map_err(|e| format!("cannot create directory {}: {e}", parent.display()))?;
-        let real_parent = parent.canonicalize().map_err(|e| format!("{}: {e}", parent.display()))?;
+        std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, "create directory", e))?;
+        let real_parent = parent.canonicalize().map_err(|e| Error::io(parent, "resolve", e))?;
         if !real_parent.starts_with(&self.canonical) {
-            return Err(format!(
-                "`{rel}` would be written to {}, outside the output directory (a symlink?); refusing",
-                real_parent.display()
-            ));
+            return Err(Error::Containment {
+                path: PathBuf::from(rel),
+                reason: format!("would be written to {}, outside the output directory (a symlink?); refusing", real_parent.display()),
+            });
         }
         if let Ok(meta) = std::fs::symlink_metadata(&path) {
             if meta.file_type().is_symlink() {
-                return Err(format!("`{rel}` is a symlink in the output directory; refusing to write through it"));
+                return Err(Error::Containment { path: PathBuf::from(rel), reason: "is a symlink in the output directory; refusing to write through it".into() });
             }
         }
         Ok(path)
     }
 
     /// Writes `bytes` to the relative path atomically.
-    pub fn write(&self, rel: &str, bytes: &[u8]) -> Result<PathBuf, String> {
+    pub fn write(&self, rel: &str, bytes: &[u8]) -> Result<PathBuf, Error> {
         let path = self.resolve(rel)?;
         write_atomic(&path, bytes)?;
         Ok(path)
@@ -108,7 +104,7 @@ impl OutDir {
 
 /// Writes to a temporary file in the same directory, flushes it to disk and renames it over
 /// `path`. Readers see the old file or the new one, never a partial one.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
@@ -125,7 +121,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     })();
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        format!("cannot write {}: {e}", path.display())
+        Error::io(path, "write", e)
     })
 }
 
@@ -144,7 +140,8 @@ mod tests {
         let d = tmp("lock");
         let first = OutDir::open(&d).unwrap();
         let err = OutDir::open(&d).err().expect("second open must fail");
-        assert!(err.contains("another texsyn run"), "{err}");
+        assert!(err.to_string().contains("another texsyn run"), "{err}");
+        assert!(matches!(err, Error::Locked { holder: Some(_), .. }), "{err:?}");
         drop(first);
         assert!(OutDir::open(&d).is_ok());
     }
@@ -169,7 +166,7 @@ mod tests {
         let out = OutDir::open(&d).unwrap();
         std::os::unix::fs::symlink(&outside, d.join("escape")).unwrap();
         let err = out.write("escape/x.png", b"x").unwrap_err();
-        assert!(err.contains("outside the output directory"), "{err}");
+        assert!(err.to_string().contains("outside the output directory"), "{err}");
         assert!(!outside.join("x.png").exists());
     }
 }

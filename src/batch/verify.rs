@@ -12,7 +12,8 @@ use crate::batch::job::OutputSpec;
 use crate::batch::manifest::{JobRecord, Manifest, Status};
 use crate::synth::methods;
 use crate::synth::params::{self, ParamValue};
-use crate::batch::run as runner;
+use crate::batch::execute::{encode_extra, extra_path, load_sample, synthesize_and_encode};
+use crate::error::Error;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -38,7 +39,7 @@ impl Report {
 }
 
 /// Verifies a manifest, re-running jobs on `threads` threads (all cores if `None`).
-pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, String> {
+pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, Error> {
     let manifest = Manifest::load(manifest_path)?;
     let dir = manifest_path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     let dir = if dir.as_os_str().is_empty() { PathBuf::from(".") } else { dir };
@@ -50,10 +51,9 @@ pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, St
             manifest.recompute_digest().short()
         ));
     }
-    let scratch = std::env::temp_dir().join(format!("texsyn-verify-{}-{}", std::process::id(), crate::synth::rng::fnv1a_64(&manifest_path.display().to_string())));
-    std::fs::create_dir_all(&scratch).map_err(|e| format!("cannot create {}: {e}", scratch.display()))?;
-    let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)).max(1);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| e.to_string())?;
+    let scratch = std::env::temp_dir().join(format!("texsyn-verify-{}-{}", std::process::id(), Digest::of_bytes(manifest_path.display().to_string().as_bytes()).short()));
+    std::fs::create_dir_all(&scratch).map_err(|e| Error::io(&scratch, "create", e))?;
+    let pool = crate::batch::run::pool(threads)?;
     report.jobs = pool.install(|| {
         manifest.jobs.par_iter().with_max_len(1).map(|rec| (rec.id.clone(), verify_job(rec, &dir, &scratch))).collect()
     });
@@ -99,9 +99,9 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
         Err(e) => return Outcome::Mismatch(vec![e]),
     };
     let sample_path = dir.join(&sample.path);
-    let loaded = match runner::load_sample(&sample_path) {
+    let loaded = match load_sample(&sample_path) {
         Ok(s) => s,
-        Err(e) => return Outcome::Mismatch(vec![e]),
+        Err(e) => return Outcome::Mismatch(vec![format!("sample {e}")]),
     };
     if loaded.pixel_digest != sample.pixel_digest {
         return Outcome::Mismatch(vec![format!("sample `{}` no longer has the recorded pixels", sample.path)]);
@@ -110,11 +110,11 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
     if rec.content_key.as_ref() != Some(&key) {
         problems.push("content_key does not match the recorded inputs".into());
     }
-    match runner::synthesize_and_encode(method, &loaded.image, &params, seed, &output) {
+    match synthesize_and_encode(method, &loaded.image, &params, seed, &output) {
         Err(e) => problems.push(format!("re-run failed: {e}")),
         Ok((synthesis, encoded, _)) => {
             for extra in &synthesis.extras {
-                match runner::encode_extra(&output.path, extra) {
+                match encode_extra(&output.path, extra) {
                     Err(e) => problems.push(format!("re-run extra output `{}`: {e}", extra.name)),
                     Ok((fresh, _)) => match rec.outputs.iter().find(|o| o.path == fresh.path) {
                         None => problems.push(format!("the re-run also writes `{}`, which the record lacks", fresh.path)),
@@ -128,14 +128,14 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
                     },
                 }
             }
-            let produced: Vec<String> = synthesis.extras.iter().filter_map(|e| runner::extra_path(&output.path, &e.name).ok()).collect();
+            let produced: Vec<String> = synthesis.extras.iter().filter_map(|e| extra_path(&output.path, &e.name).ok()).collect();
             for o in &rec.outputs {
                 if o.path != output.path && !produced.contains(&o.path) {
                     problems.push(format!("the record lists `{}`, which a re-run does not produce", o.path));
                 }
             }
             let fresh = encoded.pixels.pixel_digest();
-            let scratch_file = scratch.join(crate::synth::rng::fnv1a_64(&rec.id).to_string()).with_extension(output.format.name());
+            let scratch_file = scratch.join(Digest::of_bytes(rec.id.as_bytes()).short()).with_extension(output.format.name());
             let _ = std::fs::write(&scratch_file, &encoded.bytes);
             match rec.outputs.iter().find(|o| o.path == output.path) {
                 None => problems.push(format!("no output record for `{}`", output.path)),

@@ -101,49 +101,79 @@ pub fn rgb_pixel_digest(img: &RgbImage) -> Digest {
     NativeImage::from_rgb8(img).pixel_digest()
 }
 
+/// Why an image could not be read, decoded or encoded. Messages say what is wrong with the file,
+/// not where it is: callers add the path.
+#[derive(Debug)]
+pub enum ImageError {
+    /// The file could not be read.
+    Io(std::io::Error),
+    /// The bytes are not an image texsyn decodes (empty, truncated, corrupt, over the limits, …).
+    Decode(String),
+    /// The pixels could not be encoded in the requested format.
+    Encode(String),
+}
+
+impl std::fmt::Display for ImageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ImageError::Io(e) => write!(f, "cannot read: {e}"),
+            ImageError::Decode(m) | ImageError::Encode(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for ImageError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ImageError::Io(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
 /// Decodes a sample file into 8-bit RGB. Errors say what is wrong with the file, not where it is
 /// (callers add the path).
-pub fn decode_rgb8(bytes: &[u8], limits: DecodeLimits) -> Result<RgbImage, String> {
+pub fn decode_rgb8(bytes: &[u8], limits: DecodeLimits) -> Result<RgbImage, ImageError> {
     let native = decode_native(bytes, limits)?;
     Ok(native_to_rgb8(&native))
 }
 
 /// Reads and decodes a sample file.
-pub fn read_rgb8(path: &Path, limits: DecodeLimits) -> Result<(RgbImage, Vec<u8>), String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+pub fn read_rgb8(path: &Path, limits: DecodeLimits) -> Result<(RgbImage, Vec<u8>), ImageError> {
+    let bytes = std::fs::read(path).map_err(ImageError::Io)?;
     let img = decode_rgb8(&bytes, limits)?;
     Ok((img, bytes))
 }
 
-fn check_size(w: u32, h: u32, limits: DecodeLimits) -> Result<(), String> {
+fn check_size(w: u32, h: u32, limits: DecodeLimits) -> Result<(), ImageError> {
     if w == 0 || h == 0 {
-        return Err(format!("image has zero size ({w}x{h})"));
+        return Err(ImageError::Decode(format!("image has zero size ({w}x{h})")));
     }
     if w > limits.max_side || h > limits.max_side || w as u64 * h as u64 > limits.max_pixels {
-        return Err(format!(
+        return Err(ImageError::Decode(format!(
             "image is {w}x{h}, larger than the decoder's limit ({} per side, {} pixels); refusing to decode it",
             limits.max_side, limits.max_pixels
-        ));
+        )));
     }
     Ok(())
 }
 
 /// Decodes PNG, JPEG or EXR into its stored precision (RGB or gray expanded to RGB; alpha dropped).
-pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageError> {
     if bytes.is_empty() {
-        return Err("file is empty".into());
+        return Err(ImageError::Decode("file is empty".into()));
     }
     if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
         return decode_exr(bytes, limits);
     }
     let format = image::guess_format(bytes)
-        .map_err(|_| "not a recognised image (expected PNG, JPEG or EXR)".to_string())?;
+        .map_err(|_| ImageError::Decode("not a recognised image (expected PNG, JPEG or EXR)".into()))?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(format!("unsupported image format {format:?} (expected PNG, JPEG or EXR)"));
+        return Err(ImageError::Decode(format!("unsupported image format {format:?} (expected PNG, JPEG or EXR)")));
     }
     if format == image::ImageFormat::Jpeg && !jpeg_is_complete(bytes) {
         // The JPEG decoder pads a truncated scan with flat colour instead of failing.
-        return Err("file is truncated (the JPEG has no end-of-image marker after its last scan)".into());
+        return Err(ImageError::Decode("file is truncated (the JPEG has no end-of-image marker after its last scan)".into()));
     }
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let mut l = image::Limits::default();
@@ -175,7 +205,7 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
 
 /// Decodes an output file as stored, keeping an alpha channel (RGBA outputs such as exported
 /// tiles are recorded with 4 channels); everything else decodes as [`decode_native`] does.
-pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageError> {
     if bytes.starts_with(b"\x89PNG") {
         let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
         let mut l = image::Limits::default();
@@ -202,14 +232,14 @@ pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
 
 /// Reads an image file as 8-bit RGBA (`width`, `height`, samples); images without alpha are
 /// opaque. Errors say what is wrong with the file (callers add the path).
-pub fn decode_rgba8(bytes: &[u8], limits: DecodeLimits) -> Result<(u32, u32, Vec<u8>), String> {
+pub fn decode_rgba8(bytes: &[u8], limits: DecodeLimits) -> Result<(u32, u32, Vec<u8>), ImageError> {
     let native = decode_output(bytes, limits)?;
     let (w, h) = (native.width, native.height);
     if native.channels == 4 {
         let data = match native.samples {
             Samples::U8(v) => v,
             Samples::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
-            Samples::F32(_) => return Err("floating-point RGBA is not supported here".into()),
+            Samples::F32(_) => return Err(ImageError::Decode("floating-point RGBA is not supported here".into())),
         };
         return Ok((w, h, data));
     }
@@ -219,13 +249,13 @@ pub fn decode_rgba8(bytes: &[u8], limits: DecodeLimits) -> Result<(u32, u32, Vec
 }
 
 /// Encodes 8-bit RGBA samples as PNG.
-pub fn encode_rgba8_png(width: u32, height: u32, data: &[u8]) -> Result<Encoded, String> {
+pub fn encode_rgba8_png(width: u32, height: u32, data: &[u8]) -> Result<Encoded, ImageError> {
     if data.len() != width as usize * height as usize * 4 {
-        return Err(format!("RGBA data of {} bytes does not match {width}x{height}", data.len()));
+        return Err(ImageError::Encode(format!("RGBA data of {} bytes does not match {width}x{height}", data.len())));
     }
     let mut bytes = Vec::new();
     image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), data, width, height, image::ExtendedColorType::Rgba8)
-        .map_err(|e| format!("PNG encoding failed: {e}"))?;
+        .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
     Ok(Encoded { bytes, pixels: NativeImage { width, height, channels: 4, samples: Samples::U8(data.to_vec()) } })
 }
 
@@ -240,7 +270,11 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
     }
 }
 
-fn describe_image_error(e: image::ImageError) -> String {
+fn describe_image_error(e: image::ImageError) -> ImageError {
+    ImageError::Decode(describe_image_error_text(e))
+}
+
+fn describe_image_error_text(e: image::ImageError) -> String {
     match e {
         image::ImageError::Limits(l) => format!("image exceeds the decoder's limits ({l}); refusing to decode it"),
         image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
@@ -250,14 +284,14 @@ fn describe_image_error(e: image::ImageError) -> String {
     }
 }
 
-fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String> {
+fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageError> {
     use exr::prelude::*;
     let meta = MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
-        .map_err(|e| format!("cannot read EXR header: {e}"))?;
-    let header = meta.headers.first().ok_or("EXR file has no layers")?;
+        .map_err(|e| ImageError::Decode(format!("cannot read EXR header: {e}")))?;
+    let header = meta.headers.first().ok_or_else(|| ImageError::Decode("EXR file has no layers".into()))?;
     let size = header.layer_size;
     if size.width() > u32::MAX as usize || size.height() > u32::MAX as usize {
-        return Err("EXR layer is impossibly large".into());
+        return Err(ImageError::Decode("EXR layer is impossibly large".into()));
     }
     check_size(size.width() as u32, size.height() as u32, limits)?;
     // The exr crate validates chunk tables against the header; a panic inside it is still turned
@@ -282,8 +316,8 @@ fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, String>
     });
     let image = match result {
         Ok(Ok(img)) => img,
-        Ok(Err(e)) => return Err(format!("cannot decode EXR: {e}")),
-        Err(_) => return Err("cannot decode EXR: the decoder failed on malformed data".into()),
+        Ok(Err(e)) => return Err(ImageError::Decode(format!("cannot decode EXR: {e}"))),
+        Err(_) => return Err(ImageError::Decode("cannot decode EXR: the decoder failed on malformed data".into())),
     };
     let (w, h) = (image.layer_data.size.width() as u32, image.layer_data.size.height() as u32);
     let (_, px) = image.layer_data.channel_data.pixels;
@@ -329,7 +363,7 @@ pub struct Encoded {
 
 /// Encodes an 8-bit RGB image as PNG (8 or 16 bits) or EXR (32-bit float, linear light: the sRGB
 /// values are linearised, since EXR holds scene-linear data).
-pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, String> {
+pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
     let (w, h) = img.dimensions();
     match (enc.format, enc.bit_depth) {
         (Format::Png, 8) => {
@@ -341,7 +375,7 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, String> {
                 h,
                 image::ExtendedColorType::Rgb8,
             )
-            .map_err(|e| format!("PNG encoding failed: {e}"))?;
+            .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
             Ok(Encoded { bytes, pixels: NativeImage::from_rgb8(img) })
         }
         (Format::Png, 16) => {
@@ -355,7 +389,7 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, String> {
                 h,
                 image::ExtendedColorType::Rgb16,
             )
-            .map_err(|e| format!("PNG encoding failed: {e}"))?;
+            .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
             Ok(Encoded { bytes, pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(wide) } })
         }
         (Format::Exr, _) => {
@@ -370,13 +404,13 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, String> {
             let layer = Layer::new((w as usize, h as usize), LayerAttributes::named("texsyn"), Encoding::FAST_LOSSLESS, channels);
             let image = Image::from_layer(layer);
             let mut cursor = std::io::Cursor::new(Vec::new());
-            image.write().non_parallel().to_buffered(&mut cursor).map_err(|e| format!("EXR encoding failed: {e}"))?;
+            image.write().non_parallel().to_buffered(&mut cursor).map_err(|e| ImageError::Encode(format!("EXR encoding failed: {e}")))?;
             Ok(Encoded {
                 bytes: cursor.into_inner(),
                 pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(linear) },
             })
         }
-        (Format::Png, d) => Err(format!("PNG bit depth {d} is not supported (use 8 or 16)")),
+        (Format::Png, d) => Err(ImageError::Encode(format!("PNG bit depth {d} is not supported (use 8 or 16)"))),
     }
 }
 
@@ -454,8 +488,8 @@ mod tests {
     fn hostile_inputs_are_refused_with_reasons() {
         let good = encode(&img(), Encoding { format: Format::Png, bit_depth: 8 }).unwrap().bytes;
         let l = DecodeLimits::default();
-        assert!(decode_native(&[], l).unwrap_err().contains("empty"));
-        assert!(decode_native(b"hello world", l).unwrap_err().contains("not a recognised image"));
+        assert!(decode_native(&[], l).unwrap_err().to_string().contains("empty"));
+        assert!(decode_native(b"hello world", l).unwrap_err().to_string().contains("not a recognised image"));
         let truncated = &good[..good.len() / 2];
         assert!(decode_native(truncated, l).is_err());
         let mut jpeg = Vec::new();
@@ -468,8 +502,8 @@ mod tests {
         )
         .unwrap();
         assert!(decode_native(&jpeg, l).is_ok());
-        assert!(decode_native(&jpeg[..jpeg.len() - 40], l).unwrap_err().contains("truncated"));
+        assert!(decode_native(&jpeg[..jpeg.len() - 40], l).unwrap_err().to_string().contains("truncated"));
         let tiny = DecodeLimits { max_side: 10, ..l };
-        assert!(decode_native(&good, tiny).unwrap_err().contains("limit"));
+        assert!(decode_native(&good, tiny).unwrap_err().to_string().contains("limit"));
     }
 }

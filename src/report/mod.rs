@@ -22,6 +22,7 @@ pub use model::{GroupBy, GroupKey};
 
 use crate::image::io::{self as imageio, DecodeLimits, Encoding, Format};
 use crate::batch::manifest::Manifest;
+use crate::error::Error;
 use crate::batch::outdir::OutDir;
 use crate::image::RgbImage;
 use html::{Assets, ImageRef, Shown};
@@ -70,8 +71,10 @@ fn load(path: &Path, expected_sha256: &str, as_sample: bool) -> Result<RgbImage,
     Ok(rgb)
 }
 
-fn png(img: &RgbImage) -> Result<Vec<u8>, String> {
-    Ok(imageio::encode(img, Encoding { format: Format::Png, bit_depth: 8 })?.bytes)
+/// Encodes a picture of the report at `rel` (named in the error).
+fn png(img: &RgbImage, rel: &str) -> Result<Vec<u8>, Error> {
+    let encoded = imageio::encode(img, Encoding { format: Format::Png, bit_depth: 8 }).map_err(|source| Error::Image { path: rel.into(), source })?;
+    Ok(encoded.bytes)
 }
 
 /// Distinct file-name stems for the samples, in row order.
@@ -98,10 +101,10 @@ struct Writer {
 }
 
 impl Writer {
-    fn put(&mut self, rel: &str, bytes: &[u8]) -> Result<(), String> {
+    fn put(&mut self, rel: &str, bytes: &[u8]) -> Result<(), Error> {
         let path = self.dir.resolve(rel)?;
         if path.canonicalize().is_ok_and(|c| self.protected.contains(&c)) {
-            return Err(format!("{} is a file the manifest refers to; write the report to a directory of its own", path.display()));
+            return Err(Error::Containment { path, reason: "is a file the manifest refers to; write the report to a directory of its own".into() });
         }
         crate::batch::outdir::write_atomic(&path, bytes)?;
         self.written.push(rel.to_string());
@@ -123,7 +126,7 @@ struct SampleImages {
     problems: Vec<String>,
 }
 
-fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages, String> {
+fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages, Error> {
     let info = &m.samples[s];
     let mut problems = Vec::new();
     let mut files = Vec::new();
@@ -137,7 +140,7 @@ fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages,
     let sample_ref = match &sample_pic {
         Picture::Image(img) => {
             let rel = format!("images/samples/{stem}.png");
-            files.push((rel.clone(), png(img)?));
+            files.push((rel.clone(), png(img, &rel)?));
             Ok((rel, img.width(), img.height()))
         }
         Picture::Missing { why, .. } => Err(why.clone()),
@@ -167,7 +170,7 @@ fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages,
         let image = match &pic {
             Picture::Image(img) => {
                 let rel = format!("images/outputs/{stem}/{:02}-{}.png", g + 1, fmt::file_stem(&group.label));
-                files.push((rel.clone(), png(img)?));
+                files.push((rel.clone(), png(img, &rel)?));
                 Ok((rel, img.width(), img.height()))
             }
             Picture::Missing { why, .. } => Err(why.clone()),
@@ -189,7 +192,8 @@ fn sample_images(m: &model::Model, s: usize, stem: &str) -> Result<SampleImages,
     }
     let title = format!("{}: the sample, then one output per column, all at 1:1 pixels. Columns: {}", info.key, m.grouping);
     let sheet_img = sheet::compose(&title, &sheet::flow(cells, SHEET_MAX_WIDTH), false);
-    let sheet = (format!("sheets/{stem}.png"), png(&sheet_img)?);
+    let rel = format!("sheets/{stem}.png");
+    let sheet = (rel.clone(), png(&sheet_img, &rel)?);
     Ok(SampleImages { sample: sample_ref, shown, sheet, files, overview, problems })
 }
 
@@ -200,7 +204,7 @@ fn clone_picture(p: &Picture) -> Picture {
     }
 }
 
-fn overview_sheet(m: &model::Model, rows: Vec<OverviewRow>) -> Result<Vec<u8>, String> {
+fn overview_sheet(m: &model::Model, rows: Vec<OverviewRow>) -> Result<Vec<u8>, Error> {
     let ncols = m.groups.len() + 1;
     let widths: Vec<u32> = (0..ncols)
         .map(|c| {
@@ -235,12 +239,12 @@ fn overview_sheet(m: &model::Model, rows: Vec<OverviewRow>) -> Result<Vec<u8>, S
         .collect();
     let scale = if k == 1 { "1:1 pixels".to_string() } else { format!("every image reduced 1:{k}") };
     let title = format!("Overview: one row per sample, the sample then one output per column; {scale}. Columns: {}", m.grouping);
-    png(&sheet::compose(&title, &cells, true))
+    png(&sheet::compose(&title, &cells, true), "sheets/overview.png")
 }
 
 /// Builds the report. Errors (exit 2) are a manifest that cannot be read or a directory that
 /// cannot be written; images that cannot be shown are `problems` in the summary instead.
-pub fn report(opts: &ReportOptions) -> Result<ReportSummary, String> {
+pub fn report(opts: &ReportOptions) -> Result<ReportSummary, Error> {
     let manifest = Manifest::load(&opts.manifest)?;
     let base = opts.manifest.parent().map(Path::to_path_buf).unwrap_or_default();
     let base = if base.as_os_str().is_empty() { PathBuf::from(".") } else { base };

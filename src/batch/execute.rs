@@ -1,0 +1,281 @@
+//! Executing one job: synthesise (catching panics), encode, score, write its files.
+//!
+//! `run` and `verify` both come through here, so a re-run from a manifest is the same code path
+//! as the run that wrote it, and they cannot drift apart.
+
+use crate::batch::job::OutputSpec;
+use crate::batch::manifest::{JobRecord, OutputRecord};
+use crate::batch::outdir::OutDir;
+use crate::digest::Digest;
+use crate::error::Error;
+use crate::image::RgbImage;
+use crate::image::io::{self as imageio, DecodeLimits, Encoded, ImageError};
+use crate::synth::error::SynthError;
+use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, Synthesis};
+use crate::synth::params::Params;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+use std::time::Instant;
+
+/// A decoded sample and its digests.
+pub struct LoadedSample {
+    pub image: RgbImage,
+    pub file_digest: Digest,
+    pub pixel_digest: Digest,
+}
+
+/// Reads and decodes a sample; the error names the file and the reason.
+pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
+    let (image, bytes) = imageio::read_rgb8(path, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
+    Ok(LoadedSample { pixel_digest: imageio::rgb_pixel_digest(&image), file_digest: Digest::of_bytes(&bytes), image })
+}
+
+/// Why a job failed. Its text is recorded in the manifest's `error` field.
+#[derive(Debug)]
+pub enum JobFailure {
+    /// The method returned an error.
+    Synthesis { method: &'static str, source: SynthError },
+    /// The method panicked: a bug in texsyn, reported with where it happened.
+    Crashed { method: &'static str, what: String, at: Option<String> },
+    /// The method returned an image of the wrong size: a bug in the method.
+    WrongSize { method: &'static str, got: (u32, u32), want: (u32, u32) },
+    /// An output could not be encoded.
+    Encode(ImageError),
+    /// An extra output had a name that would leave its folder: a bug in the method.
+    ExtraName(String),
+    /// The metrics could not be computed.
+    Metrics(String),
+    /// A file could not be written.
+    Write(Error),
+}
+
+impl fmt::Display for JobFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            JobFailure::Synthesis { method, source } => write!(f, "{method} failed: {source}"),
+            JobFailure::Crashed { method, what, at } => {
+                let at = at.as_ref().map(|l| format!(" at {l}")).unwrap_or_default();
+                write!(f, "{method} crashed: {what}{at} (this is a bug in texsyn; please report it)")
+            }
+            JobFailure::WrongSize { method, got, want } => {
+                write!(f, "{method} produced {}x{} instead of {}x{} (a bug in the method)", got.0, got.1, want.0, want.1)
+            }
+            JobFailure::Encode(e) => write!(f, "{e}"),
+            JobFailure::ExtraName(name) => write!(f, "extra output name `{name}` is not a plain relative path (a bug in the method)"),
+            JobFailure::Metrics(e) => write!(f, "metrics: {e}"),
+            JobFailure::Write(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for JobFailure {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            JobFailure::Synthesis { source, .. } => Some(source),
+            JobFailure::Encode(e) => Some(e),
+            JobFailure::Write(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+thread_local! {
+    static PANIC_LOCATION: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Replaces the default panic output (a backtrace per panicking job would bury the run's report)
+/// with a record of where the panic happened, which the job's error message then includes.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let location = info.location().map(|l| format!("{}:{}", l.file(), l.line()));
+        PANIC_LOCATION.with(|p| *p.borrow_mut() = location);
+    }));
+}
+
+/// Runs the method (catching panics) and encodes the result as the job asked; also returns the
+/// synthesis seconds.
+pub fn synthesize_and_encode(
+    method: &dyn Method,
+    sample: &RgbImage,
+    params: &Params,
+    seed: u64,
+    output: &OutputSpec,
+) -> Result<(Synthesis, Encoded, f64), JobFailure> {
+    let request = Request { sample, width: output.width, height: output.height, params, seed };
+    let started = Instant::now();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| method.synthesize(&request)));
+    let seconds = started.elapsed().as_secs_f64();
+    let synthesis = match result {
+        Ok(Ok(s)) => s,
+        Ok(Err(source)) => return Err(JobFailure::Synthesis { method: method.name(), source }),
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            let at = PANIC_LOCATION.with(|p| p.borrow_mut().take());
+            return Err(JobFailure::Crashed { method: method.name(), what, at });
+        }
+    };
+    if synthesis.image.dimensions() != (output.width, output.height) {
+        return Err(JobFailure::WrongSize { method: method.name(), got: synthesis.image.dimensions(), want: (output.width, output.height) });
+    }
+    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
+    Ok((synthesis, encoded, seconds))
+}
+
+/// The metric values of a job (`None` for a metric undefined on this pair of images).
+pub type Metrics = BTreeMap<String, Option<f64>>;
+
+/// What executing a job produced.
+pub struct Executed {
+    /// Every file written, the main output first.
+    pub outputs: Vec<OutputRecord>,
+    pub synthesis: Synthesis,
+    pub synthesis_seconds: f64,
+    pub metrics: Option<Metrics>,
+    pub metrics_seconds: f64,
+}
+
+/// Synthesises, scores and writes one job into `out`. The main output is written last: a job
+/// whose main output is in place is complete.
+pub fn execute(
+    method: &dyn Method,
+    sample: &RgbImage,
+    params: &Params,
+    seed: u64,
+    output: &OutputSpec,
+    metric_names: &[String],
+    out: &OutDir,
+) -> Result<Executed, JobFailure> {
+    let (synthesis, encoded, synthesis_seconds) = synthesize_and_encode(method, sample, params, seed, output)?;
+    let metrics_started = Instant::now();
+    let metrics = if metric_names.is_empty() {
+        None
+    } else {
+        let names: Vec<&str> = metric_names.iter().map(String::as_str).collect();
+        Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
+    };
+    let metrics_seconds = metrics_started.elapsed().as_secs_f64();
+    let mut outputs = vec![OutputRecord {
+        path: output.path.clone(),
+        format: output.format.name().to_string(),
+        bit_depth: output.bit_depth,
+        width: output.width,
+        height: output.height,
+        file_digest: Digest::of_bytes(&encoded.bytes),
+        pixel_digest: encoded.pixels.pixel_digest(),
+    }];
+    for extra in &synthesis.extras {
+        let (record, bytes) = encode_extra(&output.path, extra)?;
+        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
+        outputs.push(record);
+    }
+    out.write(&output.path, &encoded.bytes).map_err(JobFailure::Write)?;
+    Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
+}
+
+/// Where an extra output of the job whose main output is `output_path` is stored:
+/// `{output_path without its extension}.{name}`.
+pub fn extra_path(output_path: &str, name: &str) -> Result<String, JobFailure> {
+    let bad = name.is_empty() || name.starts_with('/') || name.contains('\\') || name.split('/').any(|c| c.is_empty() || c == "." || c == "..");
+    if bad {
+        return Err(JobFailure::ExtraName(name.to_string()));
+    }
+    let file_start = output_path.rfind('/').map_or(0, |i| i + 1);
+    let stem_end = output_path[file_start..].rfind('.').map_or(output_path.len(), |i| file_start + i);
+    Ok(format!("{}.{name}", &output_path[..stem_end]))
+}
+
+/// Encodes an extra output and describes it for the manifest. A JSON document's "pixel digest" is
+/// the digest of its bytes (it has no pixels; golden files compare it all the same).
+pub fn encode_extra(output_path: &str, extra: &ExtraOutput) -> Result<(OutputRecord, Vec<u8>), JobFailure> {
+    let path = extra_path(output_path, &extra.name)?;
+    match &extra.content {
+        ExtraContent::Rgba8 { width, height, data } => {
+            let encoded = imageio::encode_rgba8_png(*width, *height, data).map_err(JobFailure::Encode)?;
+            let record = OutputRecord {
+                path,
+                format: "png".into(),
+                bit_depth: 8,
+                width: *width,
+                height: *height,
+                file_digest: Digest::of_bytes(&encoded.bytes),
+                pixel_digest: encoded.pixels.pixel_digest(),
+            };
+            Ok((record, encoded.bytes))
+        }
+        ExtraContent::Json(value) => {
+            let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| JobFailure::Encode(ImageError::Encode(format!("cannot encode `{}`: {e}", extra.name))))?;
+            bytes.push(b'\n');
+            let digest = Digest::of_bytes(&bytes);
+            let record = OutputRecord { path, format: "json".into(), bit_depth: 0, width: 0, height: 0, file_digest: digest.clone(), pixel_digest: digest };
+            Ok((record, bytes))
+        }
+    }
+}
+
+/// Why a recorded job's files can no longer be trusted, if they cannot.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum OutputsProblem {
+    NoneRecorded,
+    Missing(String),
+    Modified(String),
+}
+
+impl fmt::Display for OutputsProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OutputsProblem::NoneRecorded => f.write_str("no output recorded"),
+            OutputsProblem::Missing(p) => write!(f, "output `{p}` is missing"),
+            OutputsProblem::Modified(p) => write!(f, "output `{p}` was modified"),
+        }
+    }
+}
+
+/// Whether every recorded output of `rec` is still on disk with the recorded bytes.
+pub fn outputs_intact(out_dir: &Path, rec: &JobRecord) -> Result<(), OutputsProblem> {
+    if rec.outputs.is_empty() {
+        return Err(OutputsProblem::NoneRecorded);
+    }
+    for o in &rec.outputs {
+        match std::fs::read(out_dir.join(&o.path)) {
+            Err(_) => return Err(OutputsProblem::Missing(o.path.clone())),
+            Ok(bytes) if Digest::of_bytes(&bytes) != o.file_digest => return Err(OutputsProblem::Modified(o.path.clone())),
+            Ok(_) => {}
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extras_go_next_to_the_output_and_stay_inside_it() {
+        assert_eq!(extra_path("tiles/rw/bricks.png", "tiles/index.json").unwrap(), "tiles/rw/bricks.tiles/index.json");
+        assert_eq!(extra_path("a.b/out", "tiles/t.png").unwrap(), "a.b/out.tiles/t.png");
+        assert_eq!(extra_path("x.exr", "tiles/tile_00.png").unwrap(), "x.tiles/tile_00.png");
+        for bad in ["", "/etc/passwd", "../x", "tiles/../../x", "tiles//x", "a\\b", "./x"] {
+            assert!(extra_path("out.png", bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn json_extras_are_recorded_by_their_bytes() {
+        let extra = ExtraOutput { name: "tiles/index.json".into(), content: ExtraContent::Json(serde_json::json!({"b": 1, "a": [1, 2]})) };
+        let (rec, bytes) = encode_extra("o.png", &extra).unwrap();
+        assert_eq!(rec.path, "o.tiles/index.json");
+        assert_eq!((rec.format.as_str(), rec.width, rec.height), ("json", 0, 0));
+        assert_eq!(rec.pixel_digest, Digest::of_bytes(&bytes));
+        assert_eq!(serde_json::from_slice::<serde_json::Value>(&bytes).unwrap(), serde_json::json!({"a": [1, 2], "b": 1}));
+        let img = ExtraOutput { name: "tiles/t.png".into(), content: ExtraContent::Rgba8 { width: 2, height: 1, data: vec![1, 2, 3, 255, 4, 5, 6, 0] } };
+        let (rec, bytes) = encode_extra("o.png", &img).unwrap();
+        let back = imageio::decode_output(&bytes, DecodeLimits::default()).unwrap();
+        assert_eq!((rec.width, rec.height, back.channels), (2, 1, 4));
+        assert_eq!(back.pixel_digest(), rec.pixel_digest);
+    }
+}

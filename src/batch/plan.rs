@@ -1,0 +1,231 @@
+//! The plan: for every job, whether it runs and why — as data.
+//!
+//! Planning reads the job files, decodes each distinct sample once, runs each method's own
+//! checks, computes content keys and compares them with the manifest already in the output
+//! directory. It writes nothing, so `--dry-run` is just a printed plan, and `run` executes the
+//! very plan it would have printed.
+
+use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
+use crate::batch::job::{self, InvalidJob, Job, JobError};
+use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
+use crate::digest::Digest;
+use crate::error::Error;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What planning needs to know.
+#[derive(Clone, Debug)]
+pub struct PlanOptions {
+    /// The output directory: where the previous manifest is looked for.
+    pub out: PathBuf,
+    /// Run every valid job, up to date or not.
+    pub force: bool,
+}
+
+/// Why a job runs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reason {
+    Forced,
+    NotInManifest,
+    PreviousRun(Status),
+    InputsChanged,
+    MetricsNotRecorded,
+    Outputs(OutputsProblem),
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Reason::Forced => f.write_str("--force"),
+            Reason::NotInManifest => f.write_str("not in the manifest"),
+            Reason::PreviousRun(s) => write!(f, "previous run {}", s.name()),
+            Reason::InputsChanged => f.write_str("inputs changed (content key differs)"),
+            Reason::MetricsNotRecorded => f.write_str("requested metrics are not recorded"),
+            Reason::Outputs(p) => write!(f, "{p}"),
+        }
+    }
+}
+
+/// What will happen to a valid job.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    Run(Reason),
+    /// Its record in the previous manifest still describes its files: kept as it is.
+    UpToDate,
+}
+
+/// A valid job with its decoded sample and the record it will get.
+pub struct Entry {
+    pub job: Job,
+    pub sample: Arc<LoadedSample>,
+    pub content_key: Digest,
+    /// The record's inputs (outputs, timing and status are filled in by execution).
+    pub record: JobRecord,
+    pub action: Action,
+}
+
+/// Every job of a run, sorted by id.
+pub struct Plan {
+    pub out: PathBuf,
+    pub entries: Vec<Entry>,
+    pub invalid: Vec<InvalidJob>,
+    /// The manifest found in the output directory, by job id (empty when there was none).
+    pub previous: BTreeMap<String, JobRecord>,
+}
+
+impl Plan {
+    /// The jobs that will run, in id order.
+    pub fn to_run(&self) -> impl Iterator<Item = &Entry> {
+        self.entries.iter().filter(|e| matches!(e.action, Action::Run(_)))
+    }
+
+    pub fn up_to_date(&self) -> usize {
+        self.entries.iter().filter(|e| e.action == Action::UpToDate).count()
+    }
+
+    /// One line per job, sorted by id, for `--dry-run`: `will run: <reason>`, `up to date` or `invalid`.
+    pub fn lines(&self) -> Vec<(String, String)> {
+        let mut lines: Vec<(String, String)> = self
+            .entries
+            .iter()
+            .map(|e| {
+                let what = match &e.action {
+                    Action::Run(r) => format!("will run: {r}"),
+                    Action::UpToDate => "up to date".to_string(),
+                };
+                (e.job.id.clone(), what)
+            })
+            .chain(self.invalid.iter().map(|i| (i.id.clone(), "invalid".to_string())))
+            .collect();
+        lines.sort();
+        lines
+    }
+}
+
+/// Plans a run of job files and directories into `opts.out`. `Err` means nothing can run at all
+/// (no job files, unreadable paths); problems of single jobs are in [`Plan::invalid`].
+pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
+    let files = job::discover(inputs)?;
+    if files.is_empty() {
+        return Err(Error::NoJobFiles { inputs: inputs.to_vec() });
+    }
+    let set = job::read_all(&files);
+    let mut invalid = set.invalid;
+    let previous: BTreeMap<String, JobRecord> = match Manifest::load(&opts.out.join(manifest::FILE_NAME)) {
+        Ok(m) => m.jobs.into_iter().map(|j| (j.id.clone(), j)).collect(),
+        Err(_) => BTreeMap::new(),
+    };
+
+    // Decode every distinct sample once.
+    let mut sample_paths: Vec<PathBuf> = set.jobs.iter().map(|j| j.sample.clone()).collect();
+    sample_paths.sort();
+    sample_paths.dedup();
+    let loaded: BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>> =
+        sample_paths.par_iter().map(|p| (p.clone(), load_sample(p).map(Arc::new))).collect::<Vec<_>>().into_iter().collect();
+
+    let mut entries = Vec::new();
+    for job in set.jobs {
+        let sample = match &loaded[&job.sample] {
+            Ok(s) => s.clone(),
+            Err(e) => {
+                let errors = vec![job.error(Some("sample"), format!("sample {e}"))];
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
+        let issues = job.method.check(&job.params, sample.image.dimensions(), (job.output.width, job.output.height));
+        if !issues.is_empty() {
+            let errors: Vec<JobError> = issues.into_iter().map(|e| job.error(Some(&format!("params.{}", e.key)), e.message)).collect();
+            invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+            continue;
+        }
+        let (content_key, record) = base_record(&job, &sample, &opts.out);
+        let action = decide(&job, &content_key, previous.get(&job.id), opts);
+        entries.push(Entry { job, sample, content_key, record, action });
+    }
+    invalid.sort_by(|a, b| a.id.cmp(&b.id));
+    Ok(Plan { out: opts.out.clone(), entries, invalid, previous })
+}
+
+/// The record of a job's inputs, and its content key.
+fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest, JobRecord) {
+    let params_json = job.params.to_json();
+    let output_json = job.output.to_json();
+    let content_key = manifest::content_key(job.method.name(), job.method.algorithm_version(), &params_json, job.seed, &sample.pixel_digest, &output_json);
+    let record = JobRecord {
+        id: job.id.clone(),
+        job_file: FileRef { path: manifest::relative_path(&job.file, manifest_dir), digest: job.file_digest.clone() },
+        status: Status::Ok,
+        error: None,
+        method: Some(job.method.name().to_string()),
+        algorithm_version: Some(job.method.algorithm_version()),
+        params_digest: Some(Digest::of_json(&params_json)),
+        params: Some(params_json),
+        seed: Some(job.seed),
+        sample: Some(SampleRecord {
+            path: manifest::relative_path(&job.sample, manifest_dir),
+            file_digest: sample.file_digest.clone(),
+            pixel_digest: sample.pixel_digest.clone(),
+            width: sample.image.width(),
+            height: sample.image.height(),
+        }),
+        output_spec: Some(output_json),
+        content_key: Some(content_key.clone()),
+        outputs: Vec::new(),
+        seams: None,
+        diagnostics: serde_json::Value::Null,
+        metrics: None,
+        timing: None,
+    };
+    (content_key, record)
+}
+
+/// Incremental: up to date when the content key matches, the requested metrics are recorded and
+/// the outputs still hash as recorded.
+fn decide(job: &Job, content_key: &Digest, previous: Option<&JobRecord>, opts: &PlanOptions) -> Action {
+    if opts.force {
+        return Action::Run(Reason::Forced);
+    }
+    let Some(prev) = previous else { return Action::Run(Reason::NotInManifest) };
+    if !prev.status.is_success() {
+        return Action::Run(Reason::PreviousRun(prev.status));
+    }
+    if prev.content_key.as_ref() != Some(content_key) {
+        return Action::Run(Reason::InputsChanged);
+    }
+    let metrics_recorded = job.metrics.is_empty() || prev.metrics.as_ref().is_some_and(|m| job.metrics.iter().all(|w| m.contains_key(w)));
+    if !metrics_recorded {
+        return Action::Run(Reason::MetricsNotRecorded);
+    }
+    match outputs_intact(&opts.out, prev) {
+        Ok(()) => Action::UpToDate,
+        Err(p) => Action::Run(Reason::Outputs(p)),
+    }
+}
+
+/// The manifest record of a job that cannot run.
+pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
+    let digest = std::fs::read(&inv.file).map(|b| Digest::of_bytes(&b)).unwrap_or_else(|_| Digest::of_bytes(b""));
+    JobRecord {
+        id: inv.id.clone(),
+        job_file: FileRef { path: manifest::relative_path(&inv.file, manifest_dir), digest },
+        status: Status::Invalid,
+        error: Some(inv.errors.iter().map(|e| e.to_string()).collect::<Vec<_>>().join("\n")),
+        method: None,
+        algorithm_version: None,
+        params: None,
+        params_digest: None,
+        seed: None,
+        sample: None,
+        output_spec: None,
+        content_key: None,
+        outputs: Vec::new(),
+        seams: None,
+        diagnostics: serde_json::Value::Null,
+        metrics: None,
+        timing: None,
+    }
+}

@@ -1,0 +1,123 @@
+//! Command-line parsing, one file per subcommand, and the exit-code policy.
+//!
+//! `main` parses, hands the arguments to one subcommand's `run`, and turns what it returns into
+//! an exit code here and nowhere else: a subcommand returns an [`Outcome`] (what happened) or a
+//! [`texsyn::Error`] (it could not do its work), never a number. The codes are a contract for
+//! scripts and schedulers (see `EXIT_CODES`).
+//!
+//! Output to a closed pipe (`texsyn methods | head`) is not an error: [`say`] stops quietly with
+//! exit 0 instead of the panic `println!` would give, because the reader has what it wanted.
+
+mod eval;
+mod golden;
+mod lattice;
+mod methods;
+mod progress;
+mod report;
+mod run;
+mod tiles;
+mod verify;
+
+use clap::{Parser, Subcommand};
+use std::io::Write;
+use std::process::ExitCode;
+
+pub const EXIT_CODES: &str = "\
+Exit codes:
+  0    all good (including: everything was already up to date)
+  1    some job failed or was invalid (the others still ran; see the manifest)
+  2    usage error, or the run could not start (no job files, output directory locked)
+  3    verify or golden mismatch
+  130  interrupted (Ctrl-C); finished jobs are recorded, re-run to continue";
+
+#[derive(Parser)]
+#[command(name = "texsyn", version, about = "Reproducible texture synthesis from TOML job files", after_help = EXIT_CODES)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run job files and directories (searched recursively for *.toml).
+    #[command(after_help = EXIT_CODES)]
+    Run(run::Args),
+    /// Re-run every recorded job from a manifest alone and compare pixel digests.
+    #[command(after_help = EXIT_CODES)]
+    Verify(verify::Args),
+    /// Compare a run with the expected digests in a golden directory, or record new ones.
+    #[command(subcommand)]
+    Golden(golden::Command),
+    /// List the methods, their parameters, defaults and ranges.
+    Methods,
+    /// Find the translation vectors t1, t2 of a near-regular sample (exit 0), or say why there
+    /// are none (exit 1).
+    Lattice(lattice::Args),
+    /// Score any image against a sample with the metrics texsyn records (paper 003's four
+    /// measures, the verbatim-copy fraction; seam visibility needs a method's grid and is undefined here).
+    Eval(eval::Args),
+    /// Use a tile set exported by a wang-tiles or rw-tiles job (`export_tiles = true`).
+    #[command(subcommand)]
+    Tiles(tiles::Command),
+    /// Tables (Markdown, CSV), contact sheets, a plot and an HTML page from a manifest.
+    #[command(after_help = report::HELP)]
+    Report(report::Args),
+}
+
+/// What a subcommand that did its work found. Each maps to one exit code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// 0: everything as hoped.
+    Success,
+    /// 1: done, but something is missing or failed (failed/invalid jobs, report images that could
+    /// not be shown, no lattice in the sample); the details were printed.
+    Problems,
+    /// 3: `verify` or `golden check` found a difference.
+    Mismatch,
+    /// 130: stopped by Ctrl-C after recording what finished.
+    Interrupted,
+}
+
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            // --help and --version are not errors.
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    texsyn::batch::execute::install_panic_hook();
+    let result = match cli.command {
+        Command::Run(args) => run::run(args),
+        Command::Verify(args) => verify::run(args),
+        Command::Golden(cmd) => golden::run(cmd),
+        Command::Methods => methods::run(),
+        Command::Lattice(args) => lattice::run(args),
+        Command::Eval(args) => eval::run(args),
+        Command::Tiles(cmd) => tiles::run(cmd),
+        Command::Report(args) => report::run(args),
+    };
+    match result {
+        Ok(Outcome::Success) => ExitCode::SUCCESS,
+        Ok(Outcome::Problems) => ExitCode::from(1),
+        Ok(Outcome::Mismatch) => ExitCode::from(3),
+        Ok(Outcome::Interrupted) => ExitCode::from(130),
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Prints one line on stdout; a closed pipe ends the program quietly (see the module comment).
+pub fn say(line: impl std::fmt::Display) {
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{line}").and_then(|()| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to stdout: {e}");
+        std::process::exit(2);
+    }
+}
