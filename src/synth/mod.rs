@@ -10,5 +10,7 @@ pub mod lattice;
 pub mod method;
 pub mod methods;
 pub mod params;
+#[doc(hidden)]
 pub mod primitives;
 pub mod rng;
+pub mod synthesizer;
