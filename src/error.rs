@@ -5,7 +5,6 @@
 //! error as its [`source`](std::error::Error::source). The CLI maps variants to exit codes in one
 //! place (`src/cli/mod.rs`); the library never prints and never exits.
 
-use crate::batch::job::JobError;
 use crate::image::io::ImageError;
 use crate::synth::error::SynthError;
 use crate::synth::params::ParamError;
@@ -20,8 +19,6 @@ pub enum Error {
     Image { path: PathBuf, source: ImageError },
     /// No job files under the given paths.
     NoJobFiles { inputs: Vec<PathBuf> },
-    /// Job files with problems (each with its file, line and key), when nothing can run.
-    Jobs(Vec<JobError>),
     /// The output directory is held by another run.
     Locked { dir: PathBuf, holder: Option<u32> },
     /// A path that would leave the output directory, or a symlink pointing out of it.
@@ -57,10 +54,6 @@ impl fmt::Display for Error {
                 "no job files (*.toml) found in {}",
                 inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
             ),
-            Error::Jobs(errors) => {
-                let lines: Vec<String> = errors.iter().map(ToString::to_string).collect();
-                f.write_str(&lines.join("\n"))
-            }
             Error::Locked { dir, holder } => {
                 let who = holder.map(|p| format!(" (process {p})")).unwrap_or_default();
                 write!(f, "another texsyn run is using the output directory {}{who}; wait for it to finish or choose another --out", dir.display())

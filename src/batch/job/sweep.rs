@@ -1,0 +1,204 @@
+//! `[sweep]`: reading its lists and ranges, and expanding their cartesian product into jobs with
+//! ids, resolved parameters and templated output paths.
+
+use super::read::{Ctx, Raw, Ready, de_int, de_param, type_name};
+use super::{Job, JobError, MAX_SWEEP_POINTS, OutputSpec, expand_template, normalise_output_path};
+use crate::synth::method::Method;
+use crate::synth::params::{self, ParamValue};
+use toml::de::{DeTable, DeValue};
+
+pub(super) fn read_sweep(ctx: &mut Ctx, t: &DeTable, method: Option<&'static dyn Method>, raw: &mut Raw) {
+    for (k, v) in t.iter() {
+        let name = k.get_ref().to_string();
+        let key = format!("sweep.{name}");
+        ctx.at(&key, k.span());
+        if name != "seed" {
+            if let Some(m) = method {
+                let mut valid: Vec<&str> = m.params().iter().map(|p| p.name).collect();
+                valid.push("seed");
+                if !valid.contains(&name.as_str()) {
+                    ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(&name, &valid));
+                    continue;
+                }
+            }
+            if raw.params.iter().any(|(p, _)| *p == name) {
+                ctx.err(Some(k.span()), Some(&key), format!("`{name}` is both in [params] and in [sweep]; keep one"));
+                continue;
+            }
+        }
+        let values: Vec<(ParamValue, std::ops::Range<usize>)> = match v.get_ref() {
+            DeValue::Array(items) => {
+                let mut vals = Vec::new();
+                for item in items {
+                    match de_param(item.get_ref()) {
+                        Ok(p) => vals.push((p, item.span())),
+                        Err(e) => ctx.err(Some(item.span()), Some(&key), e),
+                    }
+                }
+                vals
+            }
+            DeValue::Table(range) => match read_range(range) {
+                Ok(vals) => vals.into_iter().map(|i| (ParamValue::Int(i), v.span())).collect(),
+                Err(e) => {
+                    ctx.err(Some(v.span()), Some(&key), e);
+                    continue;
+                }
+            },
+            other => {
+                ctx.err(
+                    Some(v.span()),
+                    Some(&key),
+                    format!("expected a list of values or a range table {{ from = …, to = … }}, found {}", type_name(other)),
+                );
+                continue;
+            }
+        };
+        if values.is_empty() {
+            ctx.err(Some(v.span()), Some(&key), "sweep list is empty");
+            continue;
+        }
+        if name == "seed" {
+            for (val, span) in &values {
+                match val {
+                    ParamValue::Int(s) if *s >= 0 => {}
+                    other => ctx.err(Some(span.clone()), Some(&key), format!("seeds must be non-negative integers, got {}", other.display())),
+                }
+            }
+        }
+        let mut seen = Vec::new();
+        for (val, span) in &values {
+            if seen.contains(val) {
+                ctx.err(Some(span.clone()), Some(&key), format!("value {} appears twice in the sweep", val.display()));
+            }
+            seen.push(val.clone());
+        }
+        raw.sweep.push((name, values));
+    }
+}
+
+/// `{ from = a, to = b }` (inclusive) with an optional positive `step`.
+fn read_range(t: &DeTable) -> Result<Vec<i64>, String> {
+    let mut from = None;
+    let mut to = None;
+    let mut step = 1i64;
+    for (k, v) in t.iter() {
+        let n = match de_int(v.get_ref()) {
+            Some(Ok(n)) => n,
+            _ => return Err(format!("range `{}` must be an integer", k.get_ref())),
+        };
+        match k.get_ref().as_ref() {
+            "from" => from = Some(n),
+            "to" => to = Some(n),
+            "step" => step = n,
+            other => return Err(params::unknown_key_message(other, &["from", "to", "step"])),
+        }
+    }
+    let (Some(from), Some(to)) = (from, to) else { return Err("a range needs both `from` and `to` (inclusive)".into()) };
+    if step <= 0 {
+        return Err(format!("range step must be positive, got {step}"));
+    }
+    if to < from {
+        return Err(format!("range is empty: from {from} is after to {to}"));
+    }
+    let count = (to - from) / step + 1;
+    if count as usize > MAX_SWEEP_POINTS {
+        return Err(format!("range has {count} values, more than {MAX_SWEEP_POINTS}"));
+    }
+    Ok((0..count).map(|i| from + i * step).collect())
+}
+
+
+/// Every point of the sweep as a job (one job for a file without `[sweep]`).
+pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
+    let &Ready { method, ref sample, ref path_template, ref path_span, width, height, format, bit_depth, ref file_digest } = ready;
+
+    // Expand the sweep: the cartesian product of its lists, keys in sorted order.
+    let mut points: Vec<Vec<(String, ParamValue)>> = vec![Vec::new()];
+    let mut sweep = raw.sweep.clone();
+    sweep.sort_by(|a, b| a.0.cmp(&b.0));
+    for (k, values) in &sweep {
+        let mut next = Vec::with_capacity(points.len() * values.len());
+        for p in &points {
+            for (v, _) in values {
+                let mut q = p.clone();
+                q.push((k.clone(), v.clone()));
+                next.push(q);
+            }
+        }
+        points = next;
+        if points.len() > MAX_SWEEP_POINTS {
+            ctx.err(None, Some("sweep"), format!("the sweep expands to more than {MAX_SWEEP_POINTS} jobs"));
+            return Vec::new();
+        }
+    }
+    let mut jobs = Vec::new();
+    for point in points {
+        let mut given = raw.params.clone();
+        let mut seed = raw.seed.unwrap_or(0);
+        for (k, v) in &point {
+            if k == "seed" {
+                if let ParamValue::Int(s) = v {
+                    seed = *s as u64;
+                }
+            } else {
+                given.push((k.clone(), v.clone()));
+            }
+        }
+        let params = match params::resolve(method.params(), &given) {
+            Ok(p) => p,
+            Err(errs) => {
+                for e in errs {
+                    let in_sweep = point.iter().any(|(k, _)| *k == e.key);
+                    let key = if in_sweep { format!("sweep.{}", e.key) } else { format!("params.{}", e.key) };
+                    let pos = ctx.positions.get(&key).copied();
+                    let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e.message };
+                    if !ctx.errors.contains(&err) {
+                        ctx.errors.push(err);
+                    }
+                }
+                continue;
+            }
+        };
+        let path = match expand_template(&path_template, method.name(), seed, &params) {
+            Ok(p) => p,
+            Err(e) => {
+                ctx.err(Some(path_span.clone()), Some("output.path"), e);
+                continue;
+            }
+        };
+        let path = match normalise_output_path(&path) {
+            Ok(p) => p,
+            Err(e) => {
+                ctx.err(Some(path_span.clone()), Some("output.path"), e);
+                continue;
+            }
+        };
+        let id = if point.is_empty() {
+            ctx.file.rel.clone()
+        } else {
+            let parts: Vec<String> = point.iter().map(|(k, v)| format!("{k}={}", v.display())).collect();
+            format!("{}#{}", ctx.file.rel, parts.join(","))
+        };
+        let mut positions = ctx.positions.clone();
+        for (k, _) in &point {
+            if let Some(p) = ctx.positions.get(&format!("sweep.{k}")).copied() {
+                positions.insert(format!("params.{k}"), p);
+            }
+        }
+        jobs.push(Job {
+            id,
+            file: ctx.file.path.clone(),
+            file_rel: ctx.file.rel.clone(),
+            file_digest: file_digest.clone(),
+            sample: sample.clone(),
+            method,
+            seed,
+            params,
+            output: OutputSpec { path, width, height, format, bit_depth },
+            metrics: raw.metrics.clone(),
+            positions,
+        });
+    }
+    jobs
+}
+
