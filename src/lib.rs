@@ -10,12 +10,14 @@
 //!  ─────────────────────────────────────────────────────────────────────────────────────
 //!  report/   tables, contact sheets, plot, HTML page        ← reads a manifest
 //!  batch/    job files → plan → execute → run → manifest; verify, golden; observer
-//!  synth/    Method trait, params + typed configs, Synthesizer, rng, lattice,
+//!  synthesizer   the builder: typed config + seed + size → validated Session → texture
+//!  error     texsyn::Error, wrapping the layers' own errors below
+//!  synth/    Method trait, params + typed configs, SynthError, rng, lattice,
 //!            methods/{quilting, double_seam, patch_sampling, near_regular/, tiles/},
 //!            primitives/ (internal building blocks)
 //!  metrics/  objective measures (KL, autocorrelation, verbatim copies, seam visibility)
 //!  image/    RgbImage, decoding/encoding with limits, pixel digests, seam grids
-//!  digest, error   SHA-256 + canonical JSON; the one error type
+//!  digest    SHA-256 and canonical JSON
 //! ```
 //!
 //! `docs/methods.md` describes every method and the choices the code makes where the papers are
@@ -44,6 +46,10 @@ pub mod image;
 pub mod metrics;
 pub mod report;
 pub mod synth;
+mod synthesizer;
+
+#[cfg(test)]
+mod architecture;
 
 pub use batch::observer::{Event, Observer, Silent};
 pub use batch::run::{RunOptions, Summary, run};
@@ -53,7 +59,7 @@ pub use image::RgbImage;
 pub use synth::error::SynthError;
 pub use synth::method::{Method, Synthesis};
 pub use synth::params::{MethodConfig, ParamValue};
-pub use synth::synthesizer::{Session, Synthesizer};
+pub use synthesizer::{Session, Synthesizer};
 
 /// Reads an image (PNG 8/16-bit, JPEG, EXR) as the 8-bit RGB every method works on.
 pub fn load_image(path: impl AsRef<std::path::Path>) -> Result<RgbImage> {

@@ -6,7 +6,6 @@
 
 use crate::batch::job::JobError;
 use crate::batch::manifest::JobRecord;
-use crate::batch::run::Summary;
 use std::path::Path;
 
 /// Something that happened during a run, in the order it happened (events of jobs running in
@@ -37,4 +36,21 @@ pub struct Silent;
 
 impl Observer for Silent {
     fn event(&self, _event: &Event) {}
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Summary {
+    pub ran: usize,
+    pub up_to_date: usize,
+    pub failed: usize,
+    pub invalid: usize,
+    pub wall_seconds: f64,
+    pub interrupted: bool,
+}
+
+impl Summary {
+    pub fn all_good(&self) -> bool {
+        self.failed == 0 && self.invalid == 0 && !self.interrupted
+    }
 }

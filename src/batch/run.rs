@@ -9,6 +9,7 @@
 
 use crate::batch::execute::execute;
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, Status, Timing};
+pub use crate::batch::observer::Summary;
 use crate::batch::observer::{Event, Observer};
 use crate::batch::outdir::OutDir;
 use crate::batch::plan::{self, Action, Plan, PlanOptions};
@@ -41,23 +42,6 @@ impl RunOptions {
 
     fn plan_options(&self) -> PlanOptions {
         PlanOptions { out: self.out.clone(), force: self.force }
-    }
-}
-
-/// What a run did.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Summary {
-    pub ran: usize,
-    pub up_to_date: usize,
-    pub failed: usize,
-    pub invalid: usize,
-    pub wall_seconds: f64,
-    pub interrupted: bool,
-}
-
-impl Summary {
-    pub fn all_good(&self) -> bool {
-        self.failed == 0 && self.invalid == 0 && !self.interrupted
     }
 }
 

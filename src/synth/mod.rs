@@ -13,4 +13,3 @@ pub mod params;
 #[doc(hidden)]
 pub mod primitives;
 pub mod rng;
-pub mod synthesizer;

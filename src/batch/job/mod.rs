@@ -10,6 +10,7 @@
 
 mod output_path;
 mod read;
+mod source;
 mod sweep;
 
 pub use output_path::{expand_template, normalise_output_path};

@@ -1,7 +1,7 @@
 //! `[sweep]`: reading its lists and ranges, and expanding their cartesian product into jobs with
 //! ids, resolved parameters and templated output paths.
 
-use super::read::{Ctx, Raw, Ready, de_int, de_param, type_name};
+use super::source::{Ctx, Raw, Ready, de_int, de_param, type_name};
 use super::{Job, JobError, MAX_SWEEP_POINTS, OutputSpec, expand_template, normalise_output_path};
 use crate::synth::method::Method;
 use crate::synth::params::{self, ParamValue};
