@@ -29,6 +29,8 @@ pub enum Error {
     Params { method: String, errors: Vec<ParamError> },
     /// An unknown method name.
     UnknownMethod { name: String, known: Vec<&'static str> },
+    /// Metrics that do not exist or cannot be computed with the given parameters.
+    Metrics(crate::metrics::MetricError),
     /// A method failed.
     Synthesis { method: String, source: SynthError },
     /// An option or argument that makes no sense.
@@ -65,6 +67,7 @@ impl fmt::Display for Error {
                 f.write_str(&lines.join("\n"))
             }
             Error::UnknownMethod { name, known } => write!(f, "unknown method `{name}`; known methods: {}", known.join(", ")),
+            Error::Metrics(e) => write!(f, "{e}"),
             Error::Synthesis { method, source } => write!(f, "{method} failed: {source}"),
             Error::Usage(m) => f.write_str(m),
         }
@@ -77,6 +80,7 @@ impl std::error::Error for Error {
             Error::Io { source, .. } => Some(source),
             Error::Image { source, .. } => Some(source),
             Error::Synthesis { source, .. } => Some(source),
+            Error::Metrics(e) => Some(e),
             _ => None,
         }
     }

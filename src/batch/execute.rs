@@ -10,6 +10,7 @@ use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::RgbImage;
 use crate::image::io::{self as imageio, DecodeLimits, Encoded, ImageError};
+use crate::metrics::MetricError;
 use crate::synth::error::SynthError;
 use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, Synthesis};
 use crate::synth::params::Params;
@@ -45,7 +46,7 @@ pub enum JobFailure {
     /// An extra output had a name that would leave its folder: a bug in the method.
     ExtraName(String),
     /// The metrics could not be computed.
-    Metrics(String),
+    Metrics(MetricError),
     /// A file could not be written.
     Write(Error),
 }
@@ -74,6 +75,7 @@ impl std::error::Error for JobFailure {
         match self {
             JobFailure::Synthesis { source, .. } => Some(source),
             JobFailure::Encode(e) => Some(e),
+            JobFailure::Metrics(e) => Some(e),
             JobFailure::Write(e) => Some(e),
             _ => None,
         }

@@ -21,7 +21,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     let names: Vec<String> = args.metrics.unwrap_or_else(|| texsyn::metrics::METRIC_NAMES.iter().map(|s| s.to_string()).collect());
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let (s, o) = (load_sample(&args.sample)?, load_sample(&args.output)?);
-    let values = texsyn::metrics::evaluate(&names, &s.image, &o.image, None).map_err(Error::Usage)?;
+    let values = texsyn::metrics::evaluate(&names, &s.image, &o.image, None).map_err(Error::Metrics)?;
     if args.json {
         say(serde_json::json!({
             "sample": args.sample.display().to_string(),

@@ -76,18 +76,18 @@ impl Default for MetricParams {
 }
 
 impl MetricParams {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MetricError> {
         if !(self.sigma > 0.0 && self.sigma.is_finite()) {
-            return Err(format!("metric parameter sigma must be positive and finite, got {}", self.sigma));
+            return Err(MetricError::Parameter(format!("sigma must be positive and finite, got {}", self.sigma)));
         }
         if self.orientation_bins == 0 {
-            return Err("metric parameter orientation_bins must be at least 1".into());
+            return Err(MetricError::Parameter("orientation_bins must be at least 1".into()));
         }
         if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
-            return Err(format!("metric parameter epsilon must be ≥ 0 and finite, got {}", self.epsilon));
+            return Err(MetricError::Parameter(format!("epsilon must be ≥ 0 and finite, got {}", self.epsilon)));
         }
         if self.verbatim_window == 0 {
-            return Err("metric parameter verbatim_window must be at least 1".into());
+            return Err(MetricError::Parameter("verbatim_window must be at least 1".into()));
         }
         Ok(())
     }
@@ -222,6 +222,26 @@ pub fn acf_orientation_with(sample: &RgbImage, output: &RgbImage, params: &Metri
     acf_orientation_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
 }
 
+/// Why metrics could not be computed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum MetricError {
+    /// A name that is not one of [`METRIC_NAMES`].
+    Unknown(String),
+    /// A [`MetricParams`] value out of its domain.
+    Parameter(String),
+}
+
+impl std::fmt::Display for MetricError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MetricError::Unknown(name) => write!(f, "unknown metric `{name}`; valid metrics: {}", METRIC_NAMES.join(", ")),
+            MetricError::Parameter(m) => write!(f, "metric parameter {m}"),
+        }
+    }
+}
+
+impl std::error::Error for MetricError {}
+
 /// Evaluates the named metrics with the default parameters: each name maps to `Some(value)` or to
 /// `None` when the metric is undefined for these images. `Err` for an unknown name (the message
 /// lists the valid ones).
@@ -230,7 +250,7 @@ pub fn evaluate(
     sample: &RgbImage,
     output: &RgbImage,
     grid: Option<&SeamGrid>,
-) -> Result<BTreeMap<String, Option<f64>>, String> {
+) -> Result<BTreeMap<String, Option<f64>>, MetricError> {
     evaluate_with(names, sample, output, grid, &MetricParams::default())
 }
 
@@ -241,9 +261,9 @@ pub fn evaluate_with(
     output: &RgbImage,
     grid: Option<&SeamGrid>,
     params: &MetricParams,
-) -> Result<BTreeMap<String, Option<f64>>, String> {
+) -> Result<BTreeMap<String, Option<f64>>, MetricError> {
     if let Some(bad) = names.iter().find(|n| !METRIC_NAMES.contains(n)) {
-        return Err(format!("unknown metric `{bad}`; valid metrics: {}", METRIC_NAMES.join(", ")));
+        return Err(MetricError::Unknown(bad.to_string()));
     }
     params.validate()?;
     let p = Analysis::new(sample, params);
