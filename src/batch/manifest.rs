@@ -161,6 +161,30 @@ pub struct RunFacts {
     pub invalid: usize,
     /// True while the run is still going (the manifest is rewritten as jobs finish).
     pub in_progress: bool,
+    /// Set in a shard's fragment (`--shard I/N`); absent in a whole run's manifest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardFacts>,
+    /// Set by `texsyn merge`: the fragments the manifest was merged from.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub merged_from: Vec<ShardFacts>,
+}
+
+/// Which part of a split run a fragment holds, and what the scheduler called it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShardFacts {
+    pub index: usize,
+    pub count: usize,
+    /// Jobs (valid and invalid) in the whole job set, over all shards.
+    pub plan_jobs: usize,
+    /// Digest of the whole job set's sorted ids: fragments of one run agree on it.
+    pub plan_digest: Digest,
+    /// Jobs assigned to this shard.
+    pub assigned: usize,
+    pub host: String,
+    /// The scheduler's own names for this task (`SLURM_ARRAY_JOB_ID`, `SLURM_ARRAY_TASK_ID`,
+    /// `SLURM_JOB_ID`, `JOB_COMPLETION_INDEX`, as present).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub scheduler: std::collections::BTreeMap<String, String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -174,9 +198,13 @@ pub struct Manifest {
 
 impl Manifest {
     /// Builds a manifest from records (sorted here) and computes its deterministic digest.
-    pub fn new(mut jobs: Vec<JobRecord>, run: RunFacts) -> Manifest {
+    pub fn new(jobs: Vec<JobRecord>, run: RunFacts) -> Manifest {
+        Manifest::with_tool(Tool::current(), jobs, run)
+    }
+
+    /// A manifest of records written by `tool` (a merge keeps the fragments' tool).
+    pub fn with_tool(tool: Tool, mut jobs: Vec<JobRecord>, run: RunFacts) -> Manifest {
         jobs.sort_by(|a, b| a.id.cmp(&b.id));
-        let tool = Tool::current();
         let deterministic_digest = deterministic_digest(&tool, &jobs);
         Manifest { format: FORMAT.into(), tool, deterministic_digest, jobs, run }
     }

@@ -18,6 +18,8 @@ const TMP_SUFFIX: &str = ".texsyn-tmp";
 /// An output directory held exclusively by this process.
 pub struct OutDir {
     root: PathBuf,
+    /// Marks this holder's temporaries (`""` for a whole-directory run; the shard for a shard).
+    tag: String,
     canonical: PathBuf,
     _lock: File,
 }
@@ -27,9 +29,20 @@ static COUNTER: AtomicU64 = AtomicU64::new(0);
 impl OutDir {
     /// Creates the directory if needed and takes its lock, or explains who holds it.
     pub fn open(root: &Path) -> Result<OutDir, Error> {
+        OutDir::open_part(root, None)
+    }
+
+    /// Like [`OutDir::open`] for one shard of a run split across machines: the lock is the
+    /// shard's own (an OS lock on a shared file system cannot be trusted across nodes, and shards
+    /// write disjoint files), and only the shard's own stale temporaries are removed, never the
+    /// in-flight ones of shards running elsewhere.
+    pub fn open_part(root: &Path, part: Option<&str>) -> Result<OutDir, Error> {
         std::fs::create_dir_all(root).map_err(|e| Error::io(root, "create output directory", e))?;
         let canonical = root.canonicalize().map_err(|e| Error::io(root, "resolve", e))?;
-        let lock_path = root.join(LOCK_NAME);
+        let lock_path = match part {
+            None => root.join(LOCK_NAME),
+            Some(p) => root.join(format!(".texsyn.{p}.lock")),
+        };
         let mut lock = OpenOptions::new()
             .read(true)
             .write(true)
@@ -47,7 +60,8 @@ impl OutDir {
         }
         lock.set_len(0).ok();
         let _ = write!(lock, "{}", std::process::id());
-        let dir = OutDir { root: root.to_path_buf(), canonical, _lock: lock };
+        let tag = part.map(|p| format!("{p}.")).unwrap_or_default();
+        let dir = OutDir { root: root.to_path_buf(), tag, canonical, _lock: lock };
         dir.remove_stale_temporaries();
         Ok(dir)
     }
@@ -80,34 +94,40 @@ impl OutDir {
     /// Writes `bytes` to the relative path atomically.
     pub fn write(&self, rel: &str, bytes: &[u8]) -> Result<PathBuf, Error> {
         let path = self.resolve(rel)?;
-        write_atomic(&path, bytes)?;
+        write_tagged(&path, bytes, &self.tag)?;
         Ok(path)
     }
 
     /// Removes temporaries left by a killed run.
     fn remove_stale_temporaries(&self) {
-        fn walk(dir: &Path) {
+        fn walk(dir: &Path, tag: &str) {
             let Ok(entries) = std::fs::read_dir(dir) else { return };
             for e in entries.flatten() {
                 let p = e.path();
                 let Ok(ft) = e.file_type() else { continue };
+                let name = e.file_name().to_string_lossy().into_owned();
                 if ft.is_dir() {
-                    walk(&p);
-                } else if ft.is_file() && e.file_name().to_string_lossy().ends_with(TMP_SUFFIX) {
+                    walk(&p, tag);
+                } else if ft.is_file() && name.ends_with(TMP_SUFFIX) && (tag.is_empty() || name.contains(&format!(".{tag}"))) {
                     let _ = std::fs::remove_file(&p);
                 }
             }
         }
-        walk(&self.root);
+        walk(&self.root, &self.tag);
     }
 }
 
 /// Writes to a temporary file in the same directory, flushes it to disk and renames it over
 /// `path`. Readers see the old file or the new one, never a partial one.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    write_tagged(path, bytes, "")
+}
+
+/// [`write_atomic`] with the writer's tag in the temporary's name.
+fn write_tagged(path: &Path, bytes: &[u8], tag: &str) -> Result<(), Error> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
+    let tmp = dir.join(format!(".{name}.{tag}{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
     let result = (|| -> std::io::Result<()> {
         let mut f = File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -156,6 +176,21 @@ mod tests {
         drop(out);
         let _again = OutDir::open(&d).unwrap();
         assert!(!d.join("a/.b.png.1.2.texsyn-tmp").exists());
+    }
+
+    #[test]
+    fn a_shard_locks_and_cleans_only_its_own_part() {
+        let d = tmp("shards");
+        let a = OutDir::open_part(&d, Some("shard-0-of-2")).unwrap();
+        let b = OutDir::open_part(&d, Some("shard-1-of-2")).unwrap();
+        assert!(OutDir::open_part(&d, Some("shard-0-of-2")).is_err(), "the same shard twice");
+        drop(a);
+        std::fs::write(d.join(".x.png.shard-0-of-2.7.0.texsyn-tmp"), b"mine").unwrap();
+        std::fs::write(d.join(".y.png.shard-1-of-2.7.0.texsyn-tmp"), b"in flight elsewhere").unwrap();
+        let _a = OutDir::open_part(&d, Some("shard-0-of-2")).unwrap();
+        assert!(!d.join(".x.png.shard-0-of-2.7.0.texsyn-tmp").exists());
+        assert!(d.join(".y.png.shard-1-of-2.7.0.texsyn-tmp").exists());
+        drop(b);
     }
 
     #[test]

@@ -6,7 +6,8 @@
 //! very plan it would have printed.
 
 use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
-use crate::batch::job::{self, InvalidJob, Job, JobError};
+use crate::batch::job::{self, InvalidJob, Job, JobError, JobSet};
+use crate::batch::shard::{self, Shard};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
 use crate::digest::Digest;
 use crate::error::Error;
@@ -23,6 +24,8 @@ pub struct PlanOptions {
     pub out: PathBuf,
     /// Run every valid job, up to date or not.
     pub force: bool,
+    /// Plan only this worker's part of the job set.
+    pub shard: Option<Shard>,
 }
 
 /// Why a job runs.
@@ -67,9 +70,20 @@ pub struct Entry {
     pub action: Action,
 }
 
-/// Every job of a run, sorted by id.
+/// This worker's part of a split job set.
+#[derive(Clone, Debug)]
+pub struct ShardPlan {
+    pub shard: Shard,
+    /// Jobs (valid and invalid) in the whole set, over all shards.
+    pub plan_jobs: usize,
+    /// Digest of the whole set's sorted ids.
+    pub plan_digest: Digest,
+}
+
+/// Every job of a run (or of this shard's part of it), sorted by id.
 pub struct Plan {
     pub out: PathBuf,
+    pub shard: Option<ShardPlan>,
     pub entries: Vec<Entry>,
     pub invalid: Vec<InvalidJob>,
     /// The manifest found in the output directory, by job id (empty when there was none).
@@ -112,12 +126,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     if files.is_empty() {
         return Err(Error::NoJobFiles { inputs: inputs.to_vec() });
     }
-    let set = job::read_all(&files);
+    let mut set = job::read_all(&files);
+    let shard = opts.shard.map(|s| keep_shard(&mut set, s));
     let mut invalid = set.invalid;
-    let previous: BTreeMap<String, JobRecord> = match Manifest::load(&opts.out.join(manifest::FILE_NAME)) {
-        Ok(m) => m.jobs.into_iter().map(|j| (j.id.clone(), j)).collect(),
-        Err(_) => BTreeMap::new(),
-    };
+    let previous = previous_records(&opts.out);
 
     // Decode every distinct sample once.
     let mut sample_paths: Vec<PathBuf> = set.jobs.iter().map(|j| j.sample.clone()).collect();
@@ -147,7 +159,58 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         entries.push(Entry { job, sample, content_key, record, action });
     }
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
-    Ok(Plan { out: opts.out.clone(), entries, invalid, previous })
+    Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous })
+}
+
+/// Keeps the jobs [`shard::assign`] gives to `s`, from the whole set's ids and costs.
+fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
+    let mut all: Vec<(&str, u64)> = set
+        .jobs
+        .iter()
+        .map(|j| (j.id.as_str(), u64::from(j.output.width) * u64::from(j.output.height) * shard::method_cost(j.method.name())))
+        .chain(set.invalid.iter().map(|i| (i.id.as_str(), 1)))
+        .collect();
+    all.sort();
+    let ids: Vec<&str> = all.iter().map(|j| j.0).collect();
+    let plan = ShardPlan { shard: s, plan_jobs: all.len(), plan_digest: Digest::of_json(&serde_json::json!(ids)) };
+    let owner: BTreeMap<String, usize> = all.iter().map(|j| j.0.to_string()).zip(shard::assign(&all, s.count)).collect();
+    set.jobs.retain(|j| owner[&j.id] == s.index);
+    set.invalid.retain(|i| owner[&i.id] == s.index);
+    plan
+}
+
+/// What the output directory already records: its manifest and any shard fragments, by job id
+/// (for an id recorded twice, the more recently finished record). Unreadable files count as
+/// absent: the jobs they described simply run again.
+pub fn previous_records(out: &Path) -> BTreeMap<String, JobRecord> {
+    let mut files = vec![out.join(manifest::FILE_NAME)];
+    if let Ok(entries) = std::fs::read_dir(out) {
+        let mut fragments: Vec<PathBuf> = entries.flatten().map(|e| e.path()).filter(|p| is_fragment(p)).collect();
+        fragments.sort();
+        files.extend(fragments);
+    }
+    let mut records: BTreeMap<String, JobRecord> = BTreeMap::new();
+    for f in files {
+        let Ok(m) = Manifest::load(&f) else { continue };
+        for j in m.jobs {
+            let finished = |r: &JobRecord| r.timing.as_ref().map_or(0, |t| t.finished_at);
+            match records.get(&j.id) {
+                Some(old) if finished(old) >= finished(&j) => {}
+                _ => {
+                    records.insert(j.id.clone(), j);
+                }
+            }
+        }
+    }
+    records
+}
+
+/// Whether `path` is named like a shard's manifest fragment (`manifest.shard-I-of-N.json`).
+pub fn is_fragment(path: &Path) -> bool {
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else { return false };
+    let Some(mid) = name.strip_prefix("manifest.shard-").and_then(|r| r.strip_suffix(".json")) else { return false };
+    let Some((i, n)) = mid.split_once("-of-") else { return false };
+    i.parse::<usize>().is_ok() && n.parse::<usize>().is_ok()
 }
 
 /// The record of a job's inputs, and its content key.

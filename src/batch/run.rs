@@ -8,7 +8,8 @@
 //! recognised as up to date by their content key and the hash of their output file.
 
 use crate::batch::execute::execute;
-use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, Status, Timing};
+use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
+use crate::batch::shard::Shard;
 pub use crate::batch::observer::Summary;
 use crate::batch::observer::{Event, Observer};
 use crate::batch::outdir::OutDir;
@@ -33,6 +34,9 @@ pub struct RunOptions {
     pub reverse: bool,
     /// Set from a signal handler: no new job starts once it is set.
     pub interrupt: Option<std::sync::Arc<AtomicBool>>,
+    /// Run only this worker's part and record it in its own manifest fragment
+    /// (`manifest.shard-I-of-N.json`), for `texsyn merge` to join.
+    pub shard: Option<Shard>,
 }
 
 impl RunOptions {
@@ -41,7 +45,7 @@ impl RunOptions {
     }
 
     fn plan_options(&self) -> PlanOptions {
-        PlanOptions { out: self.out.clone(), force: self.force }
+        PlanOptions { out: self.out.clone(), force: self.force, shard: self.shard }
     }
 }
 
@@ -60,7 +64,8 @@ pub fn plan_only(inputs: &[PathBuf], opts: &RunOptions) -> Result<Plan, Error> {
 /// `Err` means the run could not start at all (no job files, directory locked or not creatable).
 pub fn run(inputs: &[PathBuf], opts: &RunOptions, observer: &dyn Observer) -> Result<Summary, Error> {
     let started = Instant::now();
-    let out = OutDir::open(&opts.out)?;
+    let part = opts.shard.map(|s| format!("shard-{}-of-{}", s.index, s.count));
+    let out = OutDir::open_part(&opts.out, part.as_deref())?;
     let pool = pool(opts.threads)?;
     let plan = pool.install(|| plan::plan(inputs, &opts.plan_options()))?;
     pool.install(|| execute_plan(plan, &out, opts, observer, started))
@@ -79,7 +84,8 @@ struct State {
 /// Executes a plan on the current rayon pool, recording every job in the manifest.
 fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Observer, started: Instant) -> Result<Summary, Error> {
     let started_at = now_unix();
-    let manifest_path = out.root().join(manifest::FILE_NAME);
+    let manifest_name = plan.shard.as_ref().map_or_else(|| manifest::FILE_NAME.to_string(), |s| s.shard.fragment_name());
+    let manifest_path = out.root().join(&manifest_name);
     for inv in &plan.invalid {
         observer.event(&Event::Invalid { id: &inv.id, errors: &inv.errors });
     }
@@ -96,9 +102,10 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         records.insert(inv.id.clone(), plan::invalid_record(inv, &plan.out));
     }
     // Earlier records of jobs not in this run stay (they still describe files in the directory),
-    // unless this run now writes their output path.
+    // unless this run now writes their output path. A shard's fragment holds its own jobs only.
     let this_run_outputs: BTreeSet<&str> = plan.entries.iter().map(|e| e.job.output.path.as_str()).collect();
-    for (id, rec) in &plan.previous {
+    let carried = if plan.shard.is_some() { BTreeMap::new() } else { plan.previous.clone() };
+    for (id, rec) in &carried {
         let in_plan = plan.entries.iter().any(|e| &e.job.id == id) || plan.invalid.iter().any(|j| &j.id == id);
         let clobbered = rec.outputs.iter().any(|o| this_run_outputs.contains(o.path.as_str()));
         if !in_plan && !clobbered {
@@ -108,6 +115,18 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
 
     let argv: Vec<String> = std::env::args().collect();
     let host = hostname();
+    let shard_facts = plan.shard.as_ref().map(|s| ShardFacts {
+        index: s.shard.index,
+        count: s.shard.count,
+        plan_jobs: s.plan_jobs,
+        plan_digest: s.plan_digest.clone(),
+        assigned: plan.entries.len() + plan.invalid.len(),
+        host: host.clone(),
+        scheduler: ["SLURM_ARRAY_JOB_ID", "SLURM_ARRAY_TASK_ID", "SLURM_JOB_ID", "JOB_COMPLETION_INDEX"]
+            .iter()
+            .filter_map(|k| std::env::var(k).ok().map(|v| (k.to_string(), v)))
+            .collect(),
+    });
     let threads = rayon::current_num_threads();
     let facts = |summary: &Summary, in_progress: bool| RunFacts {
         started_at,
@@ -121,9 +140,11 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         failed: summary.failed,
         invalid: summary.invalid,
         in_progress,
+        shard: shard_facts.clone(),
+        merged_from: Vec::new(),
     };
     let summary = Summary { invalid: plan.invalid.len(), up_to_date: plan.up_to_date(), ..Summary::default() };
-    write_manifest(out, &records, facts(&summary, true))?;
+    write_manifest(out, &manifest_name, &records, facts(&summary, true))?;
     let state = Mutex::new(State { records, summary, last_write: Instant::now() - Duration::from_secs(10) });
 
     let mut to_run: Vec<_> = plan.to_run().collect();
@@ -170,7 +191,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         s.records.insert(rec.id.clone(), rec);
         if s.last_write.elapsed() >= Duration::from_millis(250) {
             s.last_write = Instant::now();
-            if let Err(e) = write_manifest(out, &s.records, facts(&s.summary, true)) {
+            if let Err(e) = write_manifest(out, &manifest_name, &s.records, facts(&s.summary, true)) {
                 observer.event(&Event::Warning(format!("cannot write the manifest yet: {e}")));
             }
         }
@@ -178,14 +199,14 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     let mut s = state.into_inner().expect("state");
     s.summary.interrupted = interrupted.load(Ordering::SeqCst);
     s.summary.wall_seconds = started.elapsed().as_secs_f64();
-    write_manifest(out, &s.records, facts(&s.summary, false))?;
+    write_manifest(out, &manifest_name, &s.records, facts(&s.summary, false))?;
     observer.event(&Event::Done { summary: &s.summary, manifest: &manifest_path });
     Ok(s.summary)
 }
 
-fn write_manifest(out: &OutDir, records: &BTreeMap<String, JobRecord>, facts: RunFacts) -> Result<(), Error> {
+fn write_manifest(out: &OutDir, name: &str, records: &BTreeMap<String, JobRecord>, facts: RunFacts) -> Result<(), Error> {
     let m = Manifest::new(records.values().cloned().collect(), facts);
-    crate::batch::outdir::write_atomic(&out.root().join(manifest::FILE_NAME), &m.to_bytes())
+    out.write(name, &m.to_bytes()).map(|_| ())
 }
 
 fn hostname() -> String {

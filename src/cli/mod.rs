@@ -11,10 +11,12 @@
 mod eval;
 mod golden;
 mod lattice;
+mod merge;
 mod methods;
 mod progress;
 mod report;
 mod run;
+mod slurm;
 mod tiles;
 mod verify;
 
@@ -42,6 +44,12 @@ enum Command {
     /// Run job files and directories (searched recursively for *.toml).
     #[command(after_help = EXIT_CODES)]
     Run(run::Args),
+    /// Join the manifest fragments of a run split with `--shard` into one manifest (exit 1, listing
+    /// them, when jobs failed or are missing; the merged manifest is written all the same).
+    Merge(merge::Args),
+    /// Print (or with --submit, submit) a Slurm job array running a job directory in N shards,
+    /// plus a merge job that depends on it with afterany.
+    Slurm(slurm::Args),
     /// Re-run every recorded job from a manifest alone and compare pixel digests.
     #[command(after_help = EXIT_CODES)]
     Verify(verify::Args),
@@ -90,6 +98,8 @@ pub fn main() -> ExitCode {
     texsyn::batch::execute::install_panic_hook();
     let result = match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Merge(args) => merge::run(args),
+        Command::Slurm(args) => slurm::run(args),
         Command::Verify(args) => verify::run(args),
         Command::Golden(cmd) => golden::run(cmd),
         Command::Methods => methods::run(),

@@ -9,6 +9,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use texsyn::batch::manifest::Status;
 use texsyn::batch::observer::{Event, Observer};
+use texsyn::batch::shard::Shard;
 
 enum Mode {
     /// Created when the plan says how many jobs will run.
@@ -20,6 +21,8 @@ enum Mode {
 
 pub struct Progress {
     mode: Mode,
+    /// On a cluster, every line says which shard wrote it (logs of many tasks get mixed).
+    shard: Option<Shard>,
     /// Jobs to run, finished, failed.
     counts: Mutex<(usize, usize, usize)>,
     started: Instant,
@@ -27,7 +30,7 @@ pub struct Progress {
 
 impl Progress {
     /// JSON if asked, nothing if quiet, a bar when stderr is a terminal, else plain lines.
-    pub fn new(json: bool, quiet: bool) -> Progress {
+    pub fn new(json: bool, quiet: bool, shard: Option<Shard>) -> Progress {
         let mode = if json {
             Mode::Json
         } else if quiet {
@@ -37,11 +40,15 @@ impl Progress {
         } else {
             Mode::Lines { last: Mutex::new(Instant::now()), every: Duration::from_secs(5) }
         };
-        Progress { mode, counts: Mutex::new((0, 0, 0)), started: Instant::now() }
+        Progress { mode, shard, counts: Mutex::new((0, 0, 0)), started: Instant::now() }
     }
 
     /// A human message on stderr, kept clear of the progress bar (none in JSON mode).
     fn message(&self, text: &str) {
+        let text = &match self.shard {
+            Some(s) => format!("[shard {s}] {text}"),
+            None => text.to_string(),
+        };
         match &self.mode {
             Mode::Bar(bar) => match bar.lock().expect("progress lock").as_ref() {
                 Some(b) => b.println(text),
@@ -52,8 +59,11 @@ impl Progress {
         }
     }
 
-    fn json(&self, value: serde_json::Value) {
+    fn json(&self, mut value: serde_json::Value) {
         if let Mode::Json = self.mode {
+            if let (Some(s), Some(obj)) = (self.shard, value.as_object_mut()) {
+                obj.insert("shard".into(), serde_json::json!({"index": s.index, "count": s.count}));
+            }
             say(value);
         }
     }
@@ -106,7 +116,8 @@ impl Observer for Progress {
                         let mut last = last.lock().expect("progress lock");
                         if last.elapsed() >= *every || done == total {
                             *last = Instant::now();
-                            eprintln!("texsyn: {done}/{total} jobs done ({failures} failed), {:.1}s", self.started.elapsed().as_secs_f64());
+                            let shard = self.shard.map(|s| format!(" [shard {s}]")).unwrap_or_default();
+                            eprintln!("texsyn{shard}: {done}/{total} jobs done ({failures} failed), {:.1}s", self.started.elapsed().as_secs_f64());
                         }
                     }
                     _ => {}

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use texsyn::Error;
 use texsyn::batch::run::{self as batch_run, RunOptions};
+use texsyn::batch::shard::Shard;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -32,6 +33,11 @@ pub struct Args {
     /// No progress output (errors and the summary are still printed).
     #[arg(short, long)]
     quiet: bool,
+    /// Run only part I (0-based) of N of the job set and write the fragment
+    /// manifest.shard-I-of-N.json (join fragments with `texsyn merge`). `auto` reads the index from
+    /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX with TEXSYN_SHARD_COUNT.
+    #[arg(long, value_name = "I/N|auto")]
+    shard: Option<String>,
     /// Take jobs in reverse order (for testing order independence).
     #[arg(long, hide = true)]
     reverse: bool,
@@ -41,7 +47,12 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     if args.jobs == Some(0) {
         return Err(Error::Usage("--jobs must be at least 1".into()));
     }
-    let mut opts = RunOptions { out: args.out.clone(), threads: args.jobs, force: args.force, reverse: args.reverse, interrupt: None };
+    let shard = match args.shard.as_deref() {
+        None => None,
+        Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok())?),
+        Some(s) => Some(Shard::parse(s)?),
+    };
+    let mut opts = RunOptions { out: args.out.clone(), threads: args.jobs, force: args.force, reverse: args.reverse, interrupt: None, shard };
     if args.dry_run {
         return dry_run(&args, &opts);
     }
@@ -56,18 +67,20 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         });
     }
     opts.interrupt = Some(interrupt);
-    let progress = Progress::new(args.json, args.quiet);
+    let progress = Progress::new(args.json, args.quiet, shard);
     let s = batch_run::run(&args.inputs, &opts, &progress)?;
+    let manifest = shard.map_or_else(|| texsyn::batch::manifest::FILE_NAME.to_string(), |s| s.fragment_name());
     if !args.json {
         eprintln!(
-            "texsyn: ran {}, up to date {}, failed {}, invalid {}{} in {:.1}s; manifest: {}",
+            "texsyn{}: ran {}, up to date {}, failed {}, invalid {}{} in {:.1}s; manifest: {}",
+            shard.map(|s| format!(" [shard {s}]")).unwrap_or_default(),
             s.ran,
             s.up_to_date,
             s.failed,
             s.invalid,
             if s.interrupted { " (interrupted)" } else { "" },
             s.wall_seconds,
-            args.out.join(texsyn::batch::manifest::FILE_NAME).display()
+            args.out.join(manifest).display()
         );
     }
     Ok(if s.interrupted {
@@ -83,7 +96,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
 fn dry_run(args: &Args, opts: &RunOptions) -> Result<Outcome, Error> {
     let started = std::time::Instant::now();
     let plan = batch_run::plan_only(&args.inputs, opts)?;
-    let progress = Progress::new(args.json, args.quiet);
+    let progress = Progress::new(args.json, args.quiet, opts.shard);
     for inv in &plan.invalid {
         texsyn::batch::observer::Observer::event(&progress, &texsyn::batch::observer::Event::Invalid { id: &inv.id, errors: &inv.errors });
     }
