@@ -220,7 +220,39 @@ impl Manifest {
         if m.format != FORMAT {
             return Err(Error::manifest(path, format!("unsupported manifest format `{}` (expected {FORMAT})", m.format)));
         }
+        m.check().map_err(|reason| Error::manifest(path, reason))?;
         Ok(m)
+    }
+
+    /// Problems that make a manifest unusable, found before anything acts on it: a job id recorded
+    /// twice, two jobs claiming one output file, an output path that leaves the output directory.
+    pub fn check(&self) -> Result<(), String> {
+        let mut ids = std::collections::BTreeSet::new();
+        let mut dup_ids = std::collections::BTreeSet::new();
+        for j in &self.jobs {
+            if !ids.insert(j.id.as_str()) {
+                dup_ids.insert(j.id.as_str());
+            }
+        }
+        if !dup_ids.is_empty() {
+            let n = dup_ids.len();
+            let some: Vec<&str> = dup_ids.into_iter().take(5).collect();
+            return Err(format!("{n} job id(s) are recorded more than once (e.g. `{}`); a manifest lists each job once", some.join("`, `")));
+        }
+        let mut owner: std::collections::BTreeMap<&str, &str> = std::collections::BTreeMap::new();
+        for j in &self.jobs {
+            for o in &j.outputs {
+                if !is_inside(&o.path) {
+                    return Err(format!("job `{}` records the output `{}`, which is not a path inside the output directory", j.id, o.path));
+                }
+                if let Some(other) = owner.insert(o.path.as_str(), j.id.as_str())
+                    && other != j.id
+                {
+                    return Err(format!("jobs `{other}` and `{}` both record the output `{}`", j.id, o.path));
+                }
+            }
+        }
+        Ok(())
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
@@ -260,6 +292,11 @@ pub fn content_key(method: &str, algorithm_version: u32, params: &Value, seed: u
         "sample_pixels": sample_pixels,
         "output": output_spec,
     }))
+}
+
+/// Whether a recorded output path is relative, `/`-separated and stays inside its directory.
+fn is_inside(path: &str) -> bool {
+    !path.is_empty() && !path.starts_with('/') && !path.contains('\\') && path.split('/').all(|c| !c.is_empty() && c != "." && c != "..")
 }
 
 /// `path` relative to `base` when it lies under it (or reachable with `..`), `/`-separated;
@@ -316,6 +353,35 @@ mod tests {
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 2.0, finished_at: 5 }),
+        }
+    }
+
+    fn with_output(mut r: JobRecord, path: &str) -> JobRecord {
+        let d = Digest::of_bytes(path.as_bytes());
+        r.outputs.push(OutputRecord { path: path.into(), format: "png".into(), bit_depth: 8, width: 1, height: 1, file_digest: d.clone(), pixel_digest: d });
+        r
+    }
+
+    #[test]
+    fn manifests_with_duplicate_ids_shared_outputs_or_escaping_paths_are_refused_on_load() {
+        let dir = std::env::temp_dir().join(format!("texsyn-manifest-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("manifest.json");
+        let load = |jobs: Vec<JobRecord>| {
+            // Written as texsyn would, but with the problem in it.
+            let m = Manifest { format: FORMAT.into(), tool: Tool::current(), deterministic_digest: Digest::of_bytes(b""), jobs, run: RunFacts::default() };
+            std::fs::write(&path, m.to_bytes()).unwrap();
+            Manifest::load(&path).map(|_| ()).map_err(|e| e.to_string())
+        };
+        assert!(load(vec![with_output(record("a", Status::Ok), "a.png"), with_output(record("b", Status::Ok), "b.png")]).is_ok());
+        let many: Vec<JobRecord> = (0..200).flat_map(|_| [record("a", Status::Ok), record("b", Status::Ok)]).collect();
+        let e = load(many).unwrap_err();
+        assert!(e.contains("2 job id(s) are recorded more than once") && e.contains("manifest.json"), "{e}");
+        let e = load(vec![with_output(record("a", Status::Ok), "x.png"), with_output(record("b", Status::Ok), "x.png")]).unwrap_err();
+        assert!(e.contains("jobs `a` and `b` both record the output `x.png`"), "{e}");
+        for bad in ["../x.png", "/etc/x.png", "a/../../x.png", "a//x.png", ""] {
+            let e = load(vec![with_output(record("a", Status::Ok), bad)]).unwrap_err();
+            assert!(e.contains("not a path inside the output directory"), "{bad}: {e}");
         }
     }
 
