@@ -347,6 +347,40 @@ mod tests {
     }
 
     #[test]
+    fn a_symlink_loop_or_a_dangling_link_as_sample_is_named_as_such() {
+        let d = tmpdir("links");
+        std::os::unix::fs::symlink(d.join("loop_b.png"), d.join("loop_a.png")).unwrap();
+        std::os::unix::fs::symlink(d.join("loop_a.png"), d.join("loop_b.png")).unwrap();
+        std::os::unix::fs::symlink(d.join("gone.png"), d.join("dangling.png")).unwrap();
+        let job = |sample: &str| format!("sample = \"{sample}\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"{sample}\"\nwidth = 8\nheight = 8\n");
+        let a = write(&d, "a.toml", &job("loop_a.png"));
+        let b = write(&d, "b.toml", &job("dangling.png"));
+        let plan = read_all(&[a, b]);
+        let text: Vec<String> = plan.invalid.iter().flat_map(|i| i.errors.iter().map(|e| e.to_string())).collect();
+        let all = text.join("\n");
+        assert!(all.contains("loop_a.png` is a symbolic link loop"), "{all}");
+        assert!(all.contains("dangling.png` is a symbolic link to nothing"), "{all}");
+    }
+
+    #[test]
+    fn a_huge_sweep_is_refused_before_it_is_expanded() {
+        let d = tmpdir("huge");
+        let f = write(
+            &d,
+            "huge.toml",
+            "sample = \"s.png\"\nmethod = \"quilting\"\n[output]\npath = \"q_{block}_{seed}.png\"\nwidth = 8\nheight = 8\n[sweep]\nseed = { from = 1, to = 100000 }\nblock = { from = 10, to = 109 }\n",
+        );
+        let started = std::time::Instant::now();
+        let plan = read_all(&[f]);
+        let all: Vec<String> = plan.invalid[0].errors.iter().map(|e| e.to_string()).collect();
+        let all = all.join("\n");
+        assert!(all.contains("expands to more than 100000 jobs") && all.contains("seed: 100000") && all.contains("block: 100"), "{all}");
+        // Not a timing assertion on the machine's speed: expanding 10^7 points takes seconds and
+        // gigabytes, counting them takes microseconds; a minute means the count was skipped.
+        assert!(started.elapsed().as_secs() < 60);
+    }
+
+    #[test]
     fn malformed_toml_names_line_and_column() {
         let d = tmpdir("toml");
         let f = write(&d, "m.toml", "sample = \"s.png\"\nmethod = quilting\n");

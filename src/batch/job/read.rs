@@ -165,7 +165,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         let base = ctx.file.path.parent().unwrap_or(Path::new(""));
         let p = base.join(s);
         if !p.is_file() {
-            let why = if p.exists() { "is not a file" } else { "does not exist" };
+            let why = missing_file_reason(&p);
             ctx.err(Some(span.clone()), Some("sample"), format!("sample `{}` {why} (paths are relative to the job file)", p.display()));
         } else {
             sample_path = Some(p);
@@ -289,3 +289,15 @@ fn check_output_format(ctx: &mut Ctx, raw: &Raw) -> Option<(Format, u8)> {
     }
 }
 
+
+/// Why `p` is not a readable file, in words.
+pub(super) fn missing_file_reason(p: &Path) -> &'static str {
+    /// Linux's ELOOP: too many levels of symbolic links.
+    const ELOOP: i32 = 40;
+    match std::fs::metadata(p) {
+        Ok(_) => "is not a file",
+        Err(e) if e.raw_os_error() == Some(ELOOP) => "is a symbolic link loop",
+        Err(_) if std::fs::symlink_metadata(p).is_ok() => "is a symbolic link to nothing",
+        Err(_) => "does not exist",
+    }
+}

@@ -65,12 +65,13 @@ pub(super) fn read_sweep(ctx: &mut Ctx, t: &DeTable, method: Option<&'static dyn
                 }
             }
         }
-        let mut seen = Vec::new();
+        // By the displayed value (what ids and paths are made of); linear, so a 100 000-value
+        // range is checked in milliseconds.
+        let mut seen = std::collections::HashSet::new();
         for (val, span) in &values {
-            if seen.contains(val) {
+            if !seen.insert(val.display()) {
                 ctx.err(Some(span.clone()), Some(&key), format!("value {} appears twice in the sweep", val.display()));
             }
-            seen.push(val.clone());
         }
         raw.sweep.push((name, values));
     }
@@ -111,6 +112,14 @@ fn read_range(t: &DeTable) -> Result<Vec<i64>, String> {
 /// Every point of the sweep as a job (one job for a file without `[sweep]`).
 pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
     let &Ready { method, ref sample, ref path_template, ref path_span, width, height, format, bit_depth, ref file_digest } = ready;
+
+    // Counted before it is expanded: a typo like `to = 1e9` times another list is refused at once.
+    let total = raw.sweep.iter().try_fold(1usize, |acc, (_, values)| acc.checked_mul(values.len()).filter(|n| *n <= MAX_SWEEP_POINTS));
+    if total.is_none() {
+        let sizes: Vec<String> = raw.sweep.iter().map(|(k, v)| format!("{k}: {}", v.len())).collect();
+        ctx.err(None, Some("sweep"), format!("the sweep expands to more than {MAX_SWEEP_POINTS} jobs ({})", sizes.join(" x ")));
+        return Vec::new();
+    }
 
     // Expand the sweep: the cartesian product of its lists, keys in sorted order.
     let mut points: Vec<Vec<(String, ParamValue)>> = vec![Vec::new()];
