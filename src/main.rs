@@ -403,6 +403,7 @@ fn main() -> ExitCode {
 fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u32>, height: Option<u32>, seed: Option<u64>, tiling: Option<&str>) -> Result<String, String> {
     use texsyn::image::io::{Encoding, Format};
     use texsyn::synth::methods::tiles::wang::TilingOrder;
+    use texsyn::synth::params::Choice;
     let loaded = texsyn::synth::methods::tiles::export::load(index)?;
     let ix = loaded.index();
     let (w, h) = (width.unwrap_or(ix.output[0]), height.unwrap_or(ix.output[1]));
@@ -411,7 +412,7 @@ fn render_tiles(index: &std::path::Path, out: &std::path::Path, width: Option<u3
         return Err(format!("--width and --height must be 1..={MAX_SIDE} (got {w}x{h})"));
     }
     let tiling = tiling.unwrap_or(&ix.tiling);
-    let order = TilingOrder::from_name(tiling).ok_or_else(|| format!("tiling `{tiling}` is not keyed or scanline"))?;
+    let order = TilingOrder::parse(tiling).ok_or_else(|| format!("tiling `{tiling}` is not keyed or scanline"))?;
     let format = Format::from_path(out).ok_or_else(|| format!("{}: the output must end in .png or .exr", out.display()))?;
     let seed = seed.unwrap_or(ix.seed);
     let started = std::time::Instant::now();
