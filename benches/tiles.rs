@@ -11,7 +11,8 @@ use std::path::Path;
 use std::time::Instant;
 use texsyn::RgbImage;
 use texsyn::image::io::{DecodeLimits, read_rgb8};
-use texsyn::synth::methods::tiles::rw_tiles::{self, PixelError};
+use texsyn::synth::methods::tiles::common::PixelError;
+use texsyn::synth::methods::tiles::rw_tiles;
 use texsyn::synth::methods::tiles::wang_tiles::{self, Cut};
 use texsyn::synth::method::Request;
 use texsyn::synth::methods::find;
@@ -35,8 +36,8 @@ fn rw(sample: &RgbImage, size: u32) -> (f64, f64) {
     let set = rw_tiles::build_tile_set(sample, 64, 8, TileSet::Minimal, PixelError::Squared, 1).unwrap();
     let build = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let tiling = rw_tiles::tile_output(&set, TilingOrder::Keyed, size, size, 1);
-    let img = rw_tiles::render(&set, &tiling, size, size);
+    let tiling = set.tile_output(TilingOrder::Keyed, size, size, 1);
+    let img = set.render(&tiling, size, size);
     let fill = t.elapsed().as_secs_f64();
     assert_eq!(img.width(), size);
     (build, fill)
@@ -47,8 +48,8 @@ fn wang(sample: &RgbImage, size: u32, cut: Cut) -> (f64, f64) {
     let set = wang_tiles::build_tile_set(sample, 64, 8, TileSet::Minimal, cut, PixelError::Squared, 1).unwrap();
     let build = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let tiling = wang_tiles::tile_output(&set, TilingOrder::Keyed, size, size, 1);
-    let img = wang_tiles::render(&set, &tiling, size, size);
+    let tiling = set.tile_output(TilingOrder::Keyed, size, size, 1);
+    let img = set.render(&tiling, size, size);
     let fill = t.elapsed().as_secs_f64();
     assert_eq!(img.width(), size);
     (build, fill)

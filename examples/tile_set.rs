@@ -11,7 +11,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 use texsyn::image::io::{self as imageio, DecodeLimits, Encoding, Format};
-use texsyn::synth::methods::tiles::rw_tiles::{self, PixelError};
+use texsyn::synth::methods::tiles::common::PixelError;
+use texsyn::synth::methods::tiles::rw_tiles;
 use texsyn::synth::methods::tiles::wang::{TileSet, TilingOrder};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -28,8 +29,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut images = Vec::new();
     for (name, w, h) in [("small", 300u32, 200u32), ("large", 2048, 2048)] {
         let started = Instant::now();
-        let tiling = rw_tiles::tile_output(&set, TilingOrder::Keyed, w, h, 7);
-        let image = rw_tiles::render(&set, &tiling, w, h);
+        let tiling = set.tile_output(TilingOrder::Keyed, w, h, 7);
+        let image = set.render(&tiling, w, h);
         println!("filled {w}x{h} in {:.1} ms (tile usage {:?})", started.elapsed().as_secs_f64() * 1e3, tiling.usage(set.set));
         let path = out_dir.join(format!("tile_set_{name}.png"));
         let encoded = imageio::encode(&image, Encoding { format: Format::Png, bit_depth: 8 })?;

@@ -6,6 +6,7 @@ use texsyn::Error;
 use texsyn::image::io::{Encoding, Format};
 use texsyn::synth::methods::tiles::export;
 use texsyn::synth::methods::tiles::wang::TilingOrder;
+use texsyn::synth::params::Choice;
 
 #[derive(clap::Subcommand)]
 pub enum Command {
@@ -44,7 +45,7 @@ pub fn run(cmd: Command) -> Result<Outcome, Error> {
         return Err(Error::Usage(format!("--width and --height must be 1..={MAX_SIDE} (got {w}x{h})")));
     }
     let tiling = tiling.as_deref().unwrap_or(&ix.tiling);
-    let order = TilingOrder::from_name(tiling).ok_or_else(|| Error::Usage(format!("tiling `{tiling}` is not keyed or scanline")))?;
+    let order = TilingOrder::parse(tiling).ok_or_else(|| Error::Usage(format!("tiling `{tiling}` is not keyed or scanline")))?;
     let format = Format::from_path(&out).ok_or_else(|| Error::Usage(format!("{}: the output must end in .png or .exr", out.display())))?;
     let seed = seed.unwrap_or(ix.seed);
     let started = std::time::Instant::now();

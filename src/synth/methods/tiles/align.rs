@@ -51,11 +51,11 @@
 //! residual the translate itself has zero error and is kept, so the output is exactly in phase.
 //! `patch_candidates` works on top: each candidate is another random first patch.
 
-use crate::synth::error::SynthError;
-use crate::synth::lattice::{LatticeOptions, extract};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
-use crate::synth::rng::Stream;
 use crate::image::RgbImage;
+use crate::synth::error::SynthError;
+use crate::synth::lattice::{GivenVectors, LatticeOptions, extract};
+use crate::synth::params::ParamError;
+use crate::synth::rng::Stream;
 
 pub type V = (i64, i64);
 
@@ -73,13 +73,14 @@ pub fn norm(a: V) -> f64 {
     (dot(a, a) as f64).sqrt()
 }
 
-/// Whether `align = "lattice"`.
-pub fn wanted(p: &Params) -> bool {
-    p.str_unchecked("align") == "lattice"
-}
-
-fn given(p: &Params) -> (V, V) {
-    ((p.int_unchecked("t1_x"), p.int_unchecked("t1_y")), (p.int_unchecked("t2_x"), p.int_unchecked("t2_y")))
+crate::choice! {
+    /// The `align` parameter of both tile methods.
+    pub enum Align {
+        /// The four patches at independent random positions (the paper).
+        None = "none",
+        /// The first patch at random, the others at lattice translates of their in-phase positions.
+        Lattice = "lattice",
+    }
 }
 
 /// The sample lattice used to align the patches.
@@ -115,22 +116,21 @@ impl Alignment {
         Ok(Alignment { t1, t2, source, reduced: (a, b) })
     }
 
-    /// From the params: `None` for `align = "none"`; the given `t1, t2`, or (all four zero) the
-    /// lattice extracted from the sample.
-    pub fn from_params(p: &Params, sample: &RgbImage) -> Result<Option<Alignment>, SynthError> {
-        if !wanted(p) {
+    /// For a job's `align` and `t1_x..t2_y`: `None` for `align = "none"`; the given `t1, t2`, or
+    /// (none given) the lattice extracted from the sample.
+    pub fn for_job(mode: Align, given: Option<GivenVectors>, sample: &RgbImage) -> Result<Option<Alignment>, SynthError> {
+        if mode == Align::None {
             return Ok(None);
         }
-        let (t1, t2) = given(p);
-        if t1 == (0, 0) && t2 == (0, 0) {
+        if let Some(v) = given {
+            Alignment::new(v.t1, v.t2, "given").map(Some)
+        } else {
             let l = extract(sample, &LatticeOptions::default()).map_err(|e| {
                 let e = e.to_string();
                 let why = e.strip_prefix("no lattice found; give t1/t2").unwrap_or(&e).trim();
                 SynthError::Sample(format!("align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}", if why.is_empty() { String::new() } else { format!(" {why}") }))
             })?;
             Alignment::new(l.t1, l.t2, "extracted").map(Some)
-        } else {
-            Alignment::new(t1, t2, "given").map(Some)
         }
     }
 
@@ -211,14 +211,6 @@ impl Alignment {
 
 /// How many first patches [`first_fitting`] draws before giving up.
 pub const FIRST_DRAWS: usize = 1000;
-
-/// `t1_x, t1_y, t2_x, t2_y`, shared by both tile methods (all 0: extract the lattice).
-pub const LATTICE_VECTOR_PARAMS: [ParamSpec; 4] = [
-    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x) for align = \"lattice\"; t1 = t2 = 0 (default) extracts the lattice from the sample" },
-    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
-    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
-    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
-];
 
 /// Draws first patches with `attempt` until one lets every other patch sit at a lattice translate
 /// inside the sample (on a sample only a little larger than the patches, some first positions
@@ -352,18 +344,19 @@ pub fn diagnostics(al: &Alignment, vectors: [V; 2], offset: V, errors: &[(&str, 
     })
 }
 
-/// Parameter checks shared by both tile methods.
-pub fn check(p: &Params, sample: (u32, u32)) -> Vec<ParamError> {
+/// Checks of `align` and `t1_x..t2_y` shared by both tile methods.
+pub fn check(mode: Align, given: Option<GivenVectors>, sample: (u32, u32)) -> Vec<ParamError> {
     let mut errors = Vec::new();
-    let (t1, t2) = given(p);
-    let is_given = t1 != (0, 0) || t2 != (0, 0);
-    if is_given && !wanted(p) {
+    let Some(GivenVectors { t1, t2 }) = given else {
+        return errors;
+    };
+    if mode != Align::Lattice {
         errors.push(ParamError::new("t1_x", "t1_x..t2_y are only used with align = \"lattice\"; set align = \"lattice\" or remove them"));
     }
-    if is_given && cross(t1, t2) == 0 {
+    if cross(t1, t2) == 0 {
         errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
     }
-    if is_given && (t1.0.abs() + t2.0.abs() > sample.0 as i64 || t1.1.abs() + t2.1.abs() > sample.1 as i64) {
+    if t1.0.abs() + t2.0.abs() > sample.0 as i64 || t1.1.abs() + t2.1.abs() > sample.1 as i64 {
         errors.push(ParamError::new("t1_x", format!("a lattice cell spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
     }
     errors

@@ -13,24 +13,19 @@
 //! `col·col_step + row·row_step + offset` in output pixels, and the opaque pixels of all placed
 //! tiles partition the plane. Edge colours follow B12: a tile's colour `a` equals the colour `c`
 //! of the tile one row up, and its `b` equals the `d` of the tile one column to the left.
+//!
+//! The export knows the built tile sets ([`super::wang_set`], [`super::rw_set`]) and not the
+//! methods: the methods call [`export_wang`] / [`export_rw`], never the reverse.
 
-use crate::image::io::{self as imageio, DecodeLimits};
-use crate::synth::params::{Default, ParamKind, ParamSpec};
-use crate::synth::methods::tiles::rw_tiles::{self, RwTile, RwTileSet};
-use crate::synth::methods::tiles::wang_tiles::{self, WangTile, WangTileSet};
-use crate::synth::method::{ExtraContent, ExtraOutput};
-use crate::synth::methods::tiles::wang::{TileSet, TilingOrder};
+use super::rw_set::{self, RwTile, RwTileSet};
+use super::wang::{TileSet, TilingOrder};
+use super::wang_set::{self, WangTile, WangTileSet};
 use crate::image::RgbImage;
+use crate::image::io::{self as imageio, DecodeLimits};
+use crate::synth::method::{ExtraContent, ExtraOutput};
+use crate::synth::params::Choice;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// The `export_tiles` parameter of both tile methods.
-pub const EXPORT_TILES_PARAM: ParamSpec = ParamSpec {
-    name: "export_tiles",
-    kind: ParamKind::Bool,
-    default: Default::Bool(false),
-    doc: "also write the tile set next to the output: one RGBA PNG per tile and index.json (edge colours, placement), in `{output}.tiles/`; `texsyn tiles render` renders any size from it",
-};
 
 /// The index's format tag; bumped on any incompatible change.
 pub const FORMAT: &str = "texsyn-tileset/1";
@@ -119,7 +114,7 @@ pub fn export_wang(set: &WangTileSet, order: TilingOrder, seed: u64, output: (u3
 }
 
 /// The rhombus's bounding box inside the `f × f` framework: `(x0, y0, width, height)`.
-fn rhombus_box(g: &rw_tiles::Geometry) -> (i32, i32, i32, i32) {
+fn rhombus_box(g: &rw_set::Geometry) -> (i32, i32, i32, i32) {
     let pts = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y));
     let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
     for (x, y) in pts {
@@ -193,8 +188,8 @@ impl Loaded {
     /// output size this is exactly the job's output.
     pub fn render(&self, width: u32, height: u32, seed: u64, order: TilingOrder) -> RgbImage {
         match self {
-            Loaded::Wang(_, set) => wang_tiles::render(set, &wang_tiles::tile_output(set, order, width, height, seed), width, height),
-            Loaded::Rw(_, set) => rw_tiles::render(set, &rw_tiles::tile_output(set, order, width, height, seed), width, height),
+            Loaded::Wang(_, set) => set.render(&set.tile_output(order, width, height, seed), width, height),
+            Loaded::Rw(_, set) => set.render(&set.tile_output(order, width, height, seed), width, height),
         }
     }
 }
@@ -209,7 +204,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
     if index.format != FORMAT {
         return Err(at(format!("format `{}` is not `{FORMAT}`; it was written by another texsyn version", index.format)));
     }
-    let set = TileSet::from_name(&index.tile_set).ok_or_else(|| at(format!("tile_set `{}` is not minimal or complete", index.tile_set)))?;
+    let set = TileSet::parse(&index.tile_set).ok_or_else(|| at(format!("tile_set `{}` is not minimal or complete", index.tile_set)))?;
     if index.tiles.len() != set.len() {
         return Err(at(format!("a {} set has {} tiles, the index lists {}", index.tile_set, set.len(), index.tiles.len())));
     }
@@ -240,7 +235,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
             if ov * 2 > tile {
                 return Err(at(format!("overlap {ov} is more than half the tile ({tile})")));
             }
-            let g = wang_tiles::Geometry::new(tile, ov);
+            let g = wang_set::Geometry::new(tile, ov);
             let mut tiles = Vec::new();
             for t in &index.tiles {
                 if (t.width, t.height) != (index.tile, index.tile) || t.offset != [0, 0] {
@@ -256,7 +251,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
             if 2 * ov + 4 > tile {
                 return Err(at(format!("overlap {ov} is too wide for tile {tile}")));
             }
-            let g = rw_tiles::Geometry::new(tile, ov);
+            let g = rw_set::Geometry::new(tile, ov);
             let (x0, y0, w, h) = rhombus_box(&g);
             let mut tiles = Vec::new();
             for t in &index.tiles {

@@ -14,17 +14,23 @@
 //!
 //! `align = "lattice"` (not in the paper) places the patches in phase on the sample's lattice so
 //! that near-regular patterns continue through the seams ([`RwAlign`], [`super::align`]).
+//!
+//! This module builds the tiles and is the method (its parameters as [`RwTilesConfig`]); the built
+//! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
-use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
-use crate::synth::error::SynthError;
-use crate::synth::method::{Method, Request, Synthesis};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
-use crate::synth::primitives::overlap::pixel_error;
-use crate::synth::primitives::shortest_path::{flood4, shortest_path};
-use crate::synth::methods::tiles::wang::{TileSet, Tiling, TilingOrder, tile_rect};
-use crate::synth::rng::Stream;
-use crate::image::seam_grid::{SeamBand, SeamGrid};
+use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::export::export_rw;
+use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
+use super::wang::{TileSet, TilingOrder};
 use crate::image::RgbImage;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+use crate::synth::error::SynthError;
+use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
+use crate::synth::primitives::shortest_path::{flood4, shortest_path};
+use crate::synth::rng::Stream;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -45,13 +51,13 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "tile_set",
-        kind: ParamKind::Choice(&["minimal", "complete"]),
+        kind: ParamKind::Choice(TileSet::NAMES),
         default: Default::Str("minimal"),
         doc: "minimal: the 8-tile parity set (paper); complete: all 16 edge colourings",
     },
     ParamSpec {
         name: "pixel_error",
-        kind: ParamKind::Choice(&["squared", "euclidean"]),
+        kind: ParamKind::Choice(PixelError::NAMES),
         default: Default::Str("squared"),
         doc: "per-pixel cut cost: squared RGB distance (eq. 3) or its square root (the paper's prose), in fixed point",
     },
@@ -63,176 +69,91 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "align",
-        kind: ParamKind::Choice(&["none", "lattice"]),
+        kind: ParamKind::Choice(Align::NAMES),
         default: Default::Str("none"),
         doc: "none: the four patches at independent random positions (paper); lattice: the first at random, the others at lattice translates of their in-phase positions, so the seams join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
     },
-    super::align::LATTICE_VECTOR_PARAMS[0],
-    super::align::LATTICE_VECTOR_PARAMS[1],
-    super::align::LATTICE_VECTOR_PARAMS[2],
-    super::align::LATTICE_VECTOR_PARAMS[3],
+    VECTOR_PARAMS[0],
+    VECTOR_PARAMS[1],
+    VECTOR_PARAMS[2],
+    VECTOR_PARAMS[3],
     ParamSpec {
         name: "tiling",
-        kind: ParamKind::Choice(&["keyed", "scanline"]),
+        kind: ParamKind::Choice(TilingOrder::NAMES),
         default: Default::Str("keyed"),
         doc: "keyed: per-row streams from the tile column of pixel (0,0), so pixels do not depend on the output size; scanline: one stream over the output's lattice range (methods.md 3.6 as written)",
     },
-    crate::synth::methods::tiles::export::EXPORT_TILES_PARAM,
+    EXPORT_TILES_PARAM,
 ];
 
-/// Per-pixel cut cost (B1, or its square root for `pixel_error = "euclidean"`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PixelError {
-    Squared,
-    /// `round(1024·sqrt(e))`: the Euclidean distance in fixed point with 10 fractional bits
-    /// (IEEE `sqrt` is correctly rounded, so this is exact and platform independent).
-    Euclidean,
+/// The parameters of `rw-tiles` (its `PARAMS` table) as Rust values: one field per parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RwTilesConfig {
+    /// `tile`: T, the rhombus' diagonals in pixels (even, 8..=4096).
+    pub tile: u32,
+    /// `overlap`: ov, the overlap of the four sub-blocks (even, 2..=2048, at most T/2 − 2).
+    pub overlap: u32,
+    /// `tile_set`: the 8-tile parity set or all 16 edge colourings.
+    pub tile_set: TileSet,
+    /// `pixel_error`: the per-pixel cut cost.
+    pub pixel_error: PixelError,
+    /// `patch_candidates`: how many random patch choices are built to keep the cheapest (1..=4096).
+    pub patch_candidates: u32,
+    /// `align`: independent random patches, or patches in phase on the sample's lattice.
+    pub align: Align,
+    /// `t1_x..t2_y`: the lattice for `align = "lattice"`; `None` extracts it from the sample.
+    pub lattice: Option<GivenVectors>,
+    /// `tiling`: how tile choices are keyed to random streams.
+    pub tiling: TilingOrder,
+    /// `export_tiles`: also write the tile set next to the output.
+    pub export_tiles: bool,
 }
 
-impl PixelError {
-    pub fn parse(name: &str) -> PixelError {
-        if name == "euclidean" { PixelError::Euclidean } else { PixelError::Squared }
-    }
-    #[inline]
-    pub fn eval(self, a: [u8; 3], b: [u8; 3]) -> u32 {
-        let e = pixel_error(a, b);
-        match self {
-            PixelError::Squared => e,
-            PixelError::Euclidean => ((e as f64).sqrt() * 1024.0).round() as u32,
+impl std::default::Default for RwTilesConfig {
+    fn default() -> Self {
+        RwTilesConfig {
+            tile: 64,
+            overlap: 8,
+            tile_set: TileSet::Minimal,
+            pixel_error: PixelError::Squared,
+            patch_candidates: 1,
+            align: Align::None,
+            lattice: None,
+            tiling: TilingOrder::Keyed,
+            export_tiles: false,
         }
     }
 }
 
-/// Geometry of one RW-tile's framework (§3.2): sub-block side `s`, overlap `ov`, `h = s − ov`,
-/// framework side `f = 2s − ov`, rhombus `R = {u0 ≤ x+y < u0+2h, w0 ≤ y−x < w0+2h}`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Geometry {
-    pub s: i32,
-    pub ov: i32,
-    pub h: i32,
-    pub f: i32,
-    pub u0: i32,
-    pub w0: i32,
-}
+impl MethodConfig for RwTilesConfig {
+    const METHOD: &'static str = "rw-tiles";
 
-/// Block numbers are 0-based here: `B1..B4` are 0..3.
-const UNSET: u8 = u8::MAX;
-
-impl Geometry {
-    /// From the tile size `T` (even) and the overlap `ov` (even): `s = T/2 + ov`.
-    pub fn new(tile: i32, ov: i32) -> Geometry {
-        let h = tile / 2;
-        let s = h + ov;
-        Geometry { s, ov, h, f: 2 * s - ov, u0: s - 1, w0: -h }
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut given = vec![
+            int("tile", self.tile),
+            int("overlap", self.overlap),
+            word("tile_set", self.tile_set),
+            word("pixel_error", self.pixel_error),
+            int("patch_candidates", self.patch_candidates),
+            word("align", self.align),
+        ];
+        given.extend(GivenVectors::to_params(self.lattice));
+        given.extend([word("tiling", self.tiling), boolean("export_tiles", self.export_tiles)]);
+        given
     }
 
-    pub fn tile(&self) -> i32 {
-        2 * self.h
-    }
-
-    #[inline]
-    pub fn in_r(&self, x: i32, y: i32) -> bool {
-        let (u, w) = (x + y, y - x);
-        u >= self.u0 && u < self.u0 + 2 * self.h && w >= self.w0 && w < self.w0 + 2 * self.h
-    }
-
-    /// Framework origin of block `k` (0-based, clockwise from the top left).
-    pub fn origin(&self, k: usize) -> (i32, i32) {
-        let h = self.h;
-        [(0, 0), (h, 0), (h, h), (0, h)][k]
-    }
-
-    /// The block a tile-edge pixel is locked to (§3.2), for pixels of `R`.
-    pub fn lock(&self, x: i32, y: i32) -> Option<usize> {
-        let (u, w) = (x + y, y - x);
-        let (u_last, w_last) = (self.u0 + 2 * self.h - 1, self.w0 + 2 * self.h - 1);
-        // The E vertex (on the NE and SE edges) goes to B2 and the W vertex (SW and NW) to B4,
-        // so test B2 before B3 and B4 before B1.
-        if w == self.w0 {
-            Some(1)
-        } else if w == w_last {
-            Some(3)
-        } else if u == self.u0 {
-            Some(0)
-        } else if u == u_last {
-            Some(2)
-        } else {
-            None
-        }
-    }
-
-    /// Class of a coordinate: 0 below `h`, 1 in `[h, s)`, 2 from `s` on.
-    #[inline]
-    fn class(&self, v: i32) -> usize {
-        if v < self.h {
-            0
-        } else if v < self.s {
-            1
-        } else {
-            2
-        }
-    }
-
-    /// The single block covering `(x, y)` when only one does.
-    fn single(&self, x: i32, y: i32) -> Option<usize> {
-        match (self.class(x), self.class(y)) {
-            (0, 0) => Some(0),
-            (2, 0) => Some(1),
-            (2, 2) => Some(2),
-            (0, 2) => Some(3),
-            _ => None,
-        }
-    }
-
-    #[inline]
-    fn idx(&self, x: i32, y: i32) -> usize {
-        (y * self.f + x) as usize
-    }
-}
-
-/// One built tile.
-#[derive(Clone, Debug)]
-pub struct RwTile {
-    /// Edge colours `[NW, NE, SE, SW]`.
-    pub colours: [u8; 4],
-    /// `f × f` RGB raster; only pixels of `R` are meaningful.
-    pub raster: Vec<u8>,
-    /// `f × f` block labels (0..3), `UNSET` outside `R`.
-    pub labels: Vec<u8>,
-    /// The centre block `k*` (0-based).
-    pub centre_block: usize,
-    /// Path costs of the four strip seams (N, E, S, W) and of the three centre pockets.
-    pub strip_costs: [u64; 4],
-    pub pocket_costs: Vec<u64>,
-}
-
-/// A built tile set.
-#[derive(Clone, Debug)]
-pub struct RwTileSet {
-    pub geometry: Geometry,
-    pub set: TileSet,
-    /// Patch corners: `PA[0], PA[1]` ("/" edges, NW and SE) and `PB[0], PB[1]` ("\" edges).
-    pub pa: [(u32, u32); 2],
-    pub pb: [(u32, u32); 2],
-    pub tiles: Vec<RwTile>,
-}
-
-/// Colours for block labels in [`RwTileSet::label_image`] (B1..B4, outside `R`).
-const LABEL_COLOURS: [[u8; 3]; 5] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [0, 0, 0]];
-
-impl RwTileSet {
-    /// Tile `k` as an image: its `f × f` framework with the pixels outside the rhombus black
-    /// (the building block for a tile-set export).
-    pub fn tile_image(&self, k: usize) -> RgbImage {
-        let f = self.geometry.f as u32;
-        RgbImage::from_raw(f, f, self.tiles[k].raster.clone()).expect("f × f raster")
-    }
-
-    /// Tile `k`'s block labels as colours (B1 red, B2 green, B3 blue, B4 yellow), for inspection.
-    pub fn label_image(&self, k: usize) -> RgbImage {
-        let f = self.geometry.f as u32;
-        let labels = &self.tiles[k].labels;
-        RgbImage::from_fn(f, f, |x, y| LABEL_COLOURS[(labels[(y * f + x) as usize] as usize).min(4)])
+    fn from_params(p: &Params) -> Result<Self, SynthError> {
+        Ok(RwTilesConfig {
+            tile: common::uint(p, "tile")?,
+            overlap: common::uint(p, "overlap")?,
+            tile_set: p.choice("tile_set")?,
+            pixel_error: p.choice("pixel_error")?,
+            patch_candidates: common::uint(p, "patch_candidates")?,
+            align: p.choice("align")?,
+            lattice: GivenVectors::from_params(p)?,
+            tiling: p.choice("tiling")?,
+            export_tiles: p.bool("export_tiles")?,
+        })
     }
 }
 
@@ -255,39 +176,6 @@ pub fn seam_cost(set: &RwTileSet) -> u64 {
     set.tiles.iter().map(|t| t.strip_costs.iter().sum::<u64>() + t.pocket_costs.iter().sum::<u64>()).sum()
 }
 
-/// Mean squared deviation from the mean colour (summed over R, G, B) of the `w × h` rectangle at
-/// `(x, y)`: its contrast, in the units of B1's pixel error. Exact integer sums.
-pub fn contrast(sample: &RgbImage, (x, y): (u32, u32), w: u32, h: u32) -> f64 {
-    let n = (w as u64 * h as u64) as f64;
-    let mut sum = [0u64; 3];
-    let mut sq = [0u64; 3];
-    for yy in y..y + h {
-        for xx in x..x + w {
-            let p = sample.get(xx, yy);
-            for c in 0..3 {
-                sum[c] += p[c] as u64;
-                sq[c] += p[c] as u64 * p[c] as u64;
-            }
-        }
-    }
-    (0..3).map(|c| sq[c] as f64 / n - (sum[c] as f64 / n) * (sum[c] as f64 / n)).sum()
-}
-
-/// Whether every patch of a candidate is representative for `patch_candidates`: its contrast is
-/// at least half the whole sample's. Without this rule the cheapest seams come from flat patches
-/// (nothing to cut through), which turns a brick wall into plain bricks.
-pub fn representative(sample: &RgbImage, corners: &[(u32, u32)], side: u32) -> bool {
-    let whole = contrast(sample, (0, 0), sample.width(), sample.height());
-    corners.iter().all(|&p| contrast(sample, p, side, side) >= 0.5 * whole)
-}
-
-/// The candidate kept by `patch_candidates`: the smallest seam cost among the representative
-/// candidates (all candidates if none is), ties to the earliest.
-pub fn pick_candidate(costs: &[u64], representative: &[bool]) -> usize {
-    let any = representative.iter().any(|&r| r);
-    (0..costs.len()).filter(|&c| !any || representative[c]).min_by_key(|&c| (costs[c], c)).expect("at least one candidate")
-}
-
 /// Builds the tile set from `candidates` patch choices and keeps the one chosen by
 /// [`pick_candidate`] [not in the paper: `patch_candidates`]. Candidate `c`'s four
 /// patches are draws `8c .. 8c + 8` of stream `rwtiles/patches` (in the order `PA[0], PA[1],
@@ -304,9 +192,6 @@ pub fn build_tile_set_searched(
 ) -> Result<(RwTileSet, usize), SynthError> {
     build_tile_set_aligned(sample, tile, ov, set, err, seed, candidates, None)
 }
-
-/// One candidate's patch corners: `([PA[0], PA[1]], [PB[0], PB[1]])`.
-type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
 
 /// `align = "lattice"` for RW-Tiles (phase analysis in [`super::align`]). Class A are the
 /// "/" patches `PA` (framework origins `(0, 0)` as B1, `(h, h)` as B3: translation `h(1, 1)`),
@@ -353,7 +238,7 @@ impl RwAlign {
     /// among the corners whose sub-block fits in the sample; then each `PB`, and after them `PA[1]`,
     /// is [`align::refine`]d against the other class's patches, in all the roles where they
     /// meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, SynthError> {
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Patches, SynthError> {
         let (lo, hi) = ((0, 0), ((sample.width() as i32 - g.s) as i64, (sample.height() as i32 - g.s) as i64));
         let h = g.h as i64;
         let pa0 = (first.0 as i64, first.1 as i64);
@@ -414,7 +299,7 @@ pub fn build_tile_set_aligned(
         let y = st.below((sh - g.s + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Result<Vec<Choice>, SynthError> = (0..candidates.max(1))
+    let choices: Result<Vec<Patches>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
             None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
             Some(al) => align::first_fitting(&al.lattice, || {
@@ -568,14 +453,13 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     ];
     let in_c = |x: i32, y: i32| x >= h && x < s && y >= h && y < s;
     let mut ae = [[0u64; 4]; 4];
+    const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
     for y in h..s {
         for x in h..s {
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    let e = err.eval(px(a, x, y), px(b, x, y)) as u64;
-                    ae[a][b] += e;
-                    ae[b][a] += e;
-                }
+            for (a, b) in PAIRS {
+                let e = err.eval(px(a, x, y), px(b, x, y)) as u64;
+                ae[a][b] += e;
+                ae[b][a] += e;
             }
         }
     }
@@ -657,55 +541,6 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs })
 }
 
-/// Lattice position `(i, j)` of output pixel `(X, Y)` and its framework coordinates (§3.6).
-#[inline]
-pub fn locate(g: &Geometry, x: i64, y: i64) -> ((i64, i64), (i32, i32)) {
-    let (h, h2) = (g.h as i64, 2 * g.h as i64);
-    let i = (x + y - g.u0 as i64).div_euclid(h2);
-    let j = (y - x - g.w0 as i64).div_euclid(h2);
-    ((i, j), ((x - h * (i - j)) as i32, (y - h * (i + j)) as i32))
-}
-
-/// The lattice range covering a `width × height` output with its top-left pixel at the origin.
-pub fn lattice_range(g: &Geometry, width: u32, height: u32) -> ((i64, i64), (i64, i64)) {
-    let corners = [(0i64, 0i64), (width as i64 - 1, 0), (0, height as i64 - 1), (width as i64 - 1, height as i64 - 1)];
-    let ij: Vec<(i64, i64)> = corners.iter().map(|&(x, y)| locate(g, x, y).0).collect();
-    let i = (ij.iter().map(|p| p.0).min().unwrap(), ij.iter().map(|p| p.0).max().unwrap());
-    let j = (ij.iter().map(|p| p.1).min().unwrap(), ij.iter().map(|p| p.1).max().unwrap());
-    (i, j)
-}
-
-/// Places the tiles for a `width × height` output (B12 on the rhombus lattice, §3.6).
-pub fn tile_output(set: &RwTileSet, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
-    let (i, j) = lattice_range(&set.geometry, width, height);
-    // Pixel (0, 0) lies in lattice column j = 0 (w0 = −h), the keyed order's anchor.
-    let anchor = locate(&set.geometry, 0, 0).0.1;
-    tile_rect(set.set, order, i, j, anchor, seed, "rwtiles/tiling")
-}
-
-/// Renders the output by copying runs of tile rows (§3.6); rows are filled in parallel.
-pub fn render(set: &RwTileSet, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
-    let g = set.geometry;
-    let (f, h2) = (g.f as usize, 2 * g.h as i64);
-    let mut out = RgbImage::new(width, height);
-    let row_len = width as usize * 3;
-    out.as_raw_mut().par_chunks_mut(row_len).enumerate().for_each(|(y, row)| {
-        let y = y as i64;
-        let mut x = 0i64;
-        while x < width as i64 {
-            let ((i, j), (fx, fy)) = locate(&g, x, y);
-            let to_i = h2 - (x + y - g.u0 as i64).rem_euclid(h2);
-            let to_j = (y - x - g.w0 as i64).rem_euclid(h2) + 1;
-            let run = to_i.min(to_j).min(width as i64 - x) as usize;
-            let tile = &set.tiles[tiling.at(i, j)];
-            let src = (fy as usize * f + fx as usize) * 3;
-            row[x as usize * 3..(x as usize + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
-            x += run as i64;
-        }
-    });
-    out
-}
-
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
 pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
     let bands = |limit: u32| -> Vec<SeamBand> {
@@ -724,7 +559,7 @@ pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
 
 impl Method for RwTiles {
     fn name(&self) -> &'static str {
-        "rw-tiles"
+        RwTilesConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
@@ -737,8 +572,12 @@ impl Method for RwTiles {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let cfg = match RwTilesConfig::from_params(p) {
+            Ok(cfg) => cfg,
+            Err(e) => return vec![common::param_error(e)],
+        };
         let mut errors = Vec::new();
-        let (tile, ov) = (p.int_unchecked("tile"), p.int_unchecked("overlap"));
+        let (tile, ov) = (cfg.tile as i64, cfg.overlap as i64);
         if tile % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {tile} must be even (the rhombus' diagonals are 2·(sub-block − overlap))")));
         }
@@ -748,7 +587,7 @@ impl Method for RwTiles {
         if 2 * ov + 4 > tile {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for tile {tile}: use at most {}", (tile - 4) / 2)));
         }
-        errors.extend(align::check(p, sample));
+        errors.extend(align::check(cfg.align, cfg.lattice, sample));
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
         if s > smaller {
@@ -766,22 +605,20 @@ impl Method for RwTiles {
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let p = req.params;
-        let (tile, ov) = (p.int_unchecked("tile") as i32, p.int_unchecked("overlap") as i32);
+        let cfg = RwTilesConfig::from_params(req.params)?;
+        let (tile, ov) = (cfg.tile as i32, cfg.overlap as i32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
-        let set = TileSet::parse(p.str_unchecked("tile_set"));
-        let err = PixelError::parse(p.str_unchecked("pixel_error"));
-        let order = TilingOrder::parse(p.str_unchecked("tiling"));
+        let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
-        let candidates = p.int_unchecked("patch_candidates") as usize;
-        let align = Alignment::from_params(p, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
-        let (tiles, chosen) = build_tile_set_aligned(req.sample, tile, ov, set, err, req.seed, candidates, align.as_ref())?;
+        let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
+        let (tiles, chosen) =
+            build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
-        let image = render(&tiles, &tiling, req.width, req.height);
+        let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
+        let image = tiles.render(&tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -804,7 +641,7 @@ impl Method for RwTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
-            extras: if p.bool_unchecked("export_tiles") { crate::synth::methods::tiles::export::export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+            extras: if cfg.export_tiles { export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }
@@ -812,7 +649,8 @@ impl Method for RwTiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::params::{ParamValue, resolve};
+    use crate::synth::params::resolve;
+    use crate::synth::methods::tiles::rw_set::locate;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
@@ -822,40 +660,6 @@ mod tests {
     /// A textured sample whose every pixel is distinct, so a pixel's colour tells where it came from.
     fn coded(w: u32, h: u32) -> RgbImage {
         RgbImage::from_fn(w, h, |x, y| [x as u8, y as u8, ((x * 31 + y * 17) % 251) as u8])
-    }
-
-    #[test]
-    fn geometry_matches_the_spec_example() {
-        // s = 40, ov = 8: the rhombus spans x ∈ [4, 67], y ∈ [4, 66] and has 2h² pixels.
-        let g = Geometry::new(64, 8);
-        assert_eq!((g.s, g.h, g.f, g.u0, g.w0), (40, 32, 72, 39, -32));
-        let pts: Vec<(i32, i32)> = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y)).collect();
-        assert_eq!(pts.len(), 2 * 32 * 32);
-        assert_eq!(pts.iter().map(|p| p.0).min(), Some(4));
-        assert_eq!(pts.iter().map(|p| p.0).max(), Some(67));
-        assert_eq!(pts.iter().map(|p| p.1).min(), Some(4));
-        assert_eq!(pts.iter().map(|p| p.1).max(), Some(66));
-        // E vertex (67, 35) → B2, W vertex (4, 35) → B4.
-        assert_eq!(g.lock(67, 35), Some(1));
-        assert_eq!(g.lock(4, 35), Some(3));
-        // Every pixel of R is covered by the block it is locked to.
-        for &(x, y) in &pts {
-            if let Some(k) = g.lock(x, y) {
-                let (ox, oy) = g.origin(k);
-                assert!(x >= ox && x < ox + g.s && y >= oy && y < oy + g.s);
-            }
-        }
-    }
-
-    #[test]
-    fn every_output_pixel_maps_into_r() {
-        let g = Geometry::new(20, 4);
-        for y in -30..60i64 {
-            for x in -30..60i64 {
-                let ((i, j), (fx, fy)) = locate(&g, x, y);
-                assert!(g.in_r(fx, fy), "({x},{y}) → tile ({i},{j}) at ({fx},{fy})");
-            }
-        }
     }
 
     /// For every tile pixel, which patch (0..3: PA0, PA1, PB0, PB1) and which patch coordinates.
@@ -878,7 +682,7 @@ mod tests {
         let sample = coded(120, 110);
         for set_kind in [TileSet::Minimal, TileSet::Complete] {
             let set = build_tile_set(&sample, 24, 4, set_kind, PixelError::Squared, 5).unwrap();
-            let tiling = tile_output(&set, TilingOrder::Keyed, 150, 130, 5);
+            let tiling = set.tile_output(TilingOrder::Keyed, 150, 130, 5);
             assert_eq!(tiling.violations(set_kind), 0);
             let g = set.geometry;
             let mut checked = 0;
@@ -1066,5 +870,48 @@ mod tests {
         let sg = seam_grid(&g, 100, 70);
         assert_eq!(sg.columns, vec![SeamBand { start: 1, len: 8 }, SeamBand { start: 32, len: 9 }, SeamBand { start: 64, len: 9 }, SeamBand { start: 96, len: 4 }]);
         assert_eq!(sg.rows.len(), 3);
+    }
+
+    #[test]
+    fn the_default_config_is_the_tables_defaults() {
+        let cfg = RwTilesConfig::default();
+        assert_eq!(resolve(PARAMS, &cfg.to_params()).unwrap(), resolve(PARAMS, &[]).unwrap());
+        assert_eq!(RwTilesConfig::from_params(&resolve(PARAMS, &[]).unwrap()).unwrap(), cfg);
+    }
+
+    #[test]
+    fn a_config_round_trips_through_the_table() {
+        let cfg = RwTilesConfig {
+            tile: 48,
+            overlap: 6,
+            tile_set: TileSet::Complete,
+            pixel_error: PixelError::Euclidean,
+            patch_candidates: 5,
+            align: Align::Lattice,
+            lattice: Some(GivenVectors { t1: (16, 0), t2: (8, 16) }),
+            tiling: TilingOrder::Scanline,
+            export_tiles: true,
+        };
+        let d = RwTilesConfig::default();
+        assert!(
+            cfg.tile != d.tile
+                && cfg.overlap != d.overlap
+                && cfg.tile_set != d.tile_set
+                && cfg.pixel_error != d.pixel_error
+                && cfg.patch_candidates != d.patch_candidates
+                && cfg.align != d.align
+                && cfg.lattice != d.lattice
+                && cfg.tiling != d.tiling
+                && cfg.export_tiles != d.export_tiles,
+            "every field differs from its default"
+        );
+        let p = resolve(PARAMS, &cfg.to_params()).unwrap();
+        assert_eq!(RwTilesConfig::from_params(&p).unwrap(), cfg);
+        assert!(RwTiles.check(&p, (128, 128), (64, 64)).is_empty());
+        // A table and a reader that disagree are an error naming the key, also from `check`.
+        let mut bad = p.clone();
+        bad.0.insert("tiling".into(), ParamValue::Str("spiral".into()));
+        assert!(matches!(RwTilesConfig::from_params(&bad), Err(SynthError::Param { ref key, .. }) if key == "tiling"));
+        assert_eq!(RwTiles.check(&bad, (128, 128), (64, 64))[0].key, "tiling");
     }
 }

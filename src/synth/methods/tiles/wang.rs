@@ -9,38 +9,18 @@
 
 use crate::synth::rng::Stream;
 
-/// Which tiles exist.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TileSet {
-    /// The 8 tiles with `a ⊕ b ⊕ c ⊕ d = 0`; index `a·4 + b·2 + c`, `d = a ⊕ b ⊕ c`.
-    Minimal,
-    /// All 16 colourings; index `a·8 + b·4 + c·2 + d`.
-    Complete,
+crate::choice! {
+    /// Which tiles exist (the `tile_set` parameter of both tile methods, and an export's
+    /// `tile_set`).
+    pub enum TileSet {
+        /// The 8 tiles with `a ⊕ b ⊕ c ⊕ d = 0`; index `a·4 + b·2 + c`, `d = a ⊕ b ⊕ c`.
+        Minimal = "minimal",
+        /// All 16 colourings; index `a·8 + b·4 + c·2 + d`.
+        Complete = "complete",
+    }
 }
 
 impl TileSet {
-    /// The set a validated `tile_set` parameter names.
-    pub fn parse(name: &str) -> TileSet {
-        TileSet::from_name(name).unwrap_or(TileSet::Minimal)
-    }
-
-    /// `minimal` or `complete`; `None` for anything else.
-    pub fn from_name(name: &str) -> Option<TileSet> {
-        match name {
-            "minimal" => Some(TileSet::Minimal),
-            "complete" => Some(TileSet::Complete),
-            _ => None,
-        }
-    }
-
-    /// The parameter value naming this set.
-    pub fn name(&self) -> &'static str {
-        match self {
-            TileSet::Minimal => "minimal",
-            TileSet::Complete => "complete",
-        }
-    }
-
     pub fn len(&self) -> usize {
         match self {
             TileSet::Minimal => 8,
@@ -81,40 +61,18 @@ impl TileSet {
     }
 }
 
-/// How tile choices are keyed to random streams.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TilingOrder {
-    /// Methods.md as written: one stream `label`, rows outer, columns inner, over the whole
-    /// requested range; a tile's choice depends on the range (so on the output size).
-    Scanline,
-    /// Keyed by position: row `r` draws from `label/r={r}` for columns `anchor, anchor+1, …` and
-    /// from `label/r={r}/back` for `anchor−1, anchor−2, …`, so a tile's choice depends only on
-    /// the tiles between it and the anchor column and above it: any range containing it (with the
-    /// same first row and containing the anchor column) gives the same tile.
-    Keyed,
-}
-
-impl TilingOrder {
-    /// The order a validated `tiling` parameter names.
-    pub fn parse(name: &str) -> TilingOrder {
-        TilingOrder::from_name(name).unwrap_or(TilingOrder::Keyed)
-    }
-
-    /// `keyed` or `scanline`; `None` for anything else.
-    pub fn from_name(name: &str) -> Option<TilingOrder> {
-        match name {
-            "keyed" => Some(TilingOrder::Keyed),
-            "scanline" => Some(TilingOrder::Scanline),
-            _ => None,
-        }
-    }
-
-    /// The parameter value naming this order.
-    pub fn name(&self) -> &'static str {
-        match self {
-            TilingOrder::Keyed => "keyed",
-            TilingOrder::Scanline => "scanline",
-        }
+crate::choice! {
+    /// How tile choices are keyed to random streams (the `tiling` parameter of both tile methods,
+    /// and an export's `tiling`).
+    pub enum TilingOrder {
+        /// Keyed by position: row `r` draws from `label/r={r}` for columns `anchor, anchor+1, …` and
+        /// from `label/r={r}/back` for `anchor−1, anchor−2, …`, so a tile's choice depends only on
+        /// the tiles between it and the anchor column and above it: any range containing it (with the
+        /// same first row and containing the anchor column) gives the same tile.
+        Keyed = "keyed",
+        /// Methods.md as written: one stream `label`, rows outer, columns inner, over the whole
+        /// requested range; a tile's choice depends on the range (so on the output size).
+        Scanline = "scanline",
     }
 }
 

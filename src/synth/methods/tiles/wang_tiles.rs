@@ -11,17 +11,24 @@
 //!
 //! `align = "lattice"` (not in the paper) places the diamonds in phase on the sample's lattice so
 //! that near-regular patterns continue through the cuts ([`WangAlign`], [`super::align`]).
+//!
+//! This module builds the tiles and is the method (its parameters as [`WangTilesConfig`]); the
+//! built set, its geometry and the filling live in [`super::wang_set`], shared with the tile-set
+//! export.
 
-use super::rw_tiles::{PixelError, pick_candidate, representative};
-use super::align::{self, Alignment, Overlap, V, best_offset, overlap_error};
-use crate::synth::error::SynthError;
-use crate::synth::method::{Method, Request, Synthesis};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
-use crate::synth::primitives::shortest_path::{flood4, shortest_path};
-use crate::synth::methods::tiles::wang::{TileSet, Tiling, TilingOrder, tile_rect};
-use crate::synth::rng::Stream;
-use crate::image::seam_grid::{SeamBand, SeamGrid};
+use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::export::export_wang;
+use super::wang::{TileSet, TilingOrder};
+use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet};
 use crate::image::RgbImage;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
+use crate::synth::error::SynthError;
+use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
+use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
+use crate::synth::primitives::shortest_path::{flood4, shortest_path};
+use crate::synth::rng::Stream;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -42,19 +49,19 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "cut",
-        kind: ParamKind::Choice(&["dp", "shortest_path"]),
+        kind: ParamKind::Choice(Cut::NAMES),
         default: Default::Str("dp"),
         doc: "dp: quilting DP staircase from each tile corner to the centre (Cohen / paper 001); shortest_path: B4 Dijkstra (ablation)",
     },
     ParamSpec {
         name: "tile_set",
-        kind: ParamKind::Choice(&["minimal", "complete"]),
+        kind: ParamKind::Choice(TileSet::NAMES),
         default: Default::Str("minimal"),
         doc: "minimal: the 8-tile parity set; complete: all 16 edge colourings",
     },
     ParamSpec {
         name: "pixel_error",
-        kind: ParamKind::Choice(&["squared", "euclidean"]),
+        kind: ParamKind::Choice(PixelError::NAMES),
         default: Default::Str("squared"),
         doc: "per-pixel cut cost: squared RGB distance or its square root (fixed point)",
     },
@@ -66,125 +73,111 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "align",
-        kind: ParamKind::Choice(&["none", "lattice"]),
+        kind: ParamKind::Choice(Align::NAMES),
         default: Default::Str("none"),
         doc: "none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
     },
-    super::align::LATTICE_VECTOR_PARAMS[0],
-    super::align::LATTICE_VECTOR_PARAMS[1],
-    super::align::LATTICE_VECTOR_PARAMS[2],
-    super::align::LATTICE_VECTOR_PARAMS[3],
+    VECTOR_PARAMS[0],
+    VECTOR_PARAMS[1],
+    VECTOR_PARAMS[2],
+    VECTOR_PARAMS[3],
     ParamSpec {
         name: "tiling",
-        kind: ParamKind::Choice(&["keyed", "scanline"]),
+        kind: ParamKind::Choice(TilingOrder::NAMES),
         default: Default::Str("keyed"),
         doc: "keyed: one stream per tile row, so pixels do not depend on the output size; scanline: one stream over all tiles (depends on the output width)",
     },
-    crate::synth::methods::tiles::export::EXPORT_TILES_PARAM,
+    EXPORT_TILES_PARAM,
 ];
 
-const UNSET: u8 = u8::MAX;
-const N: usize = 0;
-const E: usize = 1;
-const S: usize = 2;
-const W: usize = 3;
-
-/// Which cut stitches two diamonds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Cut {
-    Dp,
-    ShortestPath,
+crate::choice! {
+    /// Which cut stitches two diamonds (the `cut` parameter).
+    pub enum Cut {
+        /// The quilting DP staircase from each tile corner to the centre (Cohen / paper 001).
+        Dp = "dp",
+        /// B4's 8-neighbour shortest path (the ablation).
+        ShortestPath = "shortest_path",
+    }
 }
 
-/// Geometry of a Cohen tile: side `t`, overlap `ov`, diamond half-diagonal `a = t/2 + ov/2`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Geometry {
-    pub t: i32,
-    pub ov: i32,
-    pub a: i32,
+/// The parameters of `wang-tiles` (its `PARAMS` table) as Rust values: one field per parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WangTilesConfig {
+    /// `tile`: T, the side of the square tiles in pixels (even, 8..=4096).
+    pub tile: u32,
+    /// `overlap`: ov, how much the diamonds are enlarged (even, 2..=2048, at most T/2).
+    pub overlap: u32,
+    /// `cut`: how two diamonds are stitched.
+    pub cut: Cut,
+    /// `tile_set`: the 8-tile parity set or all 16 edge colourings.
+    pub tile_set: TileSet,
+    /// `pixel_error`: the per-pixel cut cost.
+    pub pixel_error: PixelError,
+    /// `patch_candidates`: how many random diamond choices are built to keep the cheapest (1..=4096).
+    pub patch_candidates: u32,
+    /// `align`: independent random diamonds, or diamonds in phase on the sample's lattice.
+    pub align: Align,
+    /// `t1_x..t2_y`: the lattice for `align = "lattice"`; `None` extracts it from the sample.
+    pub lattice: Option<GivenVectors>,
+    /// `tiling`: how tile choices are keyed to random streams.
+    pub tiling: TilingOrder,
+    /// `export_tiles`: also write the tile set next to the output.
+    pub export_tiles: bool,
 }
 
-impl Geometry {
-    pub fn new(t: i32, ov: i32) -> Geometry {
-        Geometry { t, ov, a: t / 2 + ov / 2 }
-    }
-
-    /// Tile coordinates of diamond `d`'s centre (the midpoint of edge N, E, S or W).
-    pub fn centre(&self, d: usize) -> (i32, i32) {
-        let (t, m) = (self.t, self.t / 2);
-        [(m, 0), (t, m), (m, t), (0, m)][d]
-    }
-
-    /// Whether pixel `(x, y)` (centre at `(x + ½, y + ½)`) lies in diamond `d`.
-    #[inline]
-    pub fn in_diamond(&self, d: usize, x: i32, y: i32) -> bool {
-        let (cx, cy) = self.centre(d);
-        (2 * x + 1 - 2 * cx).abs() + (2 * y + 1 - 2 * cy).abs() <= 2 * self.a
-    }
-
-    /// The diamond an edge pixel is locked to (corners to the clockwise-first edge).
-    pub fn lock(&self, x: i32, y: i32) -> Option<usize> {
-        let l = self.t - 1;
-        if y == 0 && x > 0 {
-            Some(N)
-        } else if x == l && y > 0 {
-            Some(E)
-        } else if y == l && x < l {
-            Some(S)
-        } else if x == 0 {
-            Some(W)
-        } else {
-            None
+impl std::default::Default for WangTilesConfig {
+    fn default() -> Self {
+        WangTilesConfig {
+            tile: 64,
+            overlap: 8,
+            cut: Cut::Dp,
+            tile_set: TileSet::Minimal,
+            pixel_error: PixelError::Squared,
+            patch_candidates: 1,
+            align: Align::None,
+            lattice: None,
+            tiling: TilingOrder::Keyed,
+            export_tiles: false,
         }
     }
+}
 
-    /// Tile corner where the cut between diamonds `k` and `k + 1` starts.
-    pub fn corner(&self, k: usize) -> (i32, i32) {
-        let l = self.t - 1;
-        [(l, 0), (l, l), (0, l), (0, 0)][k]
+impl MethodConfig for WangTilesConfig {
+    const METHOD: &'static str = "wang-tiles";
+
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut given = vec![
+            int("tile", self.tile),
+            int("overlap", self.overlap),
+            word("cut", self.cut),
+            word("tile_set", self.tile_set),
+            word("pixel_error", self.pixel_error),
+            int("patch_candidates", self.patch_candidates),
+            word("align", self.align),
+        ];
+        given.extend(GivenVectors::to_params(self.lattice));
+        given.extend([word("tiling", self.tiling), boolean("export_tiles", self.export_tiles)]);
+        given
+    }
+
+    fn from_params(p: &Params) -> Result<Self, SynthError> {
+        Ok(WangTilesConfig {
+            tile: common::uint(p, "tile")?,
+            overlap: common::uint(p, "overlap")?,
+            cut: p.choice("cut")?,
+            tile_set: p.choice("tile_set")?,
+            pixel_error: p.choice("pixel_error")?,
+            patch_candidates: common::uint(p, "patch_candidates")?,
+            align: p.choice("align")?,
+            lattice: GivenVectors::from_params(p)?,
+            tiling: p.choice("tiling")?,
+            export_tiles: p.bool("export_tiles")?,
+        })
     }
 }
 
-/// One built tile.
-#[derive(Clone, Debug)]
-pub struct WangTile {
-    /// Edge colours `[N, W, S, E]` (B12's `[a, b, c, d]`).
-    pub colours: [u8; 4],
-    /// `t × t` RGB raster.
-    pub raster: Vec<u8>,
-    /// `t × t` diamond labels (N, E, S, W = 0..3).
-    pub labels: Vec<u8>,
-    /// Sum of `E` over each cut's pixels (N|E, E|S, S|W, W|N).
-    pub cut_costs: [u64; 4],
-    /// Pixels no flood reached (labelled with the first covering diamond); 0 in practice.
-    pub fallback_pixels: usize,
-}
-
-/// A built tile set.
-#[derive(Clone, Debug)]
-pub struct WangTileSet {
-    pub geometry: Geometry,
-    pub set: TileSet,
-    /// Sample centres of the N/S diamonds (`DN[0], DN[1]`) and of the E/W diamonds.
-    pub dn: [(u32, u32); 2],
-    pub de: [(u32, u32); 2],
-    pub tiles: Vec<WangTile>,
-}
-
-impl WangTileSet {
-    /// Tile `k` as a `t × t` image (the building block for a tile-set export).
-    pub fn tile_image(&self, k: usize) -> RgbImage {
-        let t = self.geometry.t as u32;
-        RgbImage::from_raw(t, t, self.tiles[k].raster.clone()).expect("t × t raster")
-    }
-
-    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow), for inspection.
-    pub fn label_image(&self, k: usize) -> RgbImage {
-        const COLOURS: [[u8; 3]; 4] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40]];
-        let t = self.geometry.t as u32;
-        RgbImage::from_fn(t, t, |x, y| COLOURS[self.tiles[k].labels[(y * t + x) as usize] as usize])
-    }
-}
+/// Tile pixels no cut or flood has labelled yet.
+const UNSET: u8 = u8::MAX;
 
 /// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
 /// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
@@ -198,7 +191,7 @@ pub fn seam_cost(set: &WangTileSet) -> u64 {
 }
 
 /// Builds the tile set from `candidates` diamond choices (draws `8c .. 8c + 8` of `wang/patches`
-/// for candidate `c`) and keeps the one chosen by [`super::rw_tiles::pick_candidate`] (representative = every
+/// for candidate `c`) and keeps the one chosen by [`pick_candidate`] (representative = every
 /// diamond's bounding square has at least half the sample's contrast)
 /// [not in Cohen et al.: `patch_candidates`]. Returns the set and the chosen candidate's index.
 #[allow(clippy::too_many_arguments)]
@@ -214,9 +207,6 @@ pub fn build_tile_set_searched(
 ) -> Result<(WangTileSet, usize), SynthError> {
     build_tile_set_aligned(sample, t, ov, set, cut, err, seed, candidates, None)
 }
-
-/// One candidate's diamond centres: `([DN[0], DN[1]], [DE[0], DE[1]])`.
-type Choice = ([(u32, u32); 2], [(u32, u32); 2]);
 
 /// `align = "lattice"` for Wang tiles (phase analysis in [`super::align`]). Class A are the
 /// N/S diamonds (anchors `(m, 0)` as N, `(m, t)` as S: translation `(0, t)`), class B the E/W
@@ -258,7 +248,7 @@ impl WangAlign {
     /// each) among the centres whose diamond fits in the sample; then each `DE`, and after them
     /// `DN[1]`, is [`align::refine`]d against the other class's diamonds, in all the roles
     /// where they meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Choice, SynthError> {
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Patches, SynthError> {
         let (a, m) = (g.a as i64, (g.t / 2) as i64);
         let (lo, hi) = ((a, a), (sample.width() as i64 - a, sample.height() as i64 - a));
         let dn0 = (first.0 as i64, first.1 as i64);
@@ -319,7 +309,7 @@ pub fn build_tile_set_aligned(
         let y = g.a as u32 + st.below((sh - 2 * g.a + 1) as u64) as u32;
         (x, y)
     };
-    let choices: Result<Vec<Choice>, SynthError> = (0..candidates.max(1))
+    let choices: Result<Vec<Patches>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
             None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
             Some(al) => align::first_fitting(&al.lattice, || {
@@ -369,7 +359,7 @@ pub fn build_from_diamonds(
 /// DP staircase cut (§3.10) from `corner` to `centre` over `domain` (`t × t`, row-major).
 fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error: &[u32]) -> Option<Vec<usize>> {
     let (sx, sy) = ((centre.0 - corner.0).signum(), (centre.1 - corner.1).signum());
-    let (na, nb) = ((centre.0 - corner.0).abs() as usize + 1, (centre.1 - corner.1).abs() as usize + 1);
+    let (na, nb) = ((centre.0 - corner.0).unsigned_abs() as usize + 1, (centre.1 - corner.1).unsigned_abs() as usize + 1);
     let pix = |a: usize, b: usize| ((corner.1 + sy * b as i32) * t + corner.0 + sx * a as i32) as usize;
     let mut c = vec![u64::MAX; na * nb];
     for b in 0..nb {
@@ -429,7 +419,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     }
     let centre = (t / 2, t / 2);
     let mut cut_costs = [0u64; 4];
-    for k in 0..4 {
+    for (k, cut_cost) in cut_costs.iter_mut().enumerate() {
         let (d1, d2) = (k, (k + 1) % 4);
         let corner = g.corner(k);
         let mut domain = vec![false; n];
@@ -457,7 +447,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             }
         }
         .ok_or_else(|| SynthError::Failed(format!("no cut between diamonds {d1} and {d2}")))?;
-        cut_costs[k] = path.iter().map(|&p| error[p] as u64).sum();
+        *cut_cost = path.iter().map(|&p| error[p] as u64).sum();
         for &p in &path {
             is_cut[p] = true;
             if labels[p] == UNSET {
@@ -507,32 +497,6 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels })
 }
 
-/// Places the tiles for a `width × height` output (rows `0..`, columns `0..`, B12).
-pub fn tile_output(set: &WangTileSet, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
-    let t = set.geometry.t as i64;
-    let rows = (height as i64 - 1) / t;
-    let cols = (width as i64 - 1) / t;
-    tile_rect(set.set, order, (0, rows), (0, cols), 0, seed, "wang/tiling")
-}
-
-/// Renders by copying tile rows; output rows are filled in parallel.
-pub fn render(set: &WangTileSet, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
-    let t = set.geometry.t as usize;
-    let mut out = RgbImage::new(width, height);
-    out.as_raw_mut().par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
-        let (r, ty) = (y / t, y % t);
-        let mut x = 0usize;
-        while x < width as usize {
-            let run = (t - x % t).min(width as usize - x);
-            let tile = &set.tiles[tiling.at(r as i64, (x / t) as i64)];
-            let src = (ty * t + x % t) * 3;
-            row[x * 3..(x + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
-            x += run;
-        }
-    });
-    out
-}
-
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
 /// tile corners and where a tile-edge mismatch would show.
 pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
@@ -552,7 +516,7 @@ pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
 
 impl Method for WangTiles {
     fn name(&self) -> &'static str {
-        "wang-tiles"
+        WangTilesConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
@@ -565,8 +529,12 @@ impl Method for WangTiles {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
+        let cfg = match WangTilesConfig::from_params(p) {
+            Ok(cfg) => cfg,
+            Err(e) => return vec![common::param_error(e)],
+        };
         let mut errors = Vec::new();
-        let (t, ov) = (p.int_unchecked("tile"), p.int_unchecked("overlap"));
+        let (t, ov) = (cfg.tile as i64, cfg.overlap as i64);
         if t % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {t} must be even (the diamonds are centred on the edge midpoints)")));
         }
@@ -576,7 +544,7 @@ impl Method for WangTiles {
         if ov * 2 > t {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the tile ({t}); use at most {}", t / 2)));
         }
-        errors.extend(align::check(p, sample));
+        errors.extend(align::check(cfg.align, cfg.lattice, sample));
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
         if need > smaller {
@@ -594,23 +562,20 @@ impl Method for WangTiles {
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let p = req.params;
-        let (t, ov) = (p.int_unchecked("tile") as i32, p.int_unchecked("overlap") as i32);
+        let cfg = WangTilesConfig::from_params(req.params)?;
+        let (t, ov) = (cfg.tile as i32, cfg.overlap as i32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
             return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
-        let cut = if p.str_unchecked("cut") == "shortest_path" { Cut::ShortestPath } else { Cut::Dp };
-        let set = TileSet::parse(p.str_unchecked("tile_set"));
-        let err = PixelError::parse(p.str_unchecked("pixel_error"));
-        let order = TilingOrder::parse(p.str_unchecked("tiling"));
+        let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
-        let candidates = p.int_unchecked("patch_candidates") as usize;
-        let align = Alignment::from_params(p, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let (tiles, chosen) = build_tile_set_aligned(req.sample, t, ov, set, cut, err, req.seed, candidates, align.as_ref())?;
+        let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
+        let (tiles, chosen) =
+            build_tile_set_aligned(req.sample, t, ov, set, cfg.cut, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tile_output(&tiles, order, req.width, req.height, req.seed);
-        let image = render(&tiles, &tiling, req.width, req.height);
+        let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
+        let image = tiles.render(&tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -632,7 +597,7 @@ impl Method for WangTiles {
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
-            extras: if p.bool_unchecked("export_tiles") { crate::synth::methods::tiles::export::export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+            extras: if cfg.export_tiles { export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
         })
     }
 }
@@ -640,7 +605,7 @@ impl Method for WangTiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::params::{ParamValue, resolve};
+    use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
@@ -726,7 +691,7 @@ mod tests {
         let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4 }).unwrap().image;
         for y in 0..160u32 {
             for x in 0..200u32 {
-                let corner = |v: u32| v % 32 == 0 || v % 32 == 31;
+                let corner = |v: u32| v.is_multiple_of(32) || v % 32 == 31;
                 if corner(x) && corner(y) {
                     continue;
                 }
@@ -869,5 +834,50 @@ mod tests {
         assert_eq!(e.len(), 1);
         assert!(e[0].message.contains("larger than the sample"), "{}", e[0].message);
         assert!(WangTiles.check(&params(&[]), (128, 128), (8192, 8192)).is_empty());
+    }
+
+    #[test]
+    fn the_default_config_is_the_tables_defaults() {
+        let cfg = WangTilesConfig::default();
+        assert_eq!(resolve(PARAMS, &cfg.to_params()).unwrap(), resolve(PARAMS, &[]).unwrap());
+        assert_eq!(WangTilesConfig::from_params(&resolve(PARAMS, &[]).unwrap()).unwrap(), cfg);
+    }
+
+    #[test]
+    fn a_config_round_trips_through_the_table() {
+        let cfg = WangTilesConfig {
+            tile: 32,
+            overlap: 4,
+            cut: Cut::ShortestPath,
+            tile_set: TileSet::Complete,
+            pixel_error: PixelError::Euclidean,
+            patch_candidates: 5,
+            align: Align::Lattice,
+            lattice: Some(GivenVectors { t1: (16, 0), t2: (8, 16) }),
+            tiling: TilingOrder::Scanline,
+            export_tiles: true,
+        };
+        let d = WangTilesConfig::default();
+        assert!(
+            cfg.tile != d.tile
+                && cfg.overlap != d.overlap
+                && cfg.cut != d.cut
+                && cfg.tile_set != d.tile_set
+                && cfg.pixel_error != d.pixel_error
+                && cfg.patch_candidates != d.patch_candidates
+                && cfg.align != d.align
+                && cfg.lattice != d.lattice
+                && cfg.tiling != d.tiling
+                && cfg.export_tiles != d.export_tiles,
+            "every field differs from its default"
+        );
+        let p = resolve(PARAMS, &cfg.to_params()).unwrap();
+        assert_eq!(WangTilesConfig::from_params(&p).unwrap(), cfg);
+        assert!(WangTiles.check(&p, (128, 128), (64, 64)).is_empty());
+        // A table and a reader that disagree are an error naming the key, also from `check`.
+        let mut bad = p.clone();
+        bad.0.insert("cut".into(), ParamValue::Str("zigzag".into()));
+        assert!(matches!(WangTilesConfig::from_params(&bad), Err(SynthError::Param { ref key, .. }) if key == "cut"));
+        assert_eq!(WangTiles.check(&bad, (128, 128), (64, 64))[0].key, "cut");
     }
 }

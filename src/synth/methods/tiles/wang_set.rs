@@ -1,0 +1,132 @@
+//! A built Cohen (Wang) tile set: the square tile geometry, the tiles, and filling an output
+//! from them (placement on the square lattice and copying tile rows).
+//!
+//! `wang-tiles` builds such a set and the tile-set export ([`super::export`]) writes and reads
+//! it back; both render through [`WangTileSet::render`]. Keeping the set here, below both, is what
+//! lets the export render a loaded set without importing the method that imports the export.
+
+use super::wang::{TileSet, Tiling, TilingOrder, tile_rect};
+use crate::image::RgbImage;
+use rayon::prelude::*;
+
+/// Diamond (and edge) indices, clockwise from the top.
+pub const N: usize = 0;
+pub const E: usize = 1;
+pub const S: usize = 2;
+pub const W: usize = 3;
+
+/// Geometry of a Cohen tile: side `t`, overlap `ov`, diamond half-diagonal `a = t/2 + ov/2`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry {
+    pub t: i32,
+    pub ov: i32,
+    pub a: i32,
+}
+
+impl Geometry {
+    pub fn new(t: i32, ov: i32) -> Geometry {
+        Geometry { t, ov, a: t / 2 + ov / 2 }
+    }
+
+    /// Tile coordinates of diamond `d`'s centre (the midpoint of edge N, E, S or W).
+    pub fn centre(&self, d: usize) -> (i32, i32) {
+        let (t, m) = (self.t, self.t / 2);
+        [(m, 0), (t, m), (m, t), (0, m)][d]
+    }
+
+    /// Whether pixel `(x, y)` (centre at `(x + ½, y + ½)`) lies in diamond `d`.
+    #[inline]
+    pub fn in_diamond(&self, d: usize, x: i32, y: i32) -> bool {
+        let (cx, cy) = self.centre(d);
+        (2 * x + 1 - 2 * cx).abs() + (2 * y + 1 - 2 * cy).abs() <= 2 * self.a
+    }
+
+    /// The diamond an edge pixel is locked to (corners to the clockwise-first edge).
+    pub fn lock(&self, x: i32, y: i32) -> Option<usize> {
+        let l = self.t - 1;
+        if y == 0 && x > 0 {
+            Some(N)
+        } else if x == l && y > 0 {
+            Some(E)
+        } else if y == l && x < l {
+            Some(S)
+        } else if x == 0 {
+            Some(W)
+        } else {
+            None
+        }
+    }
+
+    /// Tile corner where the cut between diamonds `k` and `k + 1` starts.
+    pub fn corner(&self, k: usize) -> (i32, i32) {
+        let l = self.t - 1;
+        [(l, 0), (l, l), (0, l), (0, 0)][k]
+    }
+}
+
+/// One built tile.
+#[derive(Clone, Debug)]
+pub struct WangTile {
+    /// Edge colours `[N, W, S, E]` (B12's `[a, b, c, d]`).
+    pub colours: [u8; 4],
+    /// `t × t` RGB raster.
+    pub raster: Vec<u8>,
+    /// `t × t` diamond labels (N, E, S, W = 0..3).
+    pub labels: Vec<u8>,
+    /// Sum of `E` over each cut's pixels (N|E, E|S, S|W, W|N).
+    pub cut_costs: [u64; 4],
+    /// Pixels no flood reached (labelled with the first covering diamond); 0 in practice.
+    pub fallback_pixels: usize,
+}
+
+/// A built tile set.
+#[derive(Clone, Debug)]
+pub struct WangTileSet {
+    pub geometry: Geometry,
+    pub set: TileSet,
+    /// Sample centres of the N/S diamonds (`DN[0], DN[1]`) and of the E/W diamonds.
+    pub dn: [(u32, u32); 2],
+    pub de: [(u32, u32); 2],
+    pub tiles: Vec<WangTile>,
+}
+
+impl WangTileSet {
+    /// Tile `k` as a `t × t` image (the building block for a tile-set export).
+    pub fn tile_image(&self, k: usize) -> RgbImage {
+        let t = self.geometry.t as u32;
+        RgbImage::from_raw(t, t, self.tiles[k].raster.clone()).expect("t × t raster")
+    }
+
+    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow), for inspection.
+    pub fn label_image(&self, k: usize) -> RgbImage {
+        const COLOURS: [[u8; 3]; 4] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40]];
+        let t = self.geometry.t as u32;
+        RgbImage::from_fn(t, t, |x, y| COLOURS[self.tiles[k].labels[(y * t + x) as usize] as usize])
+    }
+
+    /// Places the tiles for a `width × height` output (rows `0..`, columns `0..`, B12).
+    pub fn tile_output(&self, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
+        let t = self.geometry.t as i64;
+        let rows = (height as i64 - 1) / t;
+        let cols = (width as i64 - 1) / t;
+        tile_rect(self.set, order, (0, rows), (0, cols), 0, seed, "wang/tiling")
+    }
+
+    /// Renders by copying tile rows; output rows are filled in parallel.
+    pub fn render(&self, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
+        let t = self.geometry.t as usize;
+        let mut out = RgbImage::new(width, height);
+        out.as_raw_mut().par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
+            let (r, ty) = (y / t, y % t);
+            let mut x = 0usize;
+            while x < width as usize {
+                let run = (t - x % t).min(width as usize - x);
+                let tile = &self.tiles[tiling.at(r as i64, (x / t) as i64)];
+                let src = (ty * t + x % t) * 3;
+                row[x * 3..(x + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
+                x += run;
+            }
+        });
+        out
+    }
+}
