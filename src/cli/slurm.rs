@@ -122,7 +122,9 @@ fn sbatch(args: &[&str]) -> Result<String, Error> {
         .output()
         .map_err(|e| Error::Usage(format!("cannot run sbatch ({e}); is Slurm installed on this machine? Without --submit the scripts are printed")))?;
     if !output.status.success() {
-        return Err(Error::Usage(format!("sbatch {} failed: {}", args.join(" "), String::from_utf8_lossy(&output.stderr).trim())));
+        let code = output.status.code().map_or("a signal".to_string(), |c| format!("status {c}"));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        return Err(Error::Usage(format!("sbatch {} ended with {code}{}", args.join(" "), if stderr.trim().is_empty() { String::new() } else { format!(": {}", stderr.trim()) })));
     }
     let text = String::from_utf8_lossy(&output.stdout);
     // --parsable prints `id` or `id;cluster`.
