@@ -1,4 +1,4 @@
-//! Paper 001's speed claim, measured in one run (methods.md §3.9, B13): from the 128×128 crops of
+//! Paper 001's speed claim, measured in one run (docs/methods.md §3.9, B13): from the 128×128 crops of
 //! `jobs/samples/crops/`, build 8 tiles of 64×64 and fill 1280×1280 (the paper: "under 2 s in
 //! total") and 8192×8192, for RW-Tiles and for Cohen's Wang tiles (DP and shortest-path cuts),
 //! on 1 and 2 threads; tile building and filling are timed separately. Image quilting (block 64,

@@ -1,5 +1,5 @@
 //! `texsyn lattice` on the bundled samples: the four structured samples have a lattice (the
-//! vectors methods.md §2.2's prototype found, in canonical form), the eight others do not, and
+//! vectors docs/methods.md §2.2's prototype found, in canonical form), the eight others do not, and
 //! the command says so with its exit code.
 
 use std::process::Command;

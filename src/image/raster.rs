@@ -1,7 +1,7 @@
 //! The one in-memory pixel representation every method works on.
 //!
 //! Samples are reduced to 8-bit RGB on decode (alpha dropped, 16-bit and float inputs quantised),
-//! so that colour errors are exact integers (methods.md §0) and so that a method never needs to
+//! so that colour errors are exact integers (docs/methods.md §0) and so that a method never needs to
 //! know what format the job asked for on output: bit depth and file format are chosen at encode
 //! time by `imageio`.
 
@@ -98,7 +98,7 @@ impl RgbImage {
         out
     }
 
-    /// Gray level `(R+G+B)/3` on unit scale, row-major (methods.md B6: gray is `I`, not luma).
+    /// Gray level `(R+G+B)/3` on unit scale, row-major (docs/methods.md B6: gray is `I`, not luma).
     pub fn gray_unit(&self) -> Vec<f64> {
         self.data
             .chunks_exact(3)

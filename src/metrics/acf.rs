@@ -1,4 +1,4 @@
-//! Autocorrelation by FFT with zero padding (methods.md B9).
+//! Autocorrelation by FFT with zero padding (docs/methods.md B9).
 //!
 //! For a plane `f` of `W × H` and offsets `|dx| ≤ Rx`, `|dy| ≤ Ry`:
 //!

@@ -1,4 +1,4 @@
-//! Histograms and the Kullback–Leibler divergence (methods.md B10, §5.6 items 1–2).
+//! Histograms and the Kullback–Leibler divergence (docs/methods.md B10, §5.6 items 1–2).
 
 use crate::image::RgbImage;
 

@@ -1,4 +1,4 @@
-//! Objective metrics between a sample and a synthesised output (methods.md §5.6, B9, B10).
+//! Objective metrics between a sample and a synthesised output (docs/methods.md §5.6, B9, B10).
 //!
 //! The four metrics of paper 003 (after Akl et al. 2018), lower is better for all of them:
 //! - `kl_gray`: KL divergence of the 256-bin gray-level histograms, `D_KL(sample‖output)`;

@@ -1,5 +1,5 @@
 //! Structure tensor, local orientation, coherence and the complex orientation field
-//! (methods.md B10, paper 003 eqs. 12–15).
+//! (docs/methods.md B10, paper 003 eqs. 12–15).
 //!
 //! Fixed evaluation order (so results are reproducible bit for bit):
 //! - `Ix`: `d = ½·(g[x+1] − g[x−1])` along `x`, then `¼·d[y−1] + ½·d[y] + ¼·d[y+1]` along `y`;

@@ -235,7 +235,7 @@ fn key_value(job: &JobRecord, k: &GroupKey) -> KeyValue {
 }
 
 /// How a method is shown to readers of a report: the job-file name, except that results of a
-/// baseline we had to reconstruct from an outline are marked as such (methods.md §2.11).
+/// baseline we had to reconstruct from an outline are marked as such (docs/methods.md §2.11).
 pub fn method_label(name: &str) -> String {
     match name {
         "tes" => "TES (reconstructed)".into(),

@@ -1,5 +1,5 @@
 //! Lattice extraction: the translation vectors `t1, t2` of a near-regular texture
-//! (methods.md §2.2, after Liu, Collins & Tsin's region-of-dominance peak selection).
+//! (docs/methods.md §2.2, after Liu, Collins & Tsin's region-of-dominance peak selection).
 //!
 //! Lattice-aware methods (co-evolution, TES) need the texel lattice of the sample. It is read off
 //! the autocorrelation of the gray plane: its dominant peaks, reduced to a short basis and checked
@@ -49,7 +49,7 @@ impl GivenVectors {
     }
 }
 
-/// Parameters of the extraction (methods.md §2.2 defaults).
+/// Parameters of the extraction (docs/methods.md §2.2 defaults).
 #[derive(Clone, Copy, Debug)]
 pub struct LatticeOptions {
     /// Dominant peaks kept (peaks come in ± pairs).

@@ -1,4 +1,4 @@
-//! Seeded random streams (methods.md B2).
+//! Seeded random streams (docs/methods.md B2).
 //!
 //! Every random draw in texsyn comes from a stream derived from the job seed and a stable ASCII
 //! label such as `"quilt/pick/bi=3/bj=5"`. Giving each purpose and each parallel work item its own

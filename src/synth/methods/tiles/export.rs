@@ -154,7 +154,7 @@ pub fn export_rw(set: &RwTileSet, order: TilingOrder, seed: u64, output: (u32, u
         tile: g.tile() as u32,
         overlap: g.ov as u32,
         lattice: "rhombus".into(),
-        // Lattice row i = the rhombus index along x + y, column j = along y − x (methods.md §3.6).
+        // Lattice row i = the rhombus index along x + y, column j = along y − x (docs/methods.md §3.6).
         col_step: [-half, half],
         row_step: [half, half],
         edges: ["NW", "NE", "SE", "SW"].map(String::from),

@@ -1,4 +1,4 @@
-//! RW-Tiles: rotational Wang tiles (paper 001; methods.md §3.2–3.9).
+//! RW-Tiles: rotational Wang tiles (paper 001; docs/methods.md §3.2–3.9).
 //!
 //! A small tile set is built once from four square patches of the sample, then any output is
 //! filled by copying rows of the stored tiles. A tile is a rhombus (a square standing on a vertex)
@@ -81,7 +81,7 @@ const PARAMS: &[ParamSpec] = &[
         name: "tiling",
         kind: ParamKind::Choice(TilingOrder::NAMES),
         default: Default::Str("keyed"),
-        doc: "keyed: per-row streams from the tile column of pixel (0,0), so pixels do not depend on the output size; scanline: one stream over the output's lattice range (methods.md 3.6 as written)",
+        doc: "keyed: per-row streams from the tile column of pixel (0,0), so pixels do not depend on the output size; scanline: one stream over the output's lattice range (docs/methods.md 3.6 as written)",
     },
     EXPORT_TILES_PARAM,
 ];

@@ -1,11 +1,11 @@
-//! Wang-tile edge colours and stochastic scanline tiling (Cohen et al. 2003; methods.md B12).
+//! Wang-tile edge colours and stochastic scanline tiling (Cohen et al. 2003; docs/methods.md B12).
 //!
 //! A tile carries four edge colours `[a, b, c, d]`: `a` and `b` are its *incoming* edges (shared
 //! with the tile before it in the row direction and in the column direction), `c` and `d` its
 //! *outgoing* edges. On a grid of tiles `(r, col)`, tile `(r, col)`'s `a` equals the `c` of tile
 //! `(r − 1, col)` and its `b` equals the `d` of tile `(r, col − 1)`. The Cohen baseline uses
 //! `[N, W, S, E]` on rows and columns; RW-Tiles use `[NW, NE, SE, SW]` on the rhombus lattice
-//! `(i, j)` (methods.md §3.5–3.6).
+//! `(i, j)` (docs/methods.md §3.5–3.6).
 
 use crate::synth::rng::Stream;
 

@@ -1,4 +1,4 @@
-//! Cohen et al. (2003) Wang tiles, the baseline of paper 001 (methods.md §3.10).
+//! Cohen et al. (2003) Wang tiles, the baseline of paper 001 (docs/methods.md §3.10).
 //!
 //! Square `T × T` tiles, two colours per edge class. Each edge colour is a *diamond* of the
 //! sample (half-diagonal `a = T/2 + ov/2`) centred on the tile edge's midpoint; the tile above (or
