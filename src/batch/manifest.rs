@@ -7,7 +7,7 @@
 //! `timing`, with status `up-to-date` counted as `ok`. Its digest is SHA-256 over RFC 8785
 //! canonical JSON, so it can be recomputed by any tool.
 
-use crate::digest::Digest;
+use crate::digest::{Digest, Hasher, canonical_json};
 use crate::error::Error;
 use crate::image::seam_grid::SeamGrid;
 use serde::{Deserialize, Serialize};
@@ -267,19 +267,27 @@ impl Manifest {
 }
 
 fn deterministic_digest(tool: &Tool, jobs: &[JobRecord]) -> Digest {
-    let projected: Vec<Value> = jobs
-        .iter()
-        .map(|j| {
-            let mut v = serde_json::to_value(j).expect("record serialises");
-            let obj = v.as_object_mut().expect("record is an object");
-            obj.remove("timing");
-            if j.status == Status::UpToDate {
-                obj.insert("status".into(), Value::String("ok".into()));
-            }
-            v
-        })
-        .collect();
-    Digest::of_json(&serde_json::json!({ "tool": tool, "jobs": projected }))
+    // The canonical JSON of `{"jobs": [...], "tool": {...}}` ("jobs" sorts before "tool"), fed to
+    // the hasher record by record: the same bytes as serialising the whole object at once, without
+    // holding it (a merged manifest of 100 000 jobs would need gigabytes).
+    let mut h = Hasher::new();
+    h.update(b"{\"jobs\":[");
+    for (i, j) in jobs.iter().enumerate() {
+        if i > 0 {
+            h.update(b",");
+        }
+        let mut v = serde_json::to_value(j).expect("record serialises");
+        let obj = v.as_object_mut().expect("record is an object");
+        obj.remove("timing");
+        if j.status == Status::UpToDate {
+            obj.insert("status".into(), Value::String("ok".into()));
+        }
+        h.update(canonical_json(&v).as_bytes());
+    }
+    h.update(b"],\"tool\":");
+    h.update(canonical_json(&serde_json::to_value(tool).expect("tool serialises")).as_bytes());
+    h.update(b"}");
+    h.finish()
 }
 
 /// The content key of a job: everything its pixels depend on, and its output spec.
@@ -383,6 +391,25 @@ mod tests {
             let e = load(vec![with_output(record("a", Status::Ok), bad)]).unwrap_err();
             assert!(e.contains("not a path inside the output directory"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn the_streamed_digest_is_the_digest_of_the_whole_canonical_object() {
+        let jobs = vec![record("a", Status::Ok), record("b", Status::UpToDate), with_output(record("c", Status::Failed), "c.png")];
+        let projected: Vec<Value> = jobs
+            .iter()
+            .map(|j| {
+                let mut v = serde_json::to_value(j).unwrap();
+                v.as_object_mut().unwrap().remove("timing");
+                if j.status == Status::UpToDate {
+                    v["status"] = Value::String("ok".into());
+                }
+                v
+            })
+            .collect();
+        let tool = Tool::current();
+        assert_eq!(deterministic_digest(&tool, &jobs), Digest::of_json(&serde_json::json!({"tool": tool, "jobs": projected})));
+        assert_eq!(deterministic_digest(&tool, &[]), Digest::of_json(&serde_json::json!({"tool": tool, "jobs": []})));
     }
 
     #[test]

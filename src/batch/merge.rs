@@ -85,20 +85,28 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
             return Err(Error::manifest(p, format!("was written by texsyn {} ({}), {} by {} ({})", m.tool.version, m.tool.commit, first_path.display(), first.tool.version, first.tool.commit)));
         }
     }
-    let count = first_facts.count;
 
     // Union by id; the same id twice must be the same record (timing aside).
-    let mut records: BTreeMap<String, (JobRecord, &Path)> = BTreeMap::new();
-    for (p, m, _) in &loaded {
-        for rec in &m.jobs {
+    let tool = first.tool.clone();
+    let count = first_facts.count;
+    let plan_digest = first_facts.plan_digest.clone();
+    let plan_jobs = first_facts.plan_jobs;
+    let mut runs: Vec<RunFacts> = Vec::with_capacity(loaded.len());
+    let mut records: BTreeMap<String, (JobRecord, usize)> = BTreeMap::new();
+    for (k, (p, m, _)) in loaded.into_iter().enumerate() {
+        // Records are moved, not copied: a merge of 100 000 jobs holds each once.
+        let Manifest { jobs, run, .. } = m;
+        runs.push(run);
+        for rec in jobs {
             match records.get(&rec.id) {
                 None => {
-                    records.insert(rec.id.clone(), (rec.clone(), p.as_path()));
+                    records.insert(rec.id.clone(), (rec, k));
                 }
-                Some((other, other_path)) => {
-                    if comparable(other) != comparable(rec) {
+                Some((other, other_k)) => {
+                    let other_path = &paths[*other_k];
+                    if comparable(other) != comparable(&rec) {
                         return Err(Error::manifest(
-                            p,
+                            &p,
                             format!("records job `{}` differently from {}; the fragments conflict, refusing to choose", rec.id, other_path.display()),
                         ));
                     }
@@ -107,20 +115,21 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
         }
     }
 
-    let present: Vec<usize> = loaded.iter().map(|(_, _, f)| f.index).collect();
+    let facts: Vec<ShardFacts> = runs.iter().filter_map(|r| r.shard.clone()).collect();
+    let present: std::collections::BTreeSet<usize> = facts.iter().map(|f| f.index).collect();
     let missing_shards: Vec<usize> = (0..count).filter(|i| !present.contains(i)).collect();
-    let unfinished_shards: Vec<usize> = loaded.iter().filter(|(_, m, _)| m.run.in_progress).map(|(_, _, f)| f.index).collect();
+    let unfinished_shards: Vec<usize> = runs.iter().filter(|r| r.in_progress).filter_map(|r| r.shard.as_ref().map(|f| f.index)).collect();
     let missing_jobs = match jobs {
         None => Vec::new(),
         Some(inputs) => {
             let set = job::read_all(&job::discover(inputs)?);
             let mut ids: Vec<String> = set.jobs.iter().map(|j| j.id.clone()).chain(set.invalid.iter().map(|i| i.id.clone())).collect();
             ids.sort();
-            if Digest::of_json(&serde_json::json!(ids)) != first_facts.plan_digest {
+            if Digest::of_json(&serde_json::json!(ids)) != plan_digest {
                 return Err(Error::Usage(format!(
                     "the job files given ({} jobs) are not the job set the fragments were planned from ({} jobs); pass the same inputs as to `texsyn run`",
                     ids.len(),
-                    first_facts.plan_jobs
+                    plan_jobs
                 )));
             }
             ids.into_iter().filter(|id| !records.contains_key(id)).collect()
@@ -134,7 +143,6 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
 
     let jobs: Vec<JobRecord> = records.into_values().map(|(r, _)| r).collect();
     let count_status = |s: Status| jobs.iter().filter(|j| j.status == s).count();
-    let runs: Vec<&RunFacts> = loaded.iter().map(|(_, m, _)| &m.run).collect();
     let started_at = runs.iter().map(|r| r.started_at).min().unwrap_or(0);
     let finished_at = runs.iter().map(|r| r.finished_at).max().unwrap_or(0);
     let run = RunFacts {
@@ -150,9 +158,9 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
         invalid: count_status(Status::Invalid),
         in_progress: false,
         shard: None,
-        merged_from: loaded.iter().map(|(_, _, f)| f.clone()).collect(),
+        merged_from: facts,
     };
-    let manifest = Manifest::with_tool(first.tool.clone(), jobs, run);
+    let manifest = Manifest::with_tool(tool, jobs, run);
     Ok(Merged { manifest, fragments: paths, missing_shards, unfinished_shards, missing_jobs, failed })
 }
 
