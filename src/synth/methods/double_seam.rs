@@ -10,7 +10,7 @@
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::BlockGrid;
 use crate::synth::primitives::color::HsiPlanes;
 use crate::synth::primitives::correlation::pearson_from;
@@ -29,7 +29,7 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
+            compute: |p| Some(ParamValue::Int(super::default_overlap(p.int("block").ok()?))),
         },
         doc: "virtual overlap g: grid stride is block − g (paper: 8 for B = 50, 17 for B = 100)",
     },
@@ -45,7 +45,7 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec { name: "mu", kind: ParamKind::Float { min: 0.0, max: 1.0e6 }, default: Default::Float(2.0), doc: "edge-mismatch penalty: F_i = D_HSI / (1 + mu·D_E)" },
     ParamSpec { name: "tau_f", kind: ParamKind::Float { min: -2.0, max: 2.0 }, default: Default::Float(1.6), doc: "candidates need F ≥ min(tau_f, F_max − eps_f)" },
     ParamSpec { name: "eps_f", kind: ParamKind::Float { min: 0.0, max: 4.0 }, default: Default::Float(0.05), doc: "near-best margin when no position reaches tau_f" },
-    ParamSpec { name: "hue_mode", kind: ParamKind::Choice(&["linear", "circular"]), default: Default::Str("linear"), doc: "linear: Pearson on H/360 (faithful); circular: circular correlation (hue is an angle)" },
+    ParamSpec { name: "hue_mode", kind: ParamKind::Choice(HueMode::NAMES), default: Default::Str("linear"), doc: "linear: Pearson on H/360 (faithful); circular: circular correlation (hue is an angle)" },
     ParamSpec { name: "clamp_negative", kind: ParamKind::Bool, default: Default::Bool(false), doc: "use max(D_HSI, 0) so a negative correlation is not softened by the edge term" },
     ParamSpec {
         name: "level_penalty",
@@ -54,6 +54,117 @@ const PARAMS: &[ParamSpec] = &[
         doc: "0 = faithful. Pearson ignores brightness offsets, so blocks of another tone pass as consistent and leave colour steps; > 0 subtracts level_penalty·|mean I difference| per line (try 10)",
     },
 ];
+
+crate::choice! {
+    /// How hue, an angle, is correlated (`hue_mode`).
+    pub enum HueMode {
+        /// Pearson correlation of H / 360, as in the paper.
+        Linear = "linear",
+        /// Circular correlation.
+        Circular = "circular",
+    }
+}
+
+/// Double-seam splicing's parameters, typed: one field per entry of its parameter table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DoubleSeamConfig {
+    /// `block`: block side B, in pixels (3..=4096, at most the sample's smaller side).
+    pub block: u32,
+    /// `overlap`: virtual overlap g, the grid stride being `block − g` (1..=2048, at most
+    /// block / 2); `None`: derived, `round(block / 6)`.
+    pub overlap: Option<u32>,
+    /// `aux_dist`: spacing of the auxiliary seam line from the true one (1..=overlap); `None`:
+    /// derived, equal to the overlap.
+    pub aux_dist: Option<u32>,
+    /// `alpha`: weight of the hue correlation (strictly between 0 and 1; alpha + beta + gamma = 1).
+    pub alpha: f64,
+    /// `beta`: weight of the saturation correlation.
+    pub beta: f64,
+    /// `gamma`: weight of the intensity correlation.
+    pub gamma: f64,
+    /// `mu`: edge-mismatch penalty, `F_i = D_HSI / (1 + mu·D_E)` (0..=1e6).
+    pub mu: f64,
+    /// `tau_f`: candidates need `F ≥ min(tau_f, F_max − eps_f)` (-2..=2).
+    pub tau_f: f64,
+    /// `eps_f`: near-best margin when no position reaches `tau_f` (0..=4).
+    pub eps_f: f64,
+    /// `hue_mode`: linear (faithful) or circular hue correlation.
+    pub hue_mode: HueMode,
+    /// `clamp_negative`: use `max(D_HSI, 0)`.
+    pub clamp_negative: bool,
+    /// `level_penalty`: subtract `level_penalty·|mean I difference|` per line; 0 is faithful (0..=1000).
+    pub level_penalty: f64,
+}
+
+impl std::default::Default for DoubleSeamConfig {
+    fn default() -> DoubleSeamConfig {
+        DoubleSeamConfig {
+            block: 50,
+            overlap: None,
+            aux_dist: None,
+            alpha: 0.25,
+            beta: 0.25,
+            gamma: 0.5,
+            mu: 2.0,
+            tau_f: 1.6,
+            eps_f: 0.05,
+            hue_mode: HueMode::Linear,
+            clamp_negative: false,
+            level_penalty: 0.0,
+        }
+    }
+}
+
+impl DoubleSeamConfig {
+    /// The virtual overlap: the given one, else the derived default `round(block / 6)`.
+    pub fn overlap_or_derived(&self) -> u32 {
+        self.overlap.unwrap_or_else(|| super::default_overlap(i64::from(self.block)) as u32)
+    }
+
+    /// The auxiliary line's spacing: the given one, else the derived default (the overlap).
+    pub fn aux_dist_or_derived(&self) -> u32 {
+        self.aux_dist.unwrap_or_else(|| self.overlap_or_derived())
+    }
+}
+
+impl MethodConfig for DoubleSeamConfig {
+    const METHOD: &'static str = "double-seam";
+
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut v = vec![params::int("block", self.block)];
+        v.extend(self.overlap.map(|o| params::int("overlap", o)));
+        v.extend(self.aux_dist.map(|a| params::int("aux_dist", a)));
+        v.extend([
+            params::float("alpha", self.alpha),
+            params::float("beta", self.beta),
+            params::float("gamma", self.gamma),
+            params::float("mu", self.mu),
+            params::float("tau_f", self.tau_f),
+            params::float("eps_f", self.eps_f),
+            params::word("hue_mode", self.hue_mode),
+            params::boolean("clamp_negative", self.clamp_negative),
+            params::float("level_penalty", self.level_penalty),
+        ]);
+        v
+    }
+
+    fn from_params(p: &Params) -> Result<DoubleSeamConfig, SynthError> {
+        Ok(DoubleSeamConfig {
+            block: super::uint(p, "block")?,
+            overlap: Some(super::uint(p, "overlap")?),
+            aux_dist: Some(super::uint(p, "aux_dist")?),
+            alpha: p.float("alpha")?,
+            beta: p.float("beta")?,
+            gamma: p.float("gamma")?,
+            mu: p.float("mu")?,
+            tau_f: p.float("tau_f")?,
+            eps_f: p.float("eps_f")?,
+            hue_mode: p.choice("hue_mode")?,
+            clamp_negative: p.bool("clamp_negative")?,
+            level_penalty: p.float("level_penalty")?,
+        })
+    }
+}
 
 /// Which neighbours a grid position has.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -89,6 +200,8 @@ struct Prepared<'a> {
 /// S and I (for circular hue: circular mean and Σ sin² instead), computed once per job and case.
 type LineStats = Vec<[f64; 6]>;
 
+/// The config in the form the scoring uses.
+#[derive(Debug, PartialEq)]
 struct Settings {
     block: i32,
     g: i32,
@@ -102,9 +215,27 @@ struct Settings {
     level_penalty: f64,
 }
 
+impl Settings {
+    fn of(cfg: &DoubleSeamConfig) -> Settings {
+        let (g, aux) = (i64::from(cfg.overlap_or_derived()), i64::from(cfg.aux_dist_or_derived()));
+        Settings {
+            block: cfg.block as i32,
+            g: g as i32,
+            a: (g - 1 - aux) as i32,
+            weights: [cfg.alpha, cfg.beta, cfg.gamma],
+            mu: cfg.mu,
+            tau: cfg.tau_f,
+            eps: cfg.eps_f,
+            circular: cfg.hue_mode == HueMode::Circular,
+            clamp: cfg.clamp_negative,
+            level_penalty: cfg.level_penalty,
+        }
+    }
+}
+
 impl Method for DoubleSeam {
     fn name(&self) -> &'static str {
-        "double-seam"
+        DoubleSeamConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
@@ -117,9 +248,13 @@ impl Method for DoubleSeam {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let (block, g, aux) = (p.int_unchecked("block"), p.int_unchecked("overlap"), p.int_unchecked("aux_dist"));
+        let cfg: DoubleSeamConfig = match super::read_config(p) {
+            Ok(c) => c,
+            Err(e) => return e,
+        };
+        let (block, g, aux) = (i64::from(cfg.block), i64::from(cfg.overlap_or_derived()), i64::from(cfg.aux_dist_or_derived()));
         let smaller = sample.0.min(sample.1) as i64;
-        let mut errors = super::check_block_and_overlap(block, g, sample);
+        let mut errors = super::check_block_and_overlap(cfg.block, cfg.overlap_or_derived(), sample);
         if aux > g {
             errors.push(ParamError::new("aux_dist", format!("aux_dist {aux} exceeds the overlap ({g}): the auxiliary line must lie in existing output")));
         }
@@ -130,13 +265,12 @@ impl Method for DoubleSeam {
                 format!("with aux_dist = overlap the auxiliary line needs the sample to be wider than the block ({block}); use aux_dist = {} or a smaller block", g - 1),
             ));
         }
-        for w in ["alpha", "beta", "gamma"] {
-            let v = p.float_unchecked(w);
+        for (w, v) in [("alpha", cfg.alpha), ("beta", cfg.beta), ("gamma", cfg.gamma)] {
             if v <= 0.0 || v >= 1.0 {
                 errors.push(ParamError::new(w, format!("{w} must be strictly between 0 and 1, got {v}")));
             }
         }
-        let sum = p.float_unchecked("alpha") + p.float_unchecked("beta") + p.float_unchecked("gamma");
+        let sum = cfg.alpha + cfg.beta + cfg.gamma;
         if (sum - 1.0).abs() > 1e-9 {
             errors.push(ParamError::new("alpha", format!("alpha + beta + gamma must be 1, got {sum}")));
         }
@@ -144,19 +278,7 @@ impl Method for DoubleSeam {
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let p = req.params;
-        let s = Settings {
-            block: p.int_unchecked("block") as i32,
-            g: p.int_unchecked("overlap") as i32,
-            a: (p.int_unchecked("overlap") - 1 - p.int_unchecked("aux_dist")) as i32,
-            weights: [p.float_unchecked("alpha"), p.float_unchecked("beta"), p.float_unchecked("gamma")],
-            mu: p.float_unchecked("mu"),
-            tau: p.float_unchecked("tau_f"),
-            eps: p.float_unchecked("eps_f"),
-            circular: p.str_unchecked("hue_mode") == "circular",
-            clamp: p.bool_unchecked("clamp_negative"),
-            level_penalty: p.float_unchecked("level_penalty"),
-        };
+        let s = Settings::of(&DoubleSeamConfig::from_params(req.params)?);
         let sample = req.sample;
         let (sw, sh) = (sample.width() as i32, sample.height() as i32);
         if s.block > sw || s.block > sh {
@@ -407,8 +529,8 @@ fn score_all(
                                 }
                             }
                             let e1 = o.edges[i];
-                            for l in 0..lanes {
-                                mism[l] += u32::from(e1 != prep.edges[b + l]);
+                            for (m, e2) in mism[..lanes].iter_mut().zip(&prep.edges[b..b + lanes]) {
+                                *m += u32::from(e1 != *e2);
                             }
                         }
                         for l in 0..lanes {
@@ -493,7 +615,8 @@ mod tests {
         let sample = structured();
         let p = params(&[("block", ParamValue::Int(24)), ("clamp_negative", ParamValue::Bool(false))]);
         let s = Settings { block: 24, g: 4, a: -1, weights: [0.25, 0.25, 0.5], mu: 2.0, tau: 1.6, eps: 0.05, circular: false, clamp: false, level_penalty: 0.0 };
-        assert_eq!(p.int_unchecked("overlap"), 4);
+        assert_eq!(p.int("overlap").unwrap(), 4);
+        assert_eq!(Settings::of(&DoubleSeamConfig::from_params(&p).unwrap()), s);
         let planes = HsiPlanes::of(&sample);
         let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
         let prep = Prepared { rgb: &sample, w: 96, planes, edges };
@@ -540,5 +663,55 @@ mod tests {
         assert!(keys.contains(&"block") && keys.contains(&"alpha"), "{keys:?}");
         let g: Vec<(String, ParamValue)> = vec![("mu".into(), ParamValue::Float(-1.0))];
         assert!(resolve(PARAMS, &g).unwrap_err()[0].message.contains("out of range"));
+    }
+
+    #[test]
+    fn default_config_is_the_table_defaults() {
+        let cfg = DoubleSeamConfig::default();
+        assert_eq!(resolve(PARAMS, &cfg.to_params()).unwrap(), resolve(PARAMS, &[]).unwrap());
+        let back = DoubleSeamConfig::from_params(&resolve(PARAMS, &[]).unwrap()).unwrap();
+        assert_eq!(back, DoubleSeamConfig { overlap: Some(8), aux_dist: Some(8), ..cfg.clone() });
+        assert_eq!(Settings::of(&back), Settings::of(&cfg));
+    }
+
+    #[test]
+    fn a_non_default_config_round_trips() {
+        let cfg = DoubleSeamConfig {
+            block: 40,
+            overlap: Some(9),
+            aux_dist: Some(6),
+            alpha: 0.2,
+            beta: 0.3,
+            gamma: 0.4,
+            mu: 1.5,
+            tau_f: 1.2,
+            eps_f: 0.1,
+            hue_mode: HueMode::Circular,
+            clamp_negative: true,
+            level_penalty: 10.0,
+        };
+        let d = DoubleSeamConfig::default();
+        assert!(cfg.block != d.block && cfg.overlap != d.overlap && cfg.aux_dist != d.aux_dist);
+        assert!(cfg.alpha != d.alpha && cfg.beta != d.beta && cfg.gamma != d.gamma && cfg.mu != d.mu);
+        assert!(cfg.tau_f != d.tau_f && cfg.eps_f != d.eps_f && cfg.hue_mode != d.hue_mode);
+        assert!(cfg.clamp_negative != d.clamp_negative && cfg.level_penalty != d.level_penalty);
+        let p = resolve(PARAMS, &cfg.to_params()).unwrap();
+        assert_eq!(DoubleSeamConfig::from_params(&p).unwrap(), cfg);
+        // aux_dist follows a given overlap when not set itself.
+        let derived = DoubleSeamConfig { aux_dist: None, ..cfg };
+        assert_eq!(resolve(PARAMS, &derived.to_params()).unwrap().int("aux_dist").unwrap(), 9);
+        assert_eq!(derived.aux_dist_or_derived(), 9);
+    }
+
+    #[test]
+    fn an_unknown_word_is_an_error_naming_its_key() {
+        let mut p = params(&[]);
+        p.0.insert("hue_mode".into(), ParamValue::Str("polar".into()));
+        let errs = DoubleSeam.check(&p, (128, 128), (100, 100));
+        assert_eq!(errs.len(), 1);
+        assert_eq!(errs[0].key, "hue_mode");
+        let s = structured();
+        let e = DoubleSeam.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1 }).unwrap_err();
+        assert!(matches!(&e, SynthError::Param { key, .. } if key == "hue_mode"), "{e}");
     }
 }

@@ -11,24 +11,72 @@ pub mod patch_sampling;
 pub mod quilting;
 pub mod tiles;
 
+use crate::image::RgbImage;
+use crate::synth::error::SynthError;
 use crate::synth::method::Method;
-use crate::synth::params::ParamError;
+use crate::synth::params::{MethodConfig, ParamError, Params};
+use crate::synth::primitives::overlap::Rect;
+use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
+
+crate::choice! {
+    /// How an exact exhaustive block search scores every sample position (quilting's `search`,
+    /// patch sampling's `engine`). Both give the same candidates, hence the same pixels.
+    pub enum Engine {
+        /// FFT correlation, then an exact integer re-check of the near-best positions.
+        Fft = "fft",
+        /// Brute-force SSD sums at every position.
+        Direct = "direct",
+    }
+}
+
+impl Engine {
+    /// The tolerance set of `search` for the block at `origin` of `canvas`, computed this way.
+    pub(crate) fn candidates(self, search: &mut OverlapSearch, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+        match self {
+            Engine::Fft => search.candidates(canvas, origin, regions, tolerance),
+            Engine::Direct => search.candidates_direct(canvas, origin, regions, tolerance),
+        }
+    }
+}
+
+/// The square-block methods' default overlap, `round(block / 6)` and at least 1: the derived
+/// default of their `overlap` parameter, and what a config's `overlap: None` means.
+pub(crate) fn default_overlap(block: i64) -> i64 {
+    ((block as f64) / 6.0).round().max(1.0) as i64
+}
+
+/// Reads a method's typed config in [`Method::check`]: a parameter that cannot be read becomes
+/// the check's only error, naming its key.
+pub(crate) fn read_config<C: MethodConfig>(p: &Params) -> Result<C, Vec<ParamError>> {
+    C::from_params(p).map_err(|e| {
+        vec![match e {
+            SynthError::Param { key, message } => ParamError { key, message },
+            other => ParamError::new(C::METHOD, other.to_string()),
+        }]
+    })
+}
 
 /// The checks every square-block method shares: the block fits in the sample and the overlap
 /// (real or virtual) is at most half the block.
-pub(crate) fn check_block_and_overlap(block: i64, overlap: i64, sample: (u32, u32)) -> Vec<ParamError> {
+pub(crate) fn check_block_and_overlap(block: u32, overlap: u32, sample: (u32, u32)) -> Vec<ParamError> {
     let mut errors = Vec::new();
-    let smaller = sample.0.min(sample.1) as i64;
+    let smaller = sample.0.min(sample.1);
     if block > smaller {
         errors.push(ParamError::new(
             "block",
             format!("block {block} is larger than the sample ({}x{}); use at most {smaller}", sample.0, sample.1),
         ));
     }
-    if overlap * 2 > block {
+    if overlap > block / 2 {
         errors.push(ParamError::new("overlap", format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2)));
     }
     errors
+}
+
+/// A resolved integer parameter that a config holds as `u32` (its table's range is within it).
+pub(crate) fn uint(p: &Params, name: &str) -> Result<u32, SynthError> {
+    let v = p.int(name)?;
+    u32::try_from(v).map_err(|_| SynthError::param(name, format!("{v} is not in 0..={}", u32::MAX)))
 }
 
 /// Every available method, in listing order.

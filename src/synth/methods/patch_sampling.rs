@@ -39,21 +39,20 @@
 //! streams and every error is an exact integer, so the pixels are those of a raster-order run on
 //! any number of threads.
 
+use super::Engine;
+use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
 use crate::synth::primitives::overlap::{Rect, rect_ssd};
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
-use crate::synth::primitives::pso::{self, ChaosParams, Outcome, Rediversify, SwarmParams, UpdateOrder};
+use crate::synth::primitives::pso::{self, ChaosParams, Outcome, SwarmParams};
 use crate::synth::rng::Stream;
-use crate::image::RgbImage;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
 pub struct PatchSampling;
-
-const SEARCHES: &[&str] = &["cpso", "pso", "exhaustive"];
 
 const PARAMS: &[ParamSpec] = &[
     ParamSpec {
@@ -67,13 +66,13 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
+            compute: |p| Some(ParamValue::Int(super::default_overlap(p.int("block").ok()?))),
         },
         doc: "w_E: width of the boundary zone shared with the already synthesised output (paper: not given; at most block / 2)",
     },
     ParamSpec {
         name: "search",
-        kind: ParamKind::Choice(SEARCHES),
+        kind: ParamKind::Choice(Search::NAMES),
         default: Default::Str("cpso"),
         doc: "best-match search: cpso (paper 002), pso (its baseline), exhaustive (every position; with tolerance > 0 Liang et al.'s sampler)",
     },
@@ -139,13 +138,13 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "rediversify",
-        kind: ParamKind::Choice(&["worse-half", "none"]),
+        kind: ParamKind::Choice(Rediversify::NAMES),
         default: Default::Str("worse-half"),
         doc: "after a chaos search: worse-half restarts the worse half of the swarm at the next chaotic points; none only replaces the global best (cpso; reconstructed)",
     },
     ParamSpec {
         name: "update",
-        kind: ParamKind::Choice(&["synchronous", "asynchronous"]),
+        kind: ParamKind::Choice(Update::NAMES),
         default: Default::Str("synchronous"),
         doc: "when the swarm's best is updated: after all particles moved (synchronous, as eq. 1's t−1 implies) or after each particle (pso, cpso; reconstructed)",
     },
@@ -163,19 +162,19 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "candidates",
-        kind: ParamKind::Choice(&["liang", "near-best"]),
+        kind: ParamKind::Choice(CandidateRule::NAMES),
         default: Default::Str("liang"),
         doc: "exhaustive with tolerance > 0: liang (RMS error below tolerance x RMS zone intensity, Liang et al.) or near-best (error within (1 + tolerance) x the best, Efros-Freeman's rule; not in the paper)",
     },
     ParamSpec {
         name: "engine",
-        kind: ParamKind::Choice(&["fft", "direct"]),
+        kind: ParamKind::Choice(Engine::NAMES),
         default: Default::Str("fft"),
         doc: "how exhaustive search scores every position: fft (FFT correlation + exact integer re-check) or direct (brute-force sums, the 'blind' search of paper 002's timing); identical results",
     },
     ParamSpec {
         name: "blend",
-        kind: ParamKind::Choice(&["feather", "cut"]),
+        kind: ParamKind::Choice(Blend::NAMES),
         default: Default::Str("feather"),
         doc: "how a block meets the output over its zone: feather (Liang's linear blend, the paper) or cut (not in the paper: Efros-Freeman minimum-error boundary cut, which hides mismatches instead of ghosting them)",
     },
@@ -224,77 +223,359 @@ fn waves(grid: &BlockGrid) -> Vec<Vec<(u32, u32)>> {
         .collect()
 }
 
-/// The resolved settings of one synthesis.
+crate::choice! {
+    /// The best-match search (`search`).
+    pub enum Search {
+        /// Chaos PSO, paper 002.
+        Cpso = "cpso",
+        /// Plain PSO, its baseline: the same swarm without the chaos part.
+        Pso = "pso",
+        /// Every position; with `tolerance > 0` Liang et al.'s sampler.
+        Exhaustive = "exhaustive",
+    }
+}
+
+crate::choice! {
+    /// What happens to the swarm after a chaos search (`rediversify`); see [`pso::Rediversify`].
+    pub enum Rediversify {
+        /// The worse half of the swarm restarts at the next chaotic points.
+        WorseHalf = "worse-half",
+        /// Only the global best is replaced.
+        None = "none",
+    }
+}
+
+impl From<Rediversify> for pso::Rediversify {
+    fn from(r: Rediversify) -> pso::Rediversify {
+        match r {
+            Rediversify::WorseHalf => pso::Rediversify::WorseHalf,
+            Rediversify::None => pso::Rediversify::None,
+        }
+    }
+}
+
+crate::choice! {
+    /// When the swarm's best is updated (`update`); see [`pso::UpdateOrder`].
+    pub enum Update {
+        /// After all particles moved.
+        Synchronous = "synchronous",
+        /// After each particle.
+        Asynchronous = "asynchronous",
+    }
+}
+
+impl From<Update> for pso::UpdateOrder {
+    fn from(u: Update) -> pso::UpdateOrder {
+        match u {
+            Update::Synchronous => pso::UpdateOrder::Synchronous,
+            Update::Asynchronous => pso::UpdateOrder::Asynchronous,
+        }
+    }
+}
+
+crate::choice! {
+    /// Which positions an exhaustive search with `tolerance > 0` picks among (`candidates`).
+    pub enum CandidateRule {
+        /// RMS zone error below tolerance × RMS zone intensity (Liang et al.).
+        Liang = "liang",
+        /// Zone error within (1 + tolerance) × the best (Efros–Freeman's rule; not in the paper).
+        NearBest = "near-best",
+    }
+}
+
+crate::choice! {
+    /// How a block meets the output over its zone (`blend`).
+    pub enum Blend {
+        /// Liang's linear blend, as in the paper.
+        Feather = "feather",
+        /// The minimum-error boundary cut (not in the paper).
+        Cut = "cut",
+    }
+}
+
+impl From<Blend> for OverlapRule {
+    fn from(b: Blend) -> OverlapRule {
+        match b {
+            Blend::Feather => OverlapRule::Feather,
+            Blend::Cut => OverlapRule::Cut,
+        }
+    }
+}
+
+/// Patch sampling's parameters, typed: one field per entry of its parameter table, the search
+/// settings grouped by the search they belong to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatchSamplingConfig {
+    /// `block`: B, side of the square patches (3..=4096, at most the sample's smaller side).
+    pub block: u32,
+    /// `overlap`: w_E, width of the boundary zone (1..=2048, at most block / 2); `None`: derived,
+    /// `round(block / 6)`.
+    pub overlap: Option<u32>,
+    /// `search`: chaos PSO, PSO or exhaustive.
+    pub search: Search,
+    /// The swarm's settings (`search` = cpso or pso).
+    pub swarm: SwarmConfig,
+    /// The chaos part of CPSO (`search` = cpso).
+    pub chaos: ChaosConfig,
+    /// Exhaustive search's settings (`search` = exhaustive).
+    pub exhaustive: ExhaustiveConfig,
+    /// `blend`: feathering (the paper) or the boundary cut.
+    pub blend: Blend,
+    /// `first_x`: sample x of the first block; `None` (-1 in a job file): drawn from the seed.
+    pub first_x: Option<u32>,
+    /// `first_y`: sample y of the first block; `None` (-1 in a job file): drawn from the seed.
+    pub first_y: Option<u32>,
+    /// `diagnostics`: record every block's search in the manifest.
+    pub diagnostics: bool,
+    /// `record_optimum`: also record each block's exhaustive optimum (implies `diagnostics`).
+    pub record_optimum: bool,
+}
+
+/// The particle swarm of `search` = cpso and pso.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SwarmConfig {
+    /// `particles`: M, the swarm size (1..=100000).
+    pub particles: u32,
+    /// `iterations`: T_max, iterations per block after the initial evaluation (0..=1000000).
+    pub iterations: u32,
+    /// `c1`: cognitive acceleration coefficient (0..=10).
+    pub c1: f64,
+    /// `c2`: social acceleration coefficient (0..=10).
+    pub c2: f64,
+    /// `inertia`: ω, the inertia weight (0..=2).
+    pub inertia: f64,
+    /// `vmax`: velocity clamp per axis as a fraction of the search range (0..=1; must be > 0).
+    pub vmax: f64,
+    /// `update`: when the swarm's best is updated.
+    pub update: Update,
+    /// `delta_rms`: early stop below this RMS zone difference per channel; 0 disables (0..=255).
+    pub delta_rms: f64,
+    /// `polish_radius`: exhaustive search within this Chebyshev radius of the swarm's best; 0: off.
+    pub polish_radius: u32,
+}
+
+/// The chaos search of `search` = cpso.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChaosConfig {
+    /// `distance_threshold`: T, premature convergence needs the mean particle distance / box
+    /// diagonal below this (0..=1).
+    pub distance_threshold: f64,
+    /// `variance_threshold`: S, … and the normalised fitness variance below this.
+    pub variance_threshold: f64,
+    /// `logistic_mu`: μ of the logistic map (1..=4).
+    pub logistic_mu: f64,
+    /// `chaos_steps`: N_c, chaotic points per chaos search (1..=1000000).
+    pub chaos_steps: u32,
+    /// `rediversify`: what happens to the swarm after a chaos search.
+    pub rediversify: Rediversify,
+}
+
+/// Exhaustive search (`search` = exhaustive).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExhaustiveConfig {
+    /// `tolerance`: ε of Liang et al.'s sampler; 0: always the best (0..=10).
+    pub tolerance: f64,
+    /// `candidates`: which positions a tolerance admits.
+    pub candidates: CandidateRule,
+    /// `engine`: how every position is scored (same results either way).
+    pub engine: Engine,
+}
+
+impl std::default::Default for PatchSamplingConfig {
+    fn default() -> PatchSamplingConfig {
+        PatchSamplingConfig {
+            block: 30,
+            overlap: None,
+            search: Search::Cpso,
+            swarm: SwarmConfig::default(),
+            chaos: ChaosConfig::default(),
+            exhaustive: ExhaustiveConfig::default(),
+            blend: Blend::Feather,
+            first_x: None,
+            first_y: None,
+            diagnostics: false,
+            record_optimum: false,
+        }
+    }
+}
+
+impl std::default::Default for SwarmConfig {
+    fn default() -> SwarmConfig {
+        SwarmConfig {
+            particles: 20,
+            iterations: 300,
+            c1: 1.47,
+            c2: 1.47,
+            inertia: 0.729,
+            vmax: 0.2,
+            update: Update::Synchronous,
+            delta_rms: 10.0,
+            polish_radius: 0,
+        }
+    }
+}
+
+impl std::default::Default for ChaosConfig {
+    fn default() -> ChaosConfig {
+        ChaosConfig { distance_threshold: 0.01, variance_threshold: 0.001, logistic_mu: 4.0, chaos_steps: 200, rediversify: Rediversify::WorseHalf }
+    }
+}
+
+impl std::default::Default for ExhaustiveConfig {
+    fn default() -> ExhaustiveConfig {
+        ExhaustiveConfig { tolerance: 0.2, candidates: CandidateRule::Liang, engine: Engine::Fft }
+    }
+}
+
+impl PatchSamplingConfig {
+    /// The zone width: the given one, else the derived default `round(block / 6)`.
+    pub fn overlap_or_derived(&self) -> u32 {
+        self.overlap.unwrap_or_else(|| super::default_overlap(i64::from(self.block)) as u32)
+    }
+}
+
+impl SwarmConfig {
+    /// The optimiser's parameters, with `chaos` for CPSO (no early stop: that is per block).
+    pub fn params(&self, chaos: Option<ChaosParams>) -> SwarmParams {
+        SwarmParams {
+            particles: self.particles as usize,
+            max_iterations: self.iterations,
+            c1: self.c1,
+            c2: self.c2,
+            inertia: self.inertia,
+            vmax_fraction: self.vmax,
+            stop_below: None,
+            update: self.update.into(),
+            chaos,
+            trace: false,
+        }
+    }
+}
+
+impl ChaosConfig {
+    /// The optimiser's chaos parameters.
+    pub fn params(&self) -> ChaosParams {
+        ChaosParams {
+            distance_threshold: self.distance_threshold,
+            variance_threshold: self.variance_threshold,
+            mu: self.logistic_mu,
+            steps: self.chaos_steps,
+            rediversify: self.rediversify.into(),
+        }
+    }
+}
+
+impl MethodConfig for PatchSamplingConfig {
+    const METHOD: &'static str = "patch-sampling";
+
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let (sw, ch, ex) = (&self.swarm, &self.chaos, &self.exhaustive);
+        let mut v = vec![params::int("block", self.block)];
+        v.extend(self.overlap.map(|o| params::int("overlap", o)));
+        v.extend([
+            params::word("search", self.search),
+            params::int("particles", sw.particles),
+            params::int("iterations", sw.iterations),
+            params::float("c1", sw.c1),
+            params::float("c2", sw.c2),
+            params::float("inertia", sw.inertia),
+            params::float("vmax", sw.vmax),
+            params::float("distance_threshold", ch.distance_threshold),
+            params::float("variance_threshold", ch.variance_threshold),
+            params::float("logistic_mu", ch.logistic_mu),
+            params::int("chaos_steps", ch.chaos_steps),
+            params::word("rediversify", ch.rediversify),
+            params::word("update", sw.update),
+            params::float("delta_rms", sw.delta_rms),
+            params::float("tolerance", ex.tolerance),
+            params::word("candidates", ex.candidates),
+            params::word("engine", ex.engine),
+            params::word("blend", self.blend),
+            params::int("polish_radius", sw.polish_radius),
+            params::int("first_x", self.first_x.map_or(-1, i64::from)),
+            params::int("first_y", self.first_y.map_or(-1, i64::from)),
+            params::boolean("diagnostics", self.diagnostics),
+            params::boolean("record_optimum", self.record_optimum),
+        ]);
+        v
+    }
+
+    fn from_params(p: &Params) -> Result<PatchSamplingConfig, SynthError> {
+        let uint = super::uint;
+        Ok(PatchSamplingConfig {
+            block: uint(p, "block")?,
+            overlap: Some(uint(p, "overlap")?),
+            search: p.choice("search")?,
+            swarm: SwarmConfig {
+                particles: uint(p, "particles")?,
+                iterations: uint(p, "iterations")?,
+                c1: p.float("c1")?,
+                c2: p.float("c2")?,
+                inertia: p.float("inertia")?,
+                vmax: p.float("vmax")?,
+                update: p.choice("update")?,
+                delta_rms: p.float("delta_rms")?,
+                polish_radius: uint(p, "polish_radius")?,
+            },
+            chaos: ChaosConfig {
+                distance_threshold: p.float("distance_threshold")?,
+                variance_threshold: p.float("variance_threshold")?,
+                logistic_mu: p.float("logistic_mu")?,
+                chaos_steps: uint(p, "chaos_steps")?,
+                rediversify: p.choice("rediversify")?,
+            },
+            exhaustive: ExhaustiveConfig {
+                tolerance: p.float("tolerance")?,
+                candidates: p.choice("candidates")?,
+                engine: p.choice("engine")?,
+            },
+            blend: p.choice("blend")?,
+            first_x: first(p, "first_x")?,
+            first_y: first(p, "first_y")?,
+            diagnostics: p.bool("diagnostics")?,
+            record_optimum: p.bool("record_optimum")?,
+        })
+    }
+}
+
+/// `first_x` / `first_y`: -1 for "drawn from the seed", else a sample coordinate.
+fn first(p: &Params, name: &str) -> Result<Option<u32>, SynthError> {
+    match p.int(name)? {
+        -1 => Ok(None),
+        _ => super::uint(p, name).map(Some),
+    }
+}
+
+/// The settings of one synthesis, in the form the searches use.
 struct Settings {
     search: Search,
     swarm: SwarmParams,
     delta_rms: f64,
     tolerance: f64,
     polish_radius: u32,
-    cut: bool,
-    near_best: bool,
-    direct: bool,
+    blend: OverlapRule,
+    candidates: CandidateRule,
+    engine: Engine,
     first: Option<(u32, u32)>,
     per_block: bool,
     optimum: bool,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Search {
-    Cpso,
-    Pso,
-    Exhaustive,
-}
-
-impl Search {
-    fn name(self) -> &'static str {
-        match self {
-            Search::Cpso => "cpso",
-            Search::Pso => "pso",
-            Search::Exhaustive => "exhaustive",
-        }
-    }
-}
-
 impl Settings {
-    fn from(p: &Params) -> Settings {
-        let search = match p.str_unchecked("search") {
-            "cpso" => Search::Cpso,
-            "pso" => Search::Pso,
-            _ => Search::Exhaustive,
-        };
-        let chaos = (search == Search::Cpso).then(|| ChaosParams {
-            distance_threshold: p.float_unchecked("distance_threshold"),
-            variance_threshold: p.float_unchecked("variance_threshold"),
-            mu: p.float_unchecked("logistic_mu"),
-            steps: p.int_unchecked("chaos_steps") as u32,
-            rediversify: if p.str_unchecked("rediversify") == "none" { Rediversify::None } else { Rediversify::WorseHalf },
-        });
-        let swarm = SwarmParams {
-            particles: p.int_unchecked("particles") as usize,
-            max_iterations: p.int_unchecked("iterations") as u32,
-            c1: p.float_unchecked("c1"),
-            c2: p.float_unchecked("c2"),
-            inertia: p.float_unchecked("inertia"),
-            vmax_fraction: p.float_unchecked("vmax"),
-            stop_below: None,
-            update: if p.str_unchecked("update") == "asynchronous" { UpdateOrder::Asynchronous } else { UpdateOrder::Synchronous },
-            chaos,
-            trace: false,
-        };
-        let (fx, fy) = (p.int_unchecked("first_x"), p.int_unchecked("first_y"));
+    fn of(cfg: &PatchSamplingConfig) -> Settings {
+        let chaos = (cfg.search == Search::Cpso).then(|| cfg.chaos.params());
         Settings {
-            search,
-            swarm,
-            delta_rms: p.float_unchecked("delta_rms"),
-            tolerance: p.float_unchecked("tolerance"),
-            polish_radius: p.int_unchecked("polish_radius") as u32,
-            cut: p.str_unchecked("blend") == "cut",
-            near_best: p.str_unchecked("candidates") == "near-best",
-            direct: p.str_unchecked("engine") == "direct",
-            first: (fx >= 0 && fy >= 0).then_some((fx as u32, fy as u32)),
-            per_block: p.bool_unchecked("diagnostics") || p.bool_unchecked("record_optimum"),
-            optimum: p.bool_unchecked("record_optimum"),
+            search: cfg.search,
+            swarm: cfg.swarm.params(chaos),
+            delta_rms: cfg.swarm.delta_rms,
+            tolerance: cfg.exhaustive.tolerance,
+            polish_radius: cfg.swarm.polish_radius,
+            blend: cfg.blend.into(),
+            candidates: cfg.exhaustive.candidates,
+            engine: cfg.exhaustive.engine,
+            first: cfg.first_x.zip(cfg.first_y),
+            per_block: cfg.diagnostics || cfg.record_optimum,
+            optimum: cfg.record_optimum,
         }
     }
 }
@@ -325,7 +606,7 @@ const NEAR_OPTIMUM: f64 = 0.03;
 
 impl Method for PatchSampling {
     fn name(&self) -> &'static str {
-        "patch-sampling"
+        PatchSamplingConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
@@ -338,20 +619,24 @@ impl Method for PatchSampling {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let block = p.int_unchecked("block");
+        let cfg: PatchSamplingConfig = match super::read_config(p) {
+            Ok(c) => c,
+            Err(e) => return e,
+        };
+        let block = i64::from(cfg.block);
         let smaller = sample.0.min(sample.1) as i64;
-        let mut errors = super::check_block_and_overlap(block, p.int_unchecked("overlap"), sample);
-        let search = p.str_unchecked("search");
-        if search != "exhaustive" && p.float_unchecked("vmax") <= 0.0 {
+        let mut errors = super::check_block_and_overlap(cfg.block, cfg.overlap_or_derived(), sample);
+        if cfg.search != Search::Exhaustive && cfg.swarm.vmax <= 0.0 {
             errors.push(ParamError::new("vmax", "vmax must be greater than 0: with 0 the particles never move"));
         }
-        let (fx, fy) = (p.int_unchecked("first_x"), p.int_unchecked("first_y"));
-        if (fx < 0) != (fy < 0) {
-            let (set, unset) = if fx >= 0 { ("first_x", "first_y") } else { ("first_y", "first_x") };
+        let (fx, fy) = (cfg.first_x, cfg.first_y);
+        if fx.is_some() != fy.is_some() {
+            let (set, unset) = if fx.is_some() { ("first_x", "first_y") } else { ("first_y", "first_x") };
             errors.push(ParamError::new(unset, format!("{set} is set but {unset} is not; give both or neither")));
         }
         if block <= smaller {
             for (key, v, limit) in [("first_x", fx, sample.0 as i64 - block), ("first_y", fy, sample.1 as i64 - block)] {
+                let Some(v) = v.map(i64::from) else { continue };
                 if v > limit {
                     errors.push(ParamError::new(
                         key,
@@ -364,8 +649,8 @@ impl Method for PatchSampling {
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let block = req.params.int_unchecked("block") as u32;
-        let overlap = req.params.int_unchecked("overlap") as u32;
+        let cfg = PatchSamplingConfig::from_params(req.params)?;
+        let (block, overlap) = (cfg.block, cfg.overlap_or_derived());
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
@@ -373,7 +658,7 @@ impl Method for PatchSampling {
         if overlap * 2 > block || overlap == 0 {
             return Err(SynthError::Failed(format!("overlap {overlap} must be in 1..={}", block / 2)));
         }
-        let settings = Settings::from(req.params);
+        let settings = Settings::of(&cfg);
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = RgbImage::new(cw, ch);
@@ -435,7 +720,7 @@ impl Method for PatchSampling {
             }
             for r in &found {
                 let dst = (r.bj * layout.stride(), r.bi * layout.stride());
-                paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, if settings.cut { OverlapRule::Cut } else { OverlapRule::Feather });
+                paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, settings.blend);
             }
             results.extend(found);
         }
@@ -550,8 +835,8 @@ fn exhaustive_block(
     let mut best: Option<Candidates> = None;
     let members: Vec<(u32, u32, u64)> = if eps <= 0.0 {
         Vec::new()
-    } else if settings.near_best {
-        let c = scored(search, settings.direct, canvas, origin, &regions, eps);
+    } else if settings.candidates == CandidateRule::NearBest {
+        let c = settings.engine.candidates(search, canvas, origin, &regions, eps);
         result.optimum = Some(c.min_ssd);
         c.members
     } else {
@@ -562,7 +847,7 @@ fn exhaustive_block(
             .sum();
         let threshold = eps * eps * energy as f64;
         // The exact minimum first (one FFT search); the set is a tolerance set around it.
-        let c = scored(search, settings.direct, canvas, origin, &regions, 0.0);
+        let c = settings.engine.candidates(search, canvas, origin, &regions, 0.0);
         let min = c.min_ssd;
         result.optimum = Some(min);
         best = Some(c);
@@ -574,12 +859,12 @@ fn exhaustive_block(
         } else {
             // A superset of the bound (the margin covers rounding of threshold / min), then the exact rule.
             let tol = (threshold / min as f64 - 1.0) * (1.0 + 1e-9) + 1e-9;
-            let c = scored(search, settings.direct, canvas, origin, &regions, tol);
+            let c = settings.engine.candidates(search, canvas, origin, &regions, tol);
             c.members.into_iter().filter(|m| (m.2 as f64) < threshold).collect()
         }
     };
     if members.is_empty() {
-        let best = best.unwrap_or_else(|| scored(search, settings.direct, canvas, origin, &regions, 0.0));
+        let best = best.unwrap_or_else(|| settings.engine.candidates(search, canvas, origin, &regions, 0.0));
         let (x, y, d) = best.members[0];
         result.pos = (x, y);
         result.error = d;
@@ -595,11 +880,6 @@ fn exhaustive_block(
     result.error = pick.2;
     result.candidates = Some(members.len());
     result
-}
-
-/// The tolerance set of `OverlapSearch`, by FFT or by brute force (`engine`); the same result.
-fn scored(search: &mut OverlapSearch, direct: bool, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
-    if direct { search.candidates_direct(canvas, origin, regions, tolerance) } else { search.candidates(canvas, origin, regions, tolerance) }
 }
 
 /// Every position whose zone error is `< threshold`, row-major, with its exact error. Each
@@ -741,11 +1021,13 @@ mod tests {
     #[test]
     fn paper_layout_and_defaults() {
         let p = params(&[]);
-        assert_eq!((p.int_unchecked("block"), p.int_unchecked("overlap"), p.int_unchecked("particles"), p.int_unchecked("iterations")), (30, 5, 20, 300));
-        assert_eq!((p.float_unchecked("c1"), p.float_unchecked("c2"), p.float_unchecked("inertia"), p.float_unchecked("vmax")), (1.47, 1.47, 0.729, 0.2));
-        assert_eq!((p.float_unchecked("distance_threshold"), p.float_unchecked("variance_threshold")), (0.01, 0.001));
-        assert_eq!((p.float_unchecked("logistic_mu"), p.int_unchecked("chaos_steps"), p.float_unchecked("delta_rms")), (4.0, 200, 10.0));
-        assert_eq!(p.str_unchecked("search"), "cpso");
+        let i = |k: &str| p.int(k).unwrap();
+        let f = |k: &str| p.float(k).unwrap();
+        assert_eq!((i("block"), i("overlap"), i("particles"), i("iterations")), (30, 5, 20, 300));
+        assert_eq!((f("c1"), f("c2"), f("inertia"), f("vmax")), (1.47, 1.47, 0.729, 0.2));
+        assert_eq!((f("distance_threshold"), f("variance_threshold")), (0.01, 0.001));
+        assert_eq!((f("logistic_mu"), i("chaos_steps"), f("delta_rms")), (4.0, 200, 10.0));
+        assert_eq!(p.str("search").unwrap(), "cpso");
         // 256 px with B = 30, w_E = 5 needs 11 × 11 blocks (§4.2 step 2).
         let l = BlockGrid::new(30, 5, 256, 256);
         assert_eq!((l.cols, l.rows), (11, 11));
@@ -777,7 +1059,7 @@ mod tests {
     #[test]
     fn output_size_determinism_and_seed_dependence() {
         let s = texture(80, 70);
-        for search in SEARCHES {
+        for search in Search::NAMES {
             let p = params(&[("block", ParamValue::Int(16)), ("search", ParamValue::Str(search.to_string()))]);
             let a = run(&s, 75, 50, &p, 3);
             assert_eq!(a.image.dimensions(), (75, 50));
@@ -1000,5 +1282,66 @@ mod tests {
         // Exhaustive does not need a moving swarm.
         let p = params(&[("vmax", ParamValue::Float(0.0)), ("search", ParamValue::Str("exhaustive".into()))]);
         assert!(PatchSampling.check(&p, (64, 64), (100, 100)).is_empty());
+    }
+
+    #[test]
+    fn default_config_is_the_table_defaults() {
+        let cfg = PatchSamplingConfig::default();
+        assert_eq!(resolve(PARAMS, &cfg.to_params()).unwrap(), resolve(PARAMS, &[]).unwrap());
+        let back = PatchSamplingConfig::from_params(&resolve(PARAMS, &[]).unwrap()).unwrap();
+        assert_eq!(back, PatchSamplingConfig { overlap: Some(5), ..cfg });
+    }
+
+    #[test]
+    fn a_non_default_config_round_trips() {
+        let cfg = PatchSamplingConfig {
+            block: 24,
+            overlap: Some(6),
+            search: Search::Pso,
+            swarm: SwarmConfig {
+                particles: 30,
+                iterations: 150,
+                c1: 2.0,
+                c2: 1.2,
+                inertia: 0.5,
+                vmax: 0.3,
+                update: Update::Asynchronous,
+                delta_rms: 0.0,
+                polish_radius: 2,
+            },
+            chaos: ChaosConfig { distance_threshold: 0.02, variance_threshold: 0.5, logistic_mu: 3.9, chaos_steps: 50, rediversify: Rediversify::None },
+            exhaustive: ExhaustiveConfig { tolerance: 0.0, candidates: CandidateRule::NearBest, engine: Engine::Direct },
+            blend: Blend::Cut,
+            first_x: Some(3),
+            first_y: Some(0),
+            diagnostics: true,
+            record_optimum: true,
+        };
+        // Every job-file parameter is given and differs from its default.
+        let given = cfg.to_params();
+        let defaults = resolve(PARAMS, &[]).unwrap();
+        assert_eq!(given.len(), PARAMS.len());
+        for (k, v) in &given {
+            assert_ne!(defaults.get(k), Some(v), "{k} keeps its default");
+        }
+        let p = resolve(PARAMS, &given).unwrap();
+        assert_eq!(PatchSamplingConfig::from_params(&p).unwrap(), cfg);
+        let s = Settings::of(&cfg);
+        assert_eq!(s.swarm.update, pso::UpdateOrder::Asynchronous);
+        assert!(s.swarm.chaos.is_none(), "pso has no chaos part");
+        assert_eq!(Settings::of(&PatchSamplingConfig { search: Search::Cpso, ..cfg.clone() }).swarm.chaos.unwrap().rediversify, pso::Rediversify::None);
+        assert_eq!((s.blend, s.first), (OverlapRule::Cut, Some((3, 0))));
+    }
+
+    #[test]
+    fn an_unknown_word_is_an_error_naming_its_key() {
+        let mut p = params(&[]);
+        p.0.insert("search".into(), ParamValue::Str("genetic".into()));
+        let errs = PatchSampling.check(&p, (64, 64), (100, 100));
+        assert_eq!(errs.len(), 1);
+        assert_eq!(errs[0].key, "search");
+        let s = texture(64, 64);
+        let e = PatchSampling.synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1 }).unwrap_err();
+        assert!(matches!(&e, SynthError::Param { key, .. } if key == "search"), "{e}");
     }
 }

@@ -7,13 +7,14 @@
 //! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
 //! last row and column of blocks are cropped.
 
+use super::Engine;
+use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, ParamValue, Params};
+use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
 use crate::synth::primitives::overlap_search::OverlapSearch;
 use crate::synth::rng::Stream;
-use crate::image::RgbImage;
 
 pub struct Quilting;
 
@@ -29,7 +30,7 @@ const PARAMS: &[ParamSpec] = &[
         kind: ParamKind::Int { min: 1, max: 2048 },
         default: Default::Derived {
             rule: "round(block / 6)",
-            compute: |p| Some(ParamValue::Int(((p.int("block").ok()? as f64) / 6.0).round().max(1.0) as i64)),
+            compute: |p| Some(ParamValue::Int(super::default_overlap(p.int("block").ok()?))),
         },
         doc: "width of the overlap between neighbouring blocks (at most block / 2)",
     },
@@ -41,27 +42,114 @@ const PARAMS: &[ParamSpec] = &[
     },
     ParamSpec {
         name: "search",
-        kind: ParamKind::Choice(&["fft", "direct"]),
+        kind: ParamKind::Choice(Engine::NAMES),
         default: Default::Str("fft"),
         doc: "how the exact exhaustive search is computed: fft (FFT correlation + exact re-check) or direct sums; same pixels",
     },
     ParamSpec {
         name: "cut",
-        kind: ParamKind::Choice(&["dp", "none"]),
+        kind: ParamKind::Choice(Cut::NAMES),
         default: Default::Str("dp"),
         doc: "dp: minimum-error boundary cut; none: paste the whole block over the overlap",
     },
     ParamSpec {
         name: "blend",
-        kind: ParamKind::Choice(&["none", "feather"]),
+        kind: ParamKind::Choice(Blend::NAMES),
         default: Default::Str("none"),
         doc: "feather: linear blend across the overlap (Liang et al.) instead of a cut; needs cut = \"none\"",
     },
 ];
 
+crate::choice! {
+    /// How a block meets the output over its overlap (`cut`).
+    pub enum Cut {
+        /// The minimum-error boundary cut.
+        Dp = "dp",
+        /// No cut: the whole block is pasted over the overlap.
+        None = "none",
+    }
+}
+
+crate::choice! {
+    /// Whether the overlap is blended instead of cut (`blend`).
+    pub enum Blend {
+        /// No blending: the cut (or the plain paste) decides.
+        None = "none",
+        /// Liang et al.'s linear blend across the overlap; needs [`Cut::None`].
+        Feather = "feather",
+    }
+}
+
+/// Image quilting's parameters, typed: one field per entry of its parameter table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct QuiltingConfig {
+    /// `block`: side of the square blocks, in pixels (3..=4096, at most the sample's smaller side).
+    pub block: u32,
+    /// `overlap`: width of the overlap between neighbouring blocks (1..=2048, at most block / 2);
+    /// `None`: derived, `round(block / 6)`.
+    pub overlap: Option<u32>,
+    /// `tolerance`: candidates within `(1 + tolerance)` × the best overlap error (0..=100).
+    pub tolerance: f64,
+    /// `search`: how the exhaustive search is computed (same pixels either way).
+    pub search: Engine,
+    /// `cut`: the minimum-error boundary cut or none.
+    pub cut: Cut,
+    /// `blend`: feathering instead of a cut (with `cut = None`).
+    pub blend: Blend,
+}
+
+impl std::default::Default for QuiltingConfig {
+    fn default() -> QuiltingConfig {
+        QuiltingConfig { block: 50, overlap: None, tolerance: 0.1, search: Engine::Fft, cut: Cut::Dp, blend: Blend::None }
+    }
+}
+
+impl QuiltingConfig {
+    /// The overlap: the given one, else the derived default `round(block / 6)`.
+    pub fn overlap_or_derived(&self) -> u32 {
+        self.overlap.unwrap_or_else(|| super::default_overlap(i64::from(self.block)) as u32)
+    }
+
+    /// How a block is pasted over its overlap: feathering wins over the cut setting.
+    pub fn overlap_rule(&self) -> OverlapRule {
+        match (self.blend, self.cut) {
+            (Blend::Feather, _) => OverlapRule::Feather,
+            (Blend::None, Cut::Dp) => OverlapRule::Cut,
+            (Blend::None, Cut::None) => OverlapRule::Overwrite,
+        }
+    }
+}
+
+impl MethodConfig for QuiltingConfig {
+    const METHOD: &'static str = "quilting";
+
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut v = vec![params::int("block", self.block)];
+        v.extend(self.overlap.map(|o| params::int("overlap", o)));
+        v.extend([
+            params::float("tolerance", self.tolerance),
+            params::word("search", self.search),
+            params::word("cut", self.cut),
+            params::word("blend", self.blend),
+        ]);
+        v
+    }
+
+    fn from_params(p: &Params) -> Result<QuiltingConfig, SynthError> {
+        Ok(QuiltingConfig {
+            block: super::uint(p, "block")?,
+            overlap: Some(super::uint(p, "overlap")?),
+            tolerance: p.float("tolerance")?,
+            search: p.choice("search")?,
+            cut: p.choice("cut")?,
+            blend: p.choice("blend")?,
+        })
+    }
+}
+
 impl Method for Quilting {
     fn name(&self) -> &'static str {
-        "quilting"
+        QuiltingConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
@@ -74,25 +162,21 @@ impl Method for Quilting {
     }
 
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        let mut errors = super::check_block_and_overlap(p.int_unchecked("block"), p.int_unchecked("overlap"), sample);
-        if p.str_unchecked("blend") == "feather" && p.str_unchecked("cut") != "none" {
+        let cfg: QuiltingConfig = match super::read_config(p) {
+            Ok(c) => c,
+            Err(e) => return e,
+        };
+        let mut errors = super::check_block_and_overlap(cfg.block, cfg.overlap_or_derived(), sample);
+        if cfg.blend == Blend::Feather && cfg.cut != Cut::None {
             errors.push(ParamError::new("blend", "blend = \"feather\" replaces the boundary cut; also set cut = \"none\""));
         }
         errors
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let block = req.params.int_unchecked("block") as u32;
-        let overlap = req.params.int_unchecked("overlap") as u32;
-        let tolerance = req.params.float_unchecked("tolerance");
-        let rule = if req.params.str_unchecked("blend") == "feather" {
-            OverlapRule::Feather
-        } else if req.params.str_unchecked("cut") == "dp" {
-            OverlapRule::Cut
-        } else {
-            OverlapRule::Overwrite
-        };
-        let direct = req.params.str_unchecked("search") == "direct";
+        let cfg = QuiltingConfig::from_params(req.params)?;
+        let (block, overlap, tolerance) = (cfg.block, cfg.overlap_or_derived(), cfg.tolerance);
+        let rule = cfg.overlap_rule();
         let sample = req.sample;
         if block > sample.width() || block > sample.height() {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
@@ -113,11 +197,7 @@ impl Method for Quilting {
                     (x, y)
                 } else {
                     let regions = layout.overlap_regions(bi, bj);
-                    let c = if direct {
-                        search.candidates_direct(&canvas, (ox, oy), &regions, tolerance)
-                    } else {
-                        search.candidates(&canvas, (ox, oy), &regions, tolerance)
-                    };
+                    let c = cfg.search.candidates(&mut search, &canvas, (ox, oy), &regions, tolerance);
                     candidate_counts.push(c.members.len());
                     let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
                     let pick = c.members[s.below_usize(c.members.len())];
@@ -214,4 +294,46 @@ mod tests {
         assert!(errs[0].message.contains("larger than the sample"));
     }
 
+    #[test]
+    fn feather_needs_cut_none() {
+        let p = params(&[("blend", ParamValue::Str("feather".into()))]);
+        let errs = Quilting.check(&p, (64, 64), (100, 100));
+        assert_eq!(errs.len(), 1);
+        assert_eq!(errs[0].key, "blend");
+        let p = params(&[("blend", ParamValue::Str("feather".into())), ("cut", ParamValue::Str("none".into()))]);
+        assert!(Quilting.check(&p, (64, 64), (100, 100)).is_empty());
+    }
+
+    #[test]
+    fn default_config_is_the_table_defaults() {
+        let cfg = QuiltingConfig::default();
+        assert_eq!(resolve(PARAMS, &cfg.to_params()).unwrap(), resolve(PARAMS, &[]).unwrap());
+        let back = QuiltingConfig::from_params(&resolve(PARAMS, &[]).unwrap()).unwrap();
+        assert_eq!(back, QuiltingConfig { overlap: Some(8), ..cfg });
+    }
+
+    #[test]
+    fn a_non_default_config_round_trips() {
+        let cfg = QuiltingConfig { block: 40, overlap: Some(7), tolerance: 0.3, search: Engine::Direct, cut: Cut::None, blend: Blend::Feather };
+        let d = QuiltingConfig::default();
+        assert!(
+            cfg.block != d.block && cfg.overlap != d.overlap && cfg.tolerance != d.tolerance && cfg.search != d.search && cfg.cut != d.cut && cfg.blend != d.blend
+        );
+        let p = resolve(PARAMS, &cfg.to_params()).unwrap();
+        assert_eq!(QuiltingConfig::from_params(&p).unwrap(), cfg);
+        assert_eq!(cfg.overlap_rule(), OverlapRule::Feather);
+    }
+
+    #[test]
+    fn an_unknown_word_is_an_error_naming_its_key() {
+        let mut p = params(&[]);
+        p.0.insert("cut".into(), ParamValue::Str("zigzag".into()));
+        let e = QuiltingConfig::from_params(&p).unwrap_err();
+        assert!(matches!(&e, SynthError::Param { key, .. } if key == "cut"), "{e}");
+        let errs = Quilting.check(&p, (64, 64), (100, 100));
+        assert_eq!(errs.len(), 1);
+        assert_eq!(errs[0].key, "cut");
+        let s = sample();
+        assert!(Quilting.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1 }).is_err());
+    }
 }
