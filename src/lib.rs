@@ -58,6 +58,11 @@ pub use error::{Error, Result};
 pub use image::RgbImage;
 pub use synth::error::SynthError;
 pub use synth::method::{Method, Synthesis};
+pub use synth::methods::double_seam::DoubleSeamConfig;
+pub use synth::methods::patch_sampling::PatchSamplingConfig;
+pub use synth::methods::quilting::QuiltingConfig;
+pub use synth::methods::tiles::rw_tiles::RwTilesConfig;
+pub use synth::methods::tiles::wang_tiles::WangTilesConfig;
 pub use synth::params::{MethodConfig, ParamValue};
 pub use synthesizer::{Session, Synthesizer};
 
