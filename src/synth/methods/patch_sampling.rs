@@ -25,7 +25,7 @@
 //! final best was first reached), `chaos_searches`, `first_chaos`, `evaluations`, `stopped_early`
 //! (and `swarm_error` with `polish_radius > 0`); for exhaustive `candidates`. `record_optimum`
 //! adds `optimum` (the exhaustive minimum of d) and `positions_within_3pct` per block, and
-//! `mean_rms_optimum`. Paper 002's Table 2 is computed from these (see `examples/paper002_tables.rs`).
+//! `mean_rms_optimum`. Paper 002's Table 2 is computed from these (see `examples/07_paper002_tables.rs`).
 //!
 //! **Options that are not in the paper** (all off by default): `blend = "cut"` (the minimum-error
 //! boundary cut instead of feathering: feathering over a poor match ghosts, which shows as a faint

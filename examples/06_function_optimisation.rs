@@ -3,8 +3,8 @@
 //! chaos search at most 200 steps, T = 0.01, S = 0.001, μ = 4, continuous positions.
 //!
 //! ```sh
-//! cargo run --release --example function_optimisation            # the table
-//! cargo run --release --example function_optimisation -- --runs 5 # quicker
+//! cargo run --release --example 06_function_optimisation            # the table
+//! cargo run --release --example 06_function_optimisation -- --runs 5 # quicker
 //! ```
 //!
 //! Run `r` of function `f` draws its swarm from the stream `cpso/bench/{f}/run={r}` and its chaos

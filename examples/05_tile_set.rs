@@ -4,8 +4,8 @@
 //! lets a renderer stream a texture of any size tile row by tile row.
 //!
 //! ```sh
-//! cargo run --release --example tile_set                 # writes tile_set_{small,large}.png here
-//! cargo run --release --example tile_set -- out_dir      # or into out_dir
+//! cargo run --release --example 05_tile_set                 # writes tile_set_{small,large}.png here
+//! cargo run --release --example 05_tile_set -- out_dir      # or into out_dir
 //! ```
 
 use std::path::PathBuf;

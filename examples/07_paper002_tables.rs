@@ -3,7 +3,7 @@
 //!
 //! ```sh
 //! texsyn run jobs/papers/002 -o out/002 -j 1      # -j 1: clean timings for Figure 4
-//! cargo run --release --example paper002_tables -- out/002/manifest.json
+//! cargo run --release --example 07_paper002_tables -- out/002/manifest.json
 //! ```
 //!
 //! - **Table 2**: every patch-sampling job with `record_optimum = true` and a single searched block
