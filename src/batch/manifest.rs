@@ -164,6 +164,9 @@ pub struct RunFacts {
     /// Set in a shard's fragment (`--shard I/N`); absent in a whole run's manifest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<ShardFacts>,
+    /// Jobs of the plan that did not run because the run was stopped (a signal); a re-run does them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_run: Vec<String>,
     /// Set by `texsyn merge`: the fragments the manifest was merged from.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged_from: Vec<ShardFacts>,

@@ -158,6 +158,7 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
         invalid: count_status(Status::Invalid),
         in_progress: false,
         shard: None,
+        not_run: runs.iter().flat_map(|r| r.not_run.iter().cloned()).collect(),
         merged_from: facts,
     };
     let manifest = Manifest::with_tool(tool, jobs, run);

@@ -141,6 +141,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         invalid: summary.invalid,
         in_progress,
         shard: shard_facts.clone(),
+        not_run: Vec::new(),
         merged_from: Vec::new(),
     };
     let summary = Summary { invalid: plan.invalid.len(), up_to_date: plan.up_to_date(), ..Summary::default() };
@@ -153,9 +154,11 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     }
     observer.event(&Event::Planned { to_run: to_run.len() });
     let interrupted = AtomicBool::new(false);
+    let not_run = Mutex::new(Vec::new());
     to_run.par_iter().with_max_len(1).for_each(|entry| {
         if opts.interrupt.as_ref().is_some_and(|f| f.load(Ordering::SeqCst)) {
             interrupted.store(true, Ordering::SeqCst);
+            not_run.lock().expect("not run").push(entry.job.id.clone());
             return;
         }
         let job = &entry.job;
@@ -199,7 +202,10 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     let mut s = state.into_inner().expect("state");
     s.summary.interrupted = interrupted.load(Ordering::SeqCst);
     s.summary.wall_seconds = started.elapsed().as_secs_f64();
-    write_manifest(out, &manifest_name, &s.records, facts(&s.summary, false))?;
+    let mut final_facts = facts(&s.summary, false);
+    final_facts.not_run = not_run.into_inner().expect("not run");
+    final_facts.not_run.sort();
+    write_manifest(out, &manifest_name, &s.records, final_facts)?;
     observer.event(&Event::Done { summary: &s.summary, manifest: &manifest_path });
     Ok(s.summary)
 }

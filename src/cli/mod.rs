@@ -30,7 +30,9 @@ Exit codes:
   1    some job failed or was invalid (the others still ran; see the manifest)
   2    usage error, or the run could not start (no job files, output directory locked)
   3    verify or golden mismatch
-  130  interrupted (Ctrl-C); finished jobs are recorded, re-run to continue";
+  130  interrupted (Ctrl-C); finished jobs are recorded, re-run to continue
+  143  stopped by SIGTERM (Slurm/Kubernetes time limit or preemption), likewise
+  129  stopped by SIGHUP, likewise";
 
 #[derive(Parser)]
 #[command(name = "texsyn", version, about = "Reproducible texture synthesis from TOML job files", after_help = EXIT_CODES)]
@@ -82,8 +84,8 @@ pub enum Outcome {
     Problems,
     /// 3: `verify` or `golden check` found a difference.
     Mismatch,
-    /// 130: stopped by Ctrl-C after recording what finished.
-    Interrupted,
+    /// 128 + the signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP): stopped after recording what finished.
+    Interrupted(i32),
 }
 
 pub fn main() -> ExitCode {
@@ -112,7 +114,7 @@ pub fn main() -> ExitCode {
         Ok(Outcome::Success) => ExitCode::SUCCESS,
         Ok(Outcome::Problems) => ExitCode::from(1),
         Ok(Outcome::Mismatch) => ExitCode::from(3),
-        Ok(Outcome::Interrupted) => ExitCode::from(130),
+        Ok(Outcome::Interrupted(signal)) => ExitCode::from(u8::try_from(128 + signal).unwrap_or(130)),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(2)

@@ -5,7 +5,7 @@ use super::progress::Progress;
 use super::{Outcome, say};
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use texsyn::Error;
 use texsyn::batch::run::{self as batch_run, RunOptions};
 use texsyn::batch::shard::Shard;
@@ -38,6 +38,10 @@ pub struct Args {
     /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX with TEXSYN_SHARD_COUNT.
     #[arg(long, value_name = "I/N|auto")]
     shard: Option<String>,
+    /// After SIGINT, SIGTERM or SIGHUP, seconds the running jobs get to finish before texsyn stops
+    /// anyway (a second signal stops at once). Below Slurm's and Kubernetes' default 30 s.
+    #[arg(long, default_value_t = 20, value_name = "SECONDS")]
+    grace: u64,
     /// Take jobs in reverse order (for testing order independence).
     #[arg(long, hide = true)]
     reverse: bool,
@@ -57,15 +61,8 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         return dry_run(&args, &opts);
     }
     let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupt.clone();
-        let _ = ctrlc::set_handler(move || {
-            if flag.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-            eprintln!("texsyn: interrupted; finishing running jobs and writing the manifest (Ctrl-C again to stop now)");
-        });
-    }
+    let signal = Arc::new(AtomicI32::new(0));
+    install_stop_signals(interrupt.clone(), signal.clone(), args.grace)?;
     opts.interrupt = Some(interrupt);
     let progress = Progress::new(args.json, args.quiet, shard);
     let s = batch_run::run(&args.inputs, &opts, &progress)?;
@@ -84,7 +81,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         );
     }
     Ok(if s.interrupted {
-        Outcome::Interrupted
+        Outcome::Interrupted(signal.load(Ordering::SeqCst))
     } else if s.all_good() {
         Outcome::Success
     } else {
@@ -116,4 +113,36 @@ fn dry_run(args: &Args, opts: &RunOptions) -> Result<Outcome, Error> {
         );
     }
     Ok(if plan.invalid.is_empty() { Outcome::Success } else { Outcome::Problems })
+}
+
+/// SIGINT (Ctrl-C), SIGTERM (what Slurm, Kubernetes and systemd send before a kill at a time limit
+/// or on preemption) and SIGHUP (a closed terminal) all stop a run the same way: no new job starts,
+/// running ones get `grace` seconds to finish, the manifest is written with the jobs that did not
+/// run listed, and the exit code is 128 + the signal (130, 143, 129). A second signal, or the end
+/// of the grace period, stops at once; the manifest then holds every job finished so far.
+fn install_stop_signals(interrupt: Arc<AtomicBool>, signal: Arc<AtomicI32>, grace: u64) -> Result<(), Error> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP])
+        .map_err(|e| Error::Usage(format!("cannot install signal handlers: {e}")))?;
+    std::thread::spawn(move || {
+        for sig in signals.forever() {
+            let name = match sig {
+                SIGTERM => "SIGTERM",
+                SIGHUP => "SIGHUP",
+                _ => "interrupt",
+            };
+            if interrupt.swap(true, Ordering::SeqCst) {
+                eprintln!("texsyn: {name} again; stopping now");
+                std::process::exit(128 + sig);
+            }
+            signal.store(sig, Ordering::SeqCst);
+            eprintln!("texsyn: {name}; finishing running jobs (at most {grace} s) and writing the manifest (signal again to stop now)");
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_secs(grace));
+                eprintln!("texsyn: the {grace} s grace period is over; stopping now (finished jobs are in the manifest)");
+                std::process::exit(128 + sig);
+            });
+        }
+    });
+    Ok(())
 }
