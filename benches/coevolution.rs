@@ -1,4 +1,4 @@
-//! Paper 000's Table 2, measured in one run (methods.md §2.10, B13): co-evolution vs the
+//! Paper 000's Table 2, measured in one run (docs/methods.md §2.10, B13): co-evolution vs the
 //! reconstructed TES baseline on `metal_tread_studs` (lattice (27, 0), (0, 26), given as in the
 //! `jobs/papers/000` Table 2 jobs, and once more extracted from the sample to show that shared cost) for output lattices of 8×8, 12×12, 20×20 and 32×32 texels, with the parameters of
 //! `jobs/papers/000/*.toml` (output 26·N px square, seed 1, defaults otherwise), on 1 and 2

@@ -1,4 +1,4 @@
-//! Patch-sampling speed (paper 002, methods.md §4): 386×386 from the 256×256 bundled sample
+//! Patch-sampling speed (paper 002, docs/methods.md §4): 386×386 from the 256×256 bundled sample
 //! `pebbles_beige`, paper defaults (block 30, 20 particles, 300 iterations, delta_rms 10), for each
 //! search (chaos PSO, PSO, exhaustive FFT + exact re-check with tolerance 0 and with Liang's 0.2) on 1
 //! and 2 threads. Run with `cargo bench --bench patch_sampling`.

@@ -1,4 +1,4 @@
-//! Paper 002, Table 1 (methods.md §4.5): PSO vs chaos PSO minimising four 30-dimensional test
+//! Paper 002, Table 1 (docs/methods.md §4.5): PSO vs chaos PSO minimising four 30-dimensional test
 //! functions, 30 independent runs each, 600 iterations, 20 particles, c1 = c2 = 1.47, ω = 0.729,
 //! chaos search at most 200 steps, T = 0.01, S = 0.001, μ = 4, continuous positions.
 //!

@@ -9,7 +9,7 @@
 //! - **Table 2**: every patch-sampling job with `record_optimum = true` and a single searched block
 //!   is one run; runs are grouped by job file and search. Success = `error ≤ 1.03 × optimum`;
 //!   "mean iterations" = the iteration at which the final best was first reached, averaged over the
-//!   successful runs (methods.md §4.8).
+//!   successful runs (docs/methods.md §4.8).
 //! - **Figure 4**: synthesis time per job file, search (and engine) and particle count.
 //! - **Figures 3/5**: the quality metrics of the same jobs, when they were recorded (`metrics = true`).
 

@@ -59,6 +59,8 @@ pub use image::RgbImage;
 pub use synth::error::SynthError;
 pub use synth::method::{Method, Synthesis};
 pub use synth::methods::double_seam::DoubleSeamConfig;
+pub use synth::methods::near_regular::coevolution::CoevolutionConfig;
+pub use synth::methods::near_regular::tes::TesConfig;
 pub use synth::methods::patch_sampling::PatchSamplingConfig;
 pub use synth::methods::quilting::QuiltingConfig;
 pub use synth::methods::tiles::rw_tiles::RwTilesConfig;

@@ -13,7 +13,7 @@ fn stop_with(signal: &str, expected: i32) {
     let out = std::env::temp_dir().join(format!("texsyn-signal-{signal}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let jobs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("jobs");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_texsyn"))
+    let child = Command::new(env!("CARGO_BIN_EXE_texsyn"))
         .args(["run", jobs.to_str().unwrap(), "-o", out.to_str().unwrap(), "-j", "1", "-q"])
         .stderr(Stdio::piped())
         .spawn()

@@ -171,6 +171,17 @@ pub struct ParamError {
     pub message: String,
 }
 
+/// A typed config that cannot be read, for a method's `check` (which reports [`ParamError`]s): the
+/// key it names, or `params` when it names none.
+impl From<SynthError> for ParamError {
+    fn from(e: SynthError) -> ParamError {
+        match e {
+            SynthError::Param { key, message } => ParamError { key, message },
+            other => ParamError::new("params", other.to_string()),
+        }
+    }
+}
+
 impl ParamError {
     pub fn new(key: &str, message: impl Into<String>) -> ParamError {
         ParamError { key: key.to_string(), message: message.into() }
@@ -205,6 +216,12 @@ impl Params {
         }
     }
 
+    /// An integer parameter that is a size or a count.
+    pub fn uint(&self, name: &str) -> Result<u32, SynthError> {
+        let v = self.int(name)?;
+        u32::try_from(v).map_err(|_| SynthError::param(name, format!("{v} is not in 0..={}", u32::MAX)))
+    }
+
     /// An [`ParamKind::IntOr`] parameter: `Some(n)`, or `None` for its word.
     pub fn int_or_word(&self, name: &str) -> Result<Option<i64>, SynthError> {
         match self.0.get(name) {
@@ -226,23 +243,6 @@ impl Params {
             Some(ParamValue::Str(v)) => Ok(v),
             other => Err(not_resolved(name, "a string", other)),
         }
-    }
-
-    // Transitional panicking readers, removed once every method reads a typed config.
-    pub(crate) fn int_unchecked(&self, name: &str) -> i64 {
-        self.int(name).unwrap_or_else(|e| panic!("{e}"))
-    }
-    pub(crate) fn float_unchecked(&self, name: &str) -> f64 {
-        self.float(name).unwrap_or_else(|e| panic!("{e}"))
-    }
-    pub(crate) fn int_or_word_unchecked(&self, name: &str) -> Option<i64> {
-        self.int_or_word(name).unwrap_or_else(|e| panic!("{e}"))
-    }
-    pub(crate) fn bool_unchecked(&self, name: &str) -> bool {
-        self.bool(name).unwrap_or_else(|e| panic!("{e}"))
-    }
-    pub(crate) fn str_unchecked(&self, name: &str) -> &str {
-        self.str(name).unwrap_or_else(|e| panic!("{e}"))
     }
 
     /// A [`ParamKind::Choice`] parameter parsed into its enum (see [`choice!`]). A word the enum

@@ -290,7 +290,7 @@ mod tests {
         assert!(plan.invalid.is_empty(), "{:?}", plan.invalid);
         let j = &plan.jobs[0];
         assert_eq!(j.id, "a.toml");
-        assert_eq!(j.params.int_unchecked("overlap"), 5);
+        assert_eq!(j.params.int("overlap").unwrap(), 5);
         assert_eq!(j.output.bit_depth, 8);
         assert_eq!(j.positions["params.block"], (9, 1));
     }

@@ -1,4 +1,4 @@
-//! Non-overlapping splicing by the double-seam consistency criterion (paper 003, methods.md §5).
+//! Non-overlapping splicing by the double-seam consistency criterion (paper 003, docs/methods.md §5).
 //!
 //! Blocks sit on the same grid as image quilting (stride `block − overlap`), but the overlap is
 //! only *virtual*: a candidate block is judged by how well two lines agree with the output already
@@ -150,9 +150,9 @@ impl MethodConfig for DoubleSeamConfig {
 
     fn from_params(p: &Params) -> Result<DoubleSeamConfig, SynthError> {
         Ok(DoubleSeamConfig {
-            block: super::uint(p, "block")?,
-            overlap: Some(super::uint(p, "overlap")?),
-            aux_dist: Some(super::uint(p, "aux_dist")?),
+            block: p.uint("block")?,
+            overlap: Some(p.uint("overlap")?),
+            aux_dist: Some(p.uint("aux_dist")?),
             alpha: p.float("alpha")?,
             beta: p.float("beta")?,
             gamma: p.float("gamma")?,
@@ -176,7 +176,7 @@ enum Case {
     L,
 }
 
-/// The window offsets of the true and the auxiliary seam lines (methods.md §5.3).
+/// The window offsets of the true and the auxiliary seam lines (docs/methods.md §5.3).
 fn lines(case: Case, block: i32, g: i32, a: i32) -> [Vec<(i32, i32)>; 2] {
     match case {
         Case::Horizontal => [(0..block).map(|r| (g - 1, r)).collect(), (0..block).map(|r| (a, r)).collect()],

@@ -12,7 +12,6 @@ pub mod quilting;
 pub mod tiles;
 
 use crate::image::RgbImage;
-use crate::synth::error::SynthError;
 use crate::synth::method::Method;
 use crate::synth::params::{MethodConfig, ParamError, Params};
 use crate::synth::primitives::overlap::Rect;
@@ -48,12 +47,7 @@ pub(crate) fn default_overlap(block: i64) -> i64 {
 /// Reads a method's typed config in [`Method::check`]: a parameter that cannot be read becomes
 /// the check's only error, naming its key.
 pub(crate) fn read_config<C: MethodConfig>(p: &Params) -> Result<C, Vec<ParamError>> {
-    C::from_params(p).map_err(|e| {
-        vec![match e {
-            SynthError::Param { key, message } => ParamError { key, message },
-            other => ParamError::new(C::METHOD, other.to_string()),
-        }]
-    })
+    C::from_params(p).map_err(|e| vec![e.into()])
 }
 
 /// The checks every square-block method shares: the block fits in the sample and the overlap
@@ -71,12 +65,6 @@ pub(crate) fn check_block_and_overlap(block: u32, overlap: u32, sample: (u32, u3
         errors.push(ParamError::new("overlap", format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2)));
     }
     errors
-}
-
-/// A resolved integer parameter that a config holds as `u32` (its table's range is within it).
-pub(crate) fn uint(p: &Params, name: &str) -> Result<u32, SynthError> {
-    let v = p.int(name)?;
-    u32::try_from(v).map_err(|_| SynthError::param(name, format!("{v} is not in 0..={}", u32::MAX)))
 }
 
 /// Every available method, in listing order.

@@ -1,5 +1,5 @@
 //! Patch sampling with feathered overlaps whose best-match search is a particle swarm (paper 002,
-//! methods.md §4), with its baselines: plain PSO and exhaustive search / Liang et al.'s sampler.
+//! docs/methods.md §4), with its baselines: plain PSO and exhaustive search / Liang et al.'s sampler.
 //!
 //! Blocks of `block × block` are laid in raster order on a grid of stride `block − overlap`. The
 //! first block is a random sample block; every other one minimises the exact SSD over its boundary
@@ -501,27 +501,26 @@ impl MethodConfig for PatchSamplingConfig {
     }
 
     fn from_params(p: &Params) -> Result<PatchSamplingConfig, SynthError> {
-        let uint = super::uint;
         Ok(PatchSamplingConfig {
-            block: uint(p, "block")?,
-            overlap: Some(uint(p, "overlap")?),
+            block: p.uint("block")?,
+            overlap: Some(p.uint("overlap")?),
             search: p.choice("search")?,
             swarm: SwarmConfig {
-                particles: uint(p, "particles")?,
-                iterations: uint(p, "iterations")?,
+                particles: p.uint("particles")?,
+                iterations: p.uint("iterations")?,
                 c1: p.float("c1")?,
                 c2: p.float("c2")?,
                 inertia: p.float("inertia")?,
                 vmax: p.float("vmax")?,
                 update: p.choice("update")?,
                 delta_rms: p.float("delta_rms")?,
-                polish_radius: uint(p, "polish_radius")?,
+                polish_radius: p.uint("polish_radius")?,
             },
             chaos: ChaosConfig {
                 distance_threshold: p.float("distance_threshold")?,
                 variance_threshold: p.float("variance_threshold")?,
                 logistic_mu: p.float("logistic_mu")?,
-                chaos_steps: uint(p, "chaos_steps")?,
+                chaos_steps: p.uint("chaos_steps")?,
                 rediversify: p.choice("rediversify")?,
             },
             exhaustive: ExhaustiveConfig {
@@ -542,7 +541,7 @@ impl MethodConfig for PatchSamplingConfig {
 fn first(p: &Params, name: &str) -> Result<Option<u32>, SynthError> {
     match p.int(name)? {
         -1 => Ok(None),
-        _ => super::uint(p, name).map(Some),
+        _ => p.uint(name).map(Some),
     }
 }
 

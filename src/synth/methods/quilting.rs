@@ -1,4 +1,4 @@
-//! Efros–Freeman image quilting with the minimum-error boundary cut (methods.md §6): the
+//! Efros–Freeman image quilting with the minimum-error boundary cut (docs/methods.md §6): the
 //! baseline every paper we follow compares against.
 //!
 //! Blocks are laid in raster order at stride `block − overlap`. Each new block is chosen at random
@@ -137,8 +137,8 @@ impl MethodConfig for QuiltingConfig {
 
     fn from_params(p: &Params) -> Result<QuiltingConfig, SynthError> {
         Ok(QuiltingConfig {
-            block: super::uint(p, "block")?,
-            overlap: Some(super::uint(p, "overlap")?),
+            block: p.uint("block")?,
+            overlap: Some(p.uint("overlap")?),
             tolerance: p.float("tolerance")?,
             search: p.choice("search")?,
             cut: p.choice("cut")?,

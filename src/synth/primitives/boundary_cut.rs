@@ -1,4 +1,4 @@
-//! Minimum-error boundary cut by dynamic programming (Efros–Freeman; methods.md B3).
+//! Minimum-error boundary cut by dynamic programming (Efros–Freeman; docs/methods.md B3).
 //!
 //! The cut decides, inside an overlap, which pixels keep the old content and which take the new
 //! block, so that the transition follows the path where the two agree best.

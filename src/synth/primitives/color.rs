@@ -1,4 +1,4 @@
-//! RGB → HSI (methods.md B6, paper 003 eq. 1 with its two typos fixed).
+//! RGB → HSI (docs/methods.md B6, paper 003 eq. 1 with its two typos fixed).
 //!
 //! Paper 003 compares seams in HSI space. Its method copies pixels verbatim, so only the forward
 //! conversion exists: the RGB pixels travel alongside the HSI planes.

@@ -1,4 +1,4 @@
-//! Pearson correlation of two lines (methods.md B8, paper 003 eq. 7), with the degenerate-line
+//! Pearson correlation of two lines (docs/methods.md B8, paper 003 eq. 7), with the degenerate-line
 //! rules and the circular variant for hue.
 
 /// Variance below which a line counts as constant.

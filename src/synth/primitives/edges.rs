@@ -1,4 +1,4 @@
-//! Four-direction Sobel gradient magnitude and its Otsu threshold (methods.md B7, paper 003
+//! Four-direction Sobel gradient magnitude and its Otsu threshold (docs/methods.md B7, paper 003
 //! eqs. 2–5): the binary edge map whose agreement across a seam paper 003's criterion rewards.
 
 /// Gradient magnitude `sqrt(G0² + G45² + G90² + G135²)` of a unit-scale plane, replicate borders.

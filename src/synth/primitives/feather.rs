@@ -1,4 +1,4 @@
-//! Feathering weights for overlaps (methods.md B5): Liang et al.'s linear ramp.
+//! Feathering weights for overlaps (docs/methods.md B5): Liang et al.'s linear ramp.
 
 /// Weight of the new block at overlap index `k` (0 = the edge next to the old content) in an
 /// overlap `width` pixels wide: `(k + 1) / (width + 1)`.

@@ -1,4 +1,4 @@
-//! Image building blocks shared by the methods (methods.md §1), written and tested once.
+//! Image building blocks shared by the methods (docs/methods.md §1), written and tested once.
 
 pub mod block_grid;
 pub mod boundary_cut;

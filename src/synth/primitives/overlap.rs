@@ -1,4 +1,4 @@
-//! Pixel colour error and overlap error (methods.md B1).
+//! Pixel colour error and overlap error (docs/methods.md B1).
 //!
 //! Everything here is exact integer arithmetic: `u32` per pixel, `u64` per region. Methods that
 //! search faster (FFT correlation, pruning) must agree with these functions exactly; tests compare

@@ -5,7 +5,7 @@
 //! Why it is fast: `SSD(p) = ΣS²(p) − 2·Σ S(p+q)·T(q) + ΣT²`. The first term comes exactly from an
 //! integral image, the last is a constant, and the cross term for all positions at once is one
 //! correlation, computed with FFTs (the sample's spectrum once per job, two forward and one
-//! inverse 2-D FFT per block). Why it is still exact (methods.md §6): the FFT values are only
+//! inverse 2-D FFT per block). Why it is still exact (docs/methods.md §6): the FFT values are only
 //! used to find a small superset of the answer with a rigorous error margin; every member of that
 //! superset is then re-scored with integer arithmetic (B1), and the minimum and the tolerance set
 //! are decided on those exact integers. So the result is identical to brute force on every machine,

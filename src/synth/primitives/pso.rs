@@ -1,4 +1,4 @@
-//! Particle-swarm optimisation with the chaos search of paper 002 (methods.md §4.3), shared by the
+//! Particle-swarm optimisation with the chaos search of paper 002 (docs/methods.md §4.3), shared by the
 //! patch-sampling method (2-D patch positions) and the function-optimisation example (30-D).
 //!
 //! One function, [`optimise`], runs both algorithms: plain PSO when [`SwarmParams::chaos`] is
@@ -11,7 +11,7 @@
 
 use crate::synth::rng::Stream;
 
-/// When the swarm's `g` is updated (methods.md §4.3 "Update order", a reconstructed gap).
+/// When the swarm's `g` is updated (docs/methods.md §4.3 "Update order", a reconstructed gap).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpdateOrder {
     /// Every particle moves using `p(t−1)`, `g(t−1)`; `g` is updated once all are evaluated (default).
@@ -21,7 +21,7 @@ pub enum UpdateOrder {
     Asynchronous,
 }
 
-/// What happens to the swarm after a chaos search (methods.md §4.3 step 4, a reconstructed gap).
+/// What happens to the swarm after a chaos search (docs/methods.md §4.3 step 4, a reconstructed gap).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rediversify {
     /// The worse half of the particles restart at the next chaotic points (default).
@@ -44,7 +44,7 @@ pub struct ChaosParams {
     pub rediversify: Rediversify,
 }
 
-/// Swarm parameters (methods.md §4.6).
+/// Swarm parameters (docs/methods.md §4.6).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SwarmParams {
     /// `M`.
@@ -120,7 +120,7 @@ fn logistic_step(z: f64, mu: f64, stream: &mut Stream, traps: &[f64]) -> f64 {
     if !(1e-12..=1.0 - 1e-12).contains(&next) { draw_z(stream, traps) } else { next }
 }
 
-/// Minimises `fitness` over the box `[lo, hi]` (methods.md §4.3). `swarm` supplies the
+/// Minimises `fitness` over the box `[lo, hi]` (docs/methods.md §4.3). `swarm` supplies the
 /// initialisation and every `η`; `chaos` is drawn from only inside chaos searches. Ties between
 /// particles go to the lowest index; every improvement must be strict.
 pub fn optimise(

@@ -1,5 +1,5 @@
 //! Shortest-path cut on the 8-neighbour pixel graph (Dijkstra) and region labelling after a cut
-//! (methods.md B4).
+//! (docs/methods.md B4).
 //!
 //! Paper 001 replaces the quilting DP (B3), which takes one pixel per row, by a true shortest path
 //! between two pixels of an overlap: the path may visit several pixels of one row and even turn

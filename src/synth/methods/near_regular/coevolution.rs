@@ -1,4 +1,4 @@
-//! Co-evolution near-regular texture synthesis (paper 000, methods.md §2.3–2.7).
+//! Co-evolution near-regular texture synthesis (paper 000, docs/methods.md §2.3–2.7).
 //!
 //! Near-regular textures (bricks, tiles, weaves) must keep their texel lattice. Individuals are
 //! the sample's parallelogram texels spanned by the lattice vectors `t1, t2` (found by
@@ -46,8 +46,8 @@
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
-use crate::synth::lattice::{LatticeOptions, extract};
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, bbox_of, converged, fits, texels_within};
+use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::feather;
 use crate::synth::primitives::overlap::pixel_error;
 use crate::synth::rng::Stream;
@@ -56,27 +56,16 @@ use std::time::Instant;
 
 pub struct Coevolution;
 
-/// The worst possible mean error, recorded (and flagged) when no overlap fits in the sample.
-pub const F_PEN: f64 = -195075.0;
 
-pub(crate) const LATTICE_PARAMS: [ParamSpec; 7] = [
-    ParamSpec { name: "t1_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (x); t1 = t2 = 0 (default) extracts the lattice from the sample" },
-    ParamSpec { name: "t1_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t1 (y)" },
-    ParamSpec { name: "t2_x", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (x)" },
-    ParamSpec { name: "t2_y", kind: ParamKind::Int { min: -4096, max: 4096 }, default: Default::Int(0), doc: "lattice vector t2 (y)" },
-    ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice rows (along t2), or \"cover\": enough to cover the output" },
-    ParamSpec { name: "cols", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice columns (along t1), or \"cover\": enough to cover the output" },
-    ParamSpec { name: "fill", kind: ParamKind::Choice(&["error", "black"]), default: Default::Str("error"), doc: "output pixels the lattice does not cover: an error, or black" },
-];
 
 const PARAMS: &[ParamSpec] = &[
-    LATTICE_PARAMS[0],
-    LATTICE_PARAMS[1],
-    LATTICE_PARAMS[2],
-    LATTICE_PARAMS[3],
-    LATTICE_PARAMS[4],
-    LATTICE_PARAMS[5],
-    LATTICE_PARAMS[6],
+    GRID_PARAMS[0],
+    GRID_PARAMS[1],
+    GRID_PARAMS[2],
+    GRID_PARAMS[3],
+    GRID_PARAMS[4],
+    GRID_PARAMS[5],
+    GRID_PARAMS[6],
     ParamSpec { name: "rho", kind: ParamKind::Float { min: 0.0, max: 0.5 }, default: Default::Float(1.0 / 6.0), doc: "overlap width as a fraction of the texel (at least 2 px)" },
     ParamSpec { name: "c_tol", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.05), doc: "candidate tolerance: 0 keeps only the best-fitting samples, larger trades seams for variety" },
     ParamSpec { name: "t_m", kind: ParamKind::Float { min: 0.0, max: 10.0 }, default: Default::Float(0.02), doc: "termination: stop when the relative spread of the last `window` averages is at most t_m" },
@@ -84,7 +73,7 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec { name: "iter_max", kind: ParamKind::Int { min: 1, max: 100_000 }, default: Default::Int(50), doc: "iteration cap" },
     ParamSpec {
         name: "mask",
-        kind: ParamKind::Choice(&["exact", "bresenham"]),
+        kind: ParamKind::Choice(Mask::NAMES),
         default: Default::Str("exact"),
         doc: "texel pixels: exact lattice cells (no holes, no overlap), or the paper's Bresenham mask (line paths along t1 and t2 summed, then shifted 1 px right; the later individual covers the earlier)",
     },
@@ -96,68 +85,71 @@ const PARAMS: &[ParamSpec] = &[
     },
 ];
 
-fn cross(a: (i64, i64), b: (i64, i64)) -> i64 {
-    a.0 * b.1 - a.1 * b.0
+
+
+
+
+crate::choice! {
+    /// Which pixels an individual paints: its exact lattice cell, or the paper's Bresenham mask.
+    pub enum Mask { Exact = "exact", Bresenham = "bresenham" }
 }
 
-/// The lattice geometry of one job (B11: exact integer membership).
-pub(crate) struct Geometry {
-    pub t1: (i64, i64),
-    pub t2: (i64, i64),
-    pub d: i64,
-    /// The `D` pixels of cell (0, 0), row-major.
-    pub cell: Vec<(i64, i64)>,
-    /// Bounding box of `cell`: (xmin, xmax, ymin, ymax).
-    pub bbox: (i64, i64, i64, i64),
+/// The parameters of `coevolution`, typed (job-file names in brackets).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoevolutionConfig {
+    /// The lattice and the output grid (`t1_x … t2_y`, `rows`, `cols`, `fill`).
+    pub grid: LatticeGrid,
+    /// Overlap width as a fraction of the texel (`rho`, 0..=0.5, default 1/6).
+    pub rho: f64,
+    /// Candidate tolerance (`c_tol`, 0..=1, default 0.05).
+    pub c_tol: f64,
+    /// Termination threshold on the relative spread of the last `window` averages (`t_m`).
+    pub t_m: f64,
+    /// Averages in the termination window (`window`, M).
+    pub window: u32,
+    /// Iteration cap (`iter_max`).
+    pub iter_max: u32,
+    /// Texel pixels (`mask`).
+    pub mask: Mask,
+    /// Mutation radius in pixels, 0 = off (`r_mut`).
+    pub r_mut: u32,
 }
 
-impl Geometry {
-    pub fn new(t1: (i64, i64), t2: (i64, i64)) -> Geometry {
-        let (t1, t2) = if cross(t1, t2) < 0 { (t1, (-t2.0, -t2.1)) } else { (t1, t2) };
-        let d = cross(t1, t2);
-        let xs = [0, t1.0, t2.0, t1.0 + t2.0];
-        let ys = [0, t1.1, t2.1, t1.1 + t2.1];
-        let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
-        let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
-        let mut cell = Vec::new();
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let (a, b) = (cross((x, y), t2), cross(t1, (x, y)));
-                if (0..d).contains(&a) && (0..d).contains(&b) {
-                    cell.push((x, y));
-                }
-            }
-        }
-        let bbox = bbox_of(&cell);
-        Geometry { t1, t2, d, cell, bbox }
-    }
-
-    /// Lattice cell of an integer offset.
-    pub fn cell_of(&self, p: (i64, i64)) -> (i64, i64) {
-        (cross(p, self.t2).div_euclid(self.d), cross(self.t1, p).div_euclid(self.d))
-    }
-
-    pub fn point(&self, m: i64, n: i64) -> (i64, i64) {
-        (m * self.t1.0 + n * self.t2.0, m * self.t1.1 + n * self.t2.1)
-    }
-
-    /// Coordinates along t1 and t2 as fractions (for strip rules).
-    pub fn coords(&self, q: (i64, i64)) -> (f64, f64) {
-        (cross(q, self.t2) as f64 / self.d as f64, cross(self.t1, q) as f64 / self.d as f64)
+impl std::default::Default for CoevolutionConfig {
+    fn default() -> CoevolutionConfig {
+        CoevolutionConfig { grid: LatticeGrid::default(), rho: 1.0 / 6.0, c_tol: 0.05, t_m: 0.02, window: 5, iter_max: 50, mask: Mask::Exact, r_mut: 0 }
     }
 }
 
-fn bbox_of(pts: &[(i64, i64)]) -> (i64, i64, i64, i64) {
-    let mut b = (i64::MAX, i64::MIN, i64::MAX, i64::MIN);
-    for &(x, y) in pts {
-        b = (b.0.min(x), b.1.max(x), b.2.min(y), b.3.max(y));
-    }
-    b
-}
+impl MethodConfig for CoevolutionConfig {
+    const METHOD: &'static str = "coevolution";
 
-/// Whether every pixel of `offsets` (given by their bbox) shifted by `o` lies in a `w × h` image.
-fn fits(bbox: (i64, i64, i64, i64), o: (i64, i64), w: i64, h: i64) -> bool {
-    o.0 + bbox.0 >= 0 && o.0 + bbox.1 < w && o.1 + bbox.2 >= 0 && o.1 + bbox.3 < h
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut v = self.grid.to_params();
+        v.extend([
+            params::float("rho", self.rho),
+            params::float("c_tol", self.c_tol),
+            params::float("t_m", self.t_m),
+            params::int("window", self.window),
+            params::int("iter_max", self.iter_max),
+            params::word("mask", self.mask),
+            params::int("r_mut", self.r_mut),
+        ]);
+        v
+    }
+
+    fn from_params(p: &Params) -> Result<CoevolutionConfig, SynthError> {
+        Ok(CoevolutionConfig {
+            grid: LatticeGrid::from_params(p)?,
+            rho: p.float("rho")?,
+            c_tol: p.float("c_tol")?,
+            t_m: p.float("t_m")?,
+            window: p.uint("window")?,
+            iter_max: p.uint("iter_max")?,
+            mask: p.choice("mask")?,
+            r_mut: p.uint("r_mut")?,
+        })
+    }
 }
 
 /// The Bresenham path from `(0, 0)` to `v`, both ends included: one pixel per step `i = 0..=n` of
@@ -204,8 +196,8 @@ pub(crate) struct Shape {
 }
 
 impl Shape {
-    pub fn new(g: &Geometry, mask: &str) -> Shape {
-        if mask == "bresenham" {
+    pub fn new(g: &Geometry, mask: Mask) -> Shape {
+        if mask == Mask::Bresenham {
             let offsets = bresenham_mask(g.t1, g.t2);
             let bbox = bbox_of(&offsets);
             Shape { offsets, bbox, exact: false }
@@ -215,34 +207,7 @@ impl Shape {
     }
 }
 
-/// The sample's texels `E_I` (§2.3): origins of the complete texels for the best lattice origin.
-pub(crate) fn texels(g: &Geometry, w: i64, h: i64) -> Vec<(i64, i64)> {
-    texels_within(g, g.bbox, w, h)
-}
 
-/// `E_I` for texels whose pixels span `bbox` (relative to their origin).
-pub(crate) fn texels_within(g: &Geometry, bbox: (i64, i64, i64, i64), w: i64, h: i64) -> Vec<(i64, i64)> {
-    let span = (w + h) / (g.t1.0.abs().max(g.t1.1.abs()).min(g.t2.0.abs().max(g.t2.1.abs())).max(1)) + 3;
-    let list = |o: (i64, i64)| -> Vec<(i64, i64)> {
-        let mut v = Vec::new();
-        for n in -span..=span {
-            for m in -span..=span {
-                let p = g.point(m, n);
-                let ok = (o.0 + p.0, o.1 + p.1);
-                if fits(bbox, ok, w, h) {
-                    v.push(ok);
-                }
-            }
-        }
-        v
-    };
-    // Best origin: most complete texels; ties smallest o.y, then o.x.
-    let mut order: Vec<(i64, i64)> = g.cell.clone();
-    order.sort_by_key(|&(x, y)| (y, x));
-    let counts: Vec<usize> = order.par_iter().map(|&o| list(o).len()).collect();
-    let best = (0..order.len()).max_by(|&i, &j| counts[i].cmp(&counts[j]).then(j.cmp(&i))).expect("cell is not empty");
-    list(order[best])
-}
 
 /// One precomputed fitness table (`H` or `V`): value, penalty flag and the shift used.
 pub(crate) struct Table {
@@ -342,42 +307,11 @@ pub(crate) fn build_table(sample: &RgbImage, g: &Geometry, texels: &[(i64, i64)]
     t
 }
 
-/// Lattice vectors from the params, or extracted from the sample.
-pub(crate) fn lattice_vectors(p: &Params, sample: &RgbImage) -> Result<((i64, i64), (i64, i64), &'static str), SynthError> {
-    let t1 = (p.int_unchecked("t1_x"), p.int_unchecked("t1_y"));
-    let t2 = (p.int_unchecked("t2_x"), p.int_unchecked("t2_y"));
-    if t1 == (0, 0) && t2 == (0, 0) {
-        let l = extract(sample, &LatticeOptions::default())?;
-        Ok((l.t1, l.t2, "extracted"))
-    } else {
-        Ok((t1, t2, "given"))
-    }
-}
 
-pub(crate) fn check_lattice_params(p: &Params, sample: (u32, u32)) -> Vec<ParamError> {
-    let mut errors = Vec::new();
-    let t1 = (p.int_unchecked("t1_x"), p.int_unchecked("t1_y"));
-    let t2 = (p.int_unchecked("t2_x"), p.int_unchecked("t2_y"));
-    let given = t1 != (0, 0) || t2 != (0, 0);
-    if given && cross(t1, t2) == 0 {
-        errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
-    }
-    if given {
-        let g_w = t1.0.abs() + t2.0.abs();
-        let g_h = t1.1.abs() + t2.1.abs();
-        if g_w > sample.0 as i64 || g_h > sample.1 as i64 {
-            errors.push(ParamError::new("t1_x", format!("a texel spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
-        }
-    }
-    if p.int_or_word_unchecked("rows").is_none() != p.int_or_word_unchecked("cols").is_none() {
-        errors.push(ParamError::new("rows", "give both rows and cols as numbers, or neither (\"cover\": as many as cover the output)"));
-    }
-    errors
-}
 
 /// Where the output lattice sits: its size and the output position of cell (0, 0)'s origin.
-pub(crate) fn place(g: &Geometry, p: &Params, width: u32, height: u32) -> (usize, usize, (i64, i64)) {
-    let (rows, cols) = (p.int_or_word_unchecked("rows").unwrap_or(0), p.int_or_word_unchecked("cols").unwrap_or(0));
+pub(crate) fn place(g: &Geometry, grid: &LatticeGrid, width: u32, height: u32) -> (usize, usize, (i64, i64)) {
+    let (rows, cols) = (i64::from(grid.rows.unwrap_or(0)), i64::from(grid.cols.unwrap_or(0)));
     if rows == 0 || cols == 0 {
         let corners = [(0, 0), (width as i64 - 1, 0), (0, height as i64 - 1), (width as i64 - 1, height as i64 - 1)];
         let cells: Vec<(i64, i64)> = corners.iter().map(|&c| g.cell_of(c)).collect();
@@ -528,14 +462,6 @@ pub(crate) fn feather_strips(
     }
 }
 
-/// Termination test of paper 000 eq. 7 (shared with TES): the last `window` averages vary by at
-/// most `t_m` relative to their mean level, or the level is 0 (perfect fitness).
-pub(crate) fn converged(history: &[f64], window: usize, t_m: f64) -> bool {
-    let last = &history[history.len() - window..];
-    let spread = last.iter().copied().fold(f64::NEG_INFINITY, f64::max) - last.iter().copied().fold(f64::INFINITY, f64::min);
-    let level = (last.iter().sum::<f64>() / window as f64).abs();
-    level == 0.0 || t_m - spread / level >= 0.0
-}
 
 /// Degree-normalised fitness of sample `k` at `(r, c)` given the current assignment, and whether
 /// any term is a penalty.
@@ -680,30 +606,33 @@ impl Method for Coevolution {
         PARAMS
     }
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        check_lattice_params(p, sample)
+        match CoevolutionConfig::from_params(p) {
+            Ok(cfg) => cfg.grid.check(sample),
+            Err(e) => vec![e.into()],
+        }
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let p = req.params;
+        let cfg = CoevolutionConfig::from_params(req.params)?;
         let sample = req.sample;
         let started = Instant::now();
-        let (t1, t2, source) = lattice_vectors(p, sample)?;
+        let (t1, t2, source) = cfg.grid.vectors(sample)?;
         let lattice_seconds = started.elapsed().as_secs_f64();
         let started = Instant::now();
         let g = Geometry::new(t1, t2);
         let (w, h) = (sample.width() as i64, sample.height() as i64);
-        let shape = Shape::new(&g, p.str_unchecked("mask"));
+        let shape = Shape::new(&g, cfg.mask);
         let texels = texels_within(&g, shape.bbox, w, h);
         let s = texels.len();
         if s < 2 {
             return Err(SynthError::Failed(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed")));
         }
-        let rho = p.float_unchecked("rho");
+        let rho = cfg.rho;
         let (sh, sv) = (Strips::new(&g, rho, true), Strips::new(&g, rho, false));
         let (th, tv) = (build_table(sample, &g, &texels, &sh), build_table(sample, &g, &texels, &sv));
         let tables_seconds = started.elapsed().as_secs_f64();
         let iter_started = Instant::now();
-        let (rows, cols, p0) = place(&g, p, req.width, req.height);
+        let (rows, cols, p0) = place(&g, &cfg.grid, req.width, req.height);
         let hv = (&th, &tv);
 
         // Initialisation: random even individuals, greedy odd ones.
@@ -734,9 +663,9 @@ impl Method for Coevolution {
             assign[i] = k;
         }
         let mut history = vec![mean_fitness(hv, &assign, rows, cols)];
-        let iter_max = p.int_unchecked("iter_max") as usize;
-        let m_window = p.int_unchecked("window") as usize;
-        let (c_tol, t_m) = (p.float_unchecked("c_tol"), p.float_unchecked("t_m"));
+        let iter_max = cfg.iter_max as usize;
+        let m_window = cfg.window as usize;
+        let (c_tol, t_m) = (cfg.c_tol, cfg.t_m);
         let mut iterations = 0;
         for iter in 1..=iter_max {
             iterations = iter;
@@ -781,7 +710,7 @@ impl Method for Coevolution {
         let n = rows * cols;
         let mut origins: Vec<(i64, i64)> = assign.iter().map(|&k| texels[k]).collect();
         let mut moved = vec![false; n];
-        let r_mut = p.int_unchecked("r_mut");
+        let r_mut = i64::from(cfg.r_mut);
         let mut mutation = None;
         if r_mut > 0 {
             let omega = iter_max as f64 / (iterations + iter_max) as f64;
@@ -810,7 +739,7 @@ impl Method for Coevolution {
             }));
         }
 
-        let mut image = render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, p.str_unchecked("fill") == "black")?;
+        let mut image = render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, cfg.grid.fill == Fill::Black)?;
         let ph = pair_shifts(sample, &g, &th, &sh, &assign, &origins, &moved, rows, cols);
         let pv = pair_shifts(sample, &g, &tv, &sv, &assign, &origins, &moved, rows, cols);
         feather_strips(&mut image, sample, &g, &origins, rows, cols, p0, [(&ph, &sh), (&pv, &sv)]);
@@ -842,7 +771,8 @@ impl Method for Coevolution {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::params::{ParamValue, resolve};
+    use super::super::grid::{cross, texels};
+    use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
@@ -1032,7 +962,7 @@ mod tests {
         let sample = noise(160, 160, 5);
         for (t1, t2) in [((20, 0), (6, 16)), ((25, 7), (-5, 21)), ((17, -9), (8, 19))] {
             let g = Geometry::new(t1, t2);
-            let (exact, bres) = (Shape::new(&g, "exact"), Shape::new(&g, "bresenham"));
+            let (exact, bres) = (Shape::new(&g, Mask::Exact), Shape::new(&g, Mask::Bresenham));
             let tex = texels_within(&g, bres.bbox, 160, 160);
             assert!(tex.len() >= 4);
             let (rows, cols) = (5, 6);
@@ -1093,7 +1023,7 @@ mod tests {
         let img = noisy_periodic();
         for mask in ["exact", "bresenham"] {
             let g = Geometry::new((20, 0), (6, 16));
-            let shape = Shape::new(&g, mask);
+            let shape = Shape::new(&g, Mask::parse(mask).unwrap());
             let tex = texels_within(&g, shape.bbox, 120, 120);
             let (sh, sv) = (Strips::new(&g, 1.0 / 6.0, true), Strips::new(&g, 1.0 / 6.0, false));
             let (th, tv) = (build_table(&img, &g, &tex, &sh), build_table(&img, &g, &tex, &sv));

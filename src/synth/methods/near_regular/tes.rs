@@ -1,5 +1,5 @@
 //! TES, the Texture Evolution System of Wu, Zhang & He (2007): the baseline paper 000 improves on,
-//! as reconstructed in methods.md §2.11 (marked "TES (reconstructed)" in results).
+//! as reconstructed in docs/methods.md §2.11 (marked "TES (reconstructed)" in results).
 //!
 //! Individuals are axis-aligned blocks (the texel's bounding box) on a rectangular grid. Every
 //! iteration each individual settles into the best of its 3×3 neighbouring cells, duels the
@@ -7,11 +7,11 @@
 //! which is the cost profile the co-evolution paper compares against. Final seams are
 //! Efros–Freeman cuts on the rectangular overlaps.
 
-use super::coevolution::{F_PEN, Geometry, LATTICE_PARAMS, check_lattice_params, converged, lattice_vectors, texels};
+use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, converged, texels};
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::image::RgbImage;
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use crate::synth::params::{self, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::boundary_cut::{horizontal_cut, vertical_cut};
 use crate::synth::primitives::overlap::pixel_error;
 use crate::synth::rng::Stream;
@@ -20,17 +20,50 @@ use std::time::Instant;
 pub struct Tes;
 
 const PARAMS: &[ParamSpec] = &[
-    LATTICE_PARAMS[0],
-    LATTICE_PARAMS[1],
-    LATTICE_PARAMS[2],
-    LATTICE_PARAMS[3],
-    LATTICE_PARAMS[4],
-    LATTICE_PARAMS[5],
-    LATTICE_PARAMS[6],
+    GRID_PARAMS[0],
+    GRID_PARAMS[1],
+    GRID_PARAMS[2],
+    GRID_PARAMS[3],
+    GRID_PARAMS[4],
+    GRID_PARAMS[5],
+    GRID_PARAMS[6],
     ParamSpec { name: "t_m", kind: ParamKind::Float { min: 0.0, max: 10.0 }, default: Default::Float(0.02), doc: "termination threshold (as coevolution)" },
     ParamSpec { name: "window", kind: ParamKind::Int { min: 1, max: 1000 }, default: Default::Int(5), doc: "averages in the termination window (M)" },
     ParamSpec { name: "iter_max", kind: ParamKind::Int { min: 1, max: 100_000 }, default: Default::Int(50), doc: "iteration cap" },
 ];
+
+/// The parameters of `tes`, typed (job-file names in brackets).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TesConfig {
+    /// The lattice and the output grid (`t1_x … t2_y`, `rows`, `cols`, `fill`).
+    pub grid: LatticeGrid,
+    /// Termination threshold, as co-evolution's (`t_m`).
+    pub t_m: f64,
+    /// Averages in the termination window (`window`).
+    pub window: u32,
+    /// Iteration cap (`iter_max`).
+    pub iter_max: u32,
+}
+
+impl std::default::Default for TesConfig {
+    fn default() -> TesConfig {
+        TesConfig { grid: LatticeGrid::default(), t_m: 0.02, window: 5, iter_max: 50 }
+    }
+}
+
+impl MethodConfig for TesConfig {
+    const METHOD: &'static str = "tes";
+
+    fn to_params(&self) -> Vec<(String, ParamValue)> {
+        let mut v = self.grid.to_params();
+        v.extend([params::float("t_m", self.t_m), params::int("window", self.window), params::int("iter_max", self.iter_max)]);
+        v
+    }
+
+    fn from_params(p: &Params) -> Result<TesConfig, SynthError> {
+        Ok(TesConfig { grid: LatticeGrid::from_params(p)?, t_m: p.float("t_m")?, window: p.uint("window")?, iter_max: p.uint("iter_max")? })
+    }
+}
 
 /// The sample's blocks and the pixel-level overlap fitness between them.
 struct Blocks<'a> {
@@ -176,20 +209,23 @@ impl Method for Tes {
         1
     }
     fn summary(&self) -> &'static str {
-        "TES (reconstructed): bounding-box blocks that settle, duel and die; the baseline of paper 000 (methods.md §2.11)"
+        "TES (reconstructed): bounding-box blocks that settle, duel and die; the baseline of paper 000 (docs/methods.md §2.11)"
     }
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
-        check_lattice_params(p, sample)
+        match TesConfig::from_params(p) {
+            Ok(cfg) => cfg.grid.check(sample),
+            Err(e) => vec![e.into()],
+        }
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let p = req.params;
+        let cfg = TesConfig::from_params(req.params)?;
         let sample = req.sample;
         let started = Instant::now();
-        let (t1, t2, source) = lattice_vectors(p, sample)?;
+        let (t1, t2, source) = cfg.grid.vectors(sample)?;
         let lattice_seconds = started.elapsed().as_secs_f64();
         let started = Instant::now();
         let g = Geometry::new(t1, t2);
@@ -208,11 +244,11 @@ impl Method for Tes {
             ovw: ((bw as f64 / 6.0).round() as i64).max(2).min(bw),
             ovh: ((bh as f64 / 6.0).round() as i64).max(2).min(bh),
         };
-        let (rows, cols) = match (p.int_or_word_unchecked("rows"), p.int_or_word_unchecked("cols")) {
+        let (rows, cols) = match (cfg.grid.rows, cfg.grid.cols) {
             (None, _) | (_, None) => ((req.height as u64).div_ceil(bh as u64) as usize, (req.width as u64).div_ceil(bw as u64) as usize),
             (Some(r), Some(c)) => (r as usize, c as usize),
         };
-        if ((cols as i64) * bw < req.width as i64 || (rows as i64) * bh < req.height as i64) && p.str_unchecked("fill") != "black" {
+        if ((cols as i64) * bw < req.width as i64 || (rows as i64) * bh < req.height as i64) && cfg.grid.fill != Fill::Black {
             return Err(SynthError::Failed(format!(
                 "the {rows}x{cols} grid of {bw}x{bh} blocks does not cover the {}x{} output; use more rows/cols, rows = cols = \"cover\", or fill = \"black\"",
                 req.width, req.height
@@ -221,9 +257,9 @@ impl Method for Tes {
         let mut init = Stream::new(req.seed, "tes/init");
         let mut grid = Grid { rows, cols, cell: (0..rows * cols).map(|_| init.below_usize(s)).collect() };
         let mut history = vec![grid.mean(&blocks).0];
-        let iter_max = p.int_unchecked("iter_max") as usize;
-        let m_window = p.int_unchecked("window") as usize;
-        let t_m = p.float_unchecked("t_m");
+        let iter_max = cfg.iter_max as usize;
+        let m_window = cfg.window as usize;
+        let t_m = cfg.t_m;
         let mut iterations = 0;
         for iter in 1..=iter_max {
             iterations = iter;

@@ -6,8 +6,7 @@
 //! borrow these from `rw-tiles` (or the reverse) and the family's imports only go one way.
 
 use crate::image::RgbImage;
-use crate::synth::error::SynthError;
-use crate::synth::params::{Default, ParamError, ParamKind, ParamSpec, Params};
+use crate::synth::params::{Default, ParamKind, ParamSpec};
 use crate::synth::primitives::overlap::pixel_error;
 
 /// The `export_tiles` parameter of both tile methods.
@@ -76,22 +75,6 @@ pub fn pick_candidate(costs: &[u64], representative: &[bool]) -> usize {
 /// One candidate's four patches, two per edge class: `([A₀, A₁], [B₀, B₁])` (Wang: the N/S and
 /// E/W diamond centres; RW: the "/" and "\" sub-block corners).
 pub type Patches = ([(u32, u32); 2], [(u32, u32); 2]);
-
-/// A non-negative integer parameter as `u32` (the tables' ranges guarantee it; a value outside is
-/// an error naming the key, never a wrap-around).
-pub(crate) fn uint(p: &Params, name: &str) -> Result<u32, SynthError> {
-    let v = p.int(name)?;
-    u32::try_from(v).map_err(|_| SynthError::param(name, format!("{v} does not fit a non-negative 32-bit integer")))
-}
-
-/// A typed config that cannot be read, for a method's `check` (which reports [`ParamError`]s):
-/// the key it names, or `params` when it names none.
-pub(crate) fn param_error(e: SynthError) -> ParamError {
-    match e {
-        SynthError::Param { key, message } => ParamError { key, message },
-        other => ParamError::new("params", other.to_string()),
-    }
-}
 
 #[cfg(test)]
 mod tests {

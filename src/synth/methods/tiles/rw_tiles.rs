@@ -19,7 +19,7 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
 use super::export::export_rw;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
 use super::wang::{TileSet, TilingOrder};
@@ -144,11 +144,11 @@ impl MethodConfig for RwTilesConfig {
 
     fn from_params(p: &Params) -> Result<Self, SynthError> {
         Ok(RwTilesConfig {
-            tile: common::uint(p, "tile")?,
-            overlap: common::uint(p, "overlap")?,
+            tile: p.uint("tile")?,
+            overlap: p.uint("overlap")?,
             tile_set: p.choice("tile_set")?,
             pixel_error: p.choice("pixel_error")?,
-            patch_candidates: common::uint(p, "patch_candidates")?,
+            patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
             lattice: GivenVectors::from_params(p)?,
             tiling: p.choice("tiling")?,
@@ -574,7 +574,7 @@ impl Method for RwTiles {
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         let cfg = match RwTilesConfig::from_params(p) {
             Ok(cfg) => cfg,
-            Err(e) => return vec![common::param_error(e)],
+            Err(e) => return vec![e.into()],
         };
         let mut errors = Vec::new();
         let (tile, ov) = (cfg.tile as i64, cfg.overlap as i64);

@@ -17,7 +17,7 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
 use super::export::export_wang;
 use super::wang::{TileSet, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet};
@@ -162,12 +162,12 @@ impl MethodConfig for WangTilesConfig {
 
     fn from_params(p: &Params) -> Result<Self, SynthError> {
         Ok(WangTilesConfig {
-            tile: common::uint(p, "tile")?,
-            overlap: common::uint(p, "overlap")?,
+            tile: p.uint("tile")?,
+            overlap: p.uint("overlap")?,
             cut: p.choice("cut")?,
             tile_set: p.choice("tile_set")?,
             pixel_error: p.choice("pixel_error")?,
-            patch_candidates: common::uint(p, "patch_candidates")?,
+            patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
             lattice: GivenVectors::from_params(p)?,
             tiling: p.choice("tiling")?,
@@ -531,7 +531,7 @@ impl Method for WangTiles {
     fn check(&self, p: &Params, sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         let cfg = match WangTilesConfig::from_params(p) {
             Ok(cfg) => cfg,
-            Err(e) => return vec![common::param_error(e)],
+            Err(e) => return vec![e.into()],
         };
         let mut errors = Vec::new();
         let (t, ov) = (cfg.tile as i64, cfg.overlap as i64);
