@@ -1,13 +1,8 @@
 //! SIGTERM and SIGHUP stop a run the way Ctrl-C does: running jobs finish, the manifest is
 //! complete and says which jobs did not run, the exit code names the signal.
 
-use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use super::common::*;
 
-fn manifest(dir: &std::path::Path) -> serde_json::Value {
-    serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap()
-}
 
 fn stop_with(signal: &str, expected: i32) {
     let out = std::env::temp_dir().join(format!("texsyn-signal-{signal}-{}", std::process::id()));

@@ -2,20 +2,8 @@
 //! the key, like every other job error; the diagnostics reach the manifest; thread count does
 //! not change the pixels or the diagnostics.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use super::common::*;
 
-fn texsyn() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_texsyn"))
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("texsyn-patch-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(d.join("jobs")).unwrap();
-    d
-}
 
 fn sample() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/pebbles_beige.png").display().to_string().replace('\\', "/")
@@ -26,11 +14,7 @@ fn job(dir: &Path, name: &str, params: &str, size: u32) {
         "sample = \"{}\"\nmethod = \"patch-sampling\"\nseed = 4\n[output]\npath = \"{name}.png\"\nwidth = {size}\nheight = {size}\n[params]\n{params}\n",
         sample()
     );
-    std::fs::write(dir.join("jobs").join(format!("{name}.toml")), text).unwrap();
-}
-
-fn manifest(out: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap()
+    write(&dir.join("jobs").join(format!("{name}.toml")), &text);
 }
 
 #[test]

@@ -2,35 +2,15 @@
 //! single-machine manifest (deterministic digest), for N from 1 to more shards than jobs; a shard
 //! that never ran is named job by job; re-running a shard redoes only what is not up to date.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use super::common::*;
 
-fn texsyn() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_texsyn"))
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("texsyn-shards-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn jobs() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/cluster_jobs")
 }
 
-fn json(path: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()
-}
-
 fn run(args: &[&str]) -> Output {
     texsyn().args(args).output().expect("texsyn runs")
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
 #[test]

@@ -2,46 +2,8 @@
 //! records, `verify` over them, and `texsyn tiles render` reproducing the job's output from the
 //! export alone, rendering other sizes and seeds, and refusing a tampered export.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-use texsyn::image::io::{self as imageio, DecodeLimits};
+use super::common::*;
 
-fn texsyn() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_texsyn"))
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("texsyn-tiles-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(cmd: &mut Command) -> Output {
-    cmd.output().expect("texsyn runs")
-}
-
-fn run_ok(cmd: &mut Command) -> Output {
-    let out = run(cmd);
-    assert!(
-        out.status.success(),
-        "{cmd:?} exited {:?}\nstdout:\n{}\nstderr:\n{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn pixels(path: &Path) -> String {
-    let bytes = std::fs::read(path).unwrap();
-    imageio::decode_output(&bytes, DecodeLimits::default()).unwrap().pixel_digest().sha256
-}
-
-fn rgb(path: &Path) -> texsyn::RgbImage {
-    imageio::read_rgb8(path, DecodeLimits::default()).unwrap().0
-}
 
 /// Writes one exporting job per tile method and runs them.
 fn exported(tag: &str) -> PathBuf {

@@ -16,11 +16,9 @@
 //!
 //! All cases run, then the test fails once with a report of every failing case and its output.
 
-use std::collections::BTreeMap;
+use super::common::*;
 use std::fs::File;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+
 
 // ---------------------------------------------------------------------------------------------
 // Fixture building: PNG chunks with real CRCs, tiny images of other formats.

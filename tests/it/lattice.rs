@@ -2,7 +2,8 @@
 //! vectors docs/methods.md §2.2's prototype found, in canonical form), the eight others do not, and
 //! the command says so with its exit code.
 
-use std::process::Command;
+use super::common::*;
+
 
 fn lattice(sample: &str, extra: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_texsyn"))

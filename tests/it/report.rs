@@ -4,51 +4,11 @@
 //! sheets must hold the images pixel for pixel, and the page must render in a real headless
 //! Chromium with every image decoded and every number equal to the manifest's.
 
-use serde_json::Value;
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use super::common::*;
+
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
-use texsyn::RgbImage;
-use texsyn::image::io::{self as imageio, DecodeLimits};
 
 const METRICS: [&str; 6] = ["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
-
-fn texsyn() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_texsyn"))
-}
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("texsyn-report-it-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn show(cmd: &Command, out: &Output) -> String {
-    format!(
-        "{cmd:?} exited {:?}\nstdout:\n{}\nstderr:\n{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
-}
-
-fn run_expect(cmd: &mut Command, code: i32) -> Output {
-    let out = cmd.output().expect("texsyn runs");
-    assert_eq!(out.status.code(), Some(code), "{}", show(cmd, &out));
-    out
-}
-
-fn write(path: &Path, text: &str) {
-    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    std::fs::write(path, text).unwrap();
-}
 
 /// The job directory and its run, made once for all tests (they only read it).
 struct Run {

@@ -1,43 +1,8 @@
 //! End-to-end tests of the pipeline through the `texsyn` binary: golden digests, determinism
 //! across thread counts and job order, incremental runs, verify, and crash safety.
 
-use serde_json::Value;
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use super::common::*;
 
-fn texsyn() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_texsyn"))
-}
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("texsyn-it-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run_ok(cmd: &mut Command) -> Output {
-    let out = cmd.output().expect("texsyn runs");
-    assert!(
-        out.status.success(),
-        "{:?} exited {:?}\nstdout:\n{}\nstderr:\n{}",
-        cmd,
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn manifest(out: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap()
-}
 
 /// job id → pixel digest of its first output.
 fn pixel_digests(out: &Path) -> BTreeMap<String, String> {
@@ -47,19 +12,6 @@ fn pixel_digests(out: &Path) -> BTreeMap<String, String> {
         .iter()
         .map(|j| (j["id"].as_str().unwrap().to_string(), j["outputs"][0]["pixel_digest"]["sha256"].as_str().unwrap_or("").to_string()))
         .collect()
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let target = to.join(e.file_name());
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), &target).unwrap();
-        }
-    }
 }
 
 #[test]
@@ -291,19 +243,6 @@ fn a_killed_run_resumes_without_redoing_finished_jobs() {
     let clean = d.join("clean");
     run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&clean).arg("-q"));
     assert_eq!(pixel_digests(&out), pixel_digests(&clean));
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.is_dir() {
-            out.extend(walk(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out
 }
 
 #[test]

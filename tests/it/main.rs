@@ -1,0 +1,14 @@
+//! The integration tests, one binary: the `texsyn` command line end to end (pipeline, bad input,
+//! lattice, methods' job-level behaviour, report in headless Chromium, tile export, shards and
+//! merge, signals, manifests written by earlier versions).
+
+mod bad_input;
+mod common;
+mod compat;
+mod lattice;
+mod patch_sampling;
+mod pipeline;
+mod report;
+mod shards;
+mod signals;
+mod tile_export;
