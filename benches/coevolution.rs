@@ -106,7 +106,8 @@ fn main() {
             }
         }
         // Image quilting for a comparable output: the 20×20 job's 520×520, block ≈ the 27×26 texel.
-        let q = pool.install(|| median((0..quilt_runs).map(|_| call("quilting", &sample, 520, &[("block", ParamValue::Int(27))]).0).collect()));
+        let q =
+            pool.install(|| median((0..quilt_runs).map(|_| call("quilting", &sample, 520, &[("block", ParamValue::Int(27))]).0).collect()));
         let (c, t) = at_20;
         println!(
             "{threads} thread(s)  520x520  image quilting (block 27) {q:>8.4} s  quilting / coevolution {:>7.2}  quilting / TES {:>6.3}",

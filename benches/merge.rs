@@ -26,23 +26,50 @@ fn record(k: usize) -> JobRecord {
         error: None,
         method: Some("quilting".into()),
         algorithm_version: Some(1),
-        params: Some(serde_json::json!({"block": 24 + k % 5 * 8, "overlap": 4, "tolerance": 0.1, "search": "fft", "cut": "dp", "blend": "none"})),
+        params: Some(
+            serde_json::json!({"block": 24 + k % 5 * 8, "overlap": 4, "tolerance": 0.1, "search": "fft", "cut": "dp", "blend": "none"}),
+        ),
         params_digest: Some(d("params")),
         seed: Some(k as u64),
-        sample: Some(SampleRecord { path: "../jobs/samples/bricks_gray.png".into(), file_digest: d("sf"), pixel_digest: d("sp"), width: 256, height: 256 }),
+        sample: Some(SampleRecord {
+            path: "../jobs/samples/bricks_gray.png".into(),
+            file_digest: d("sf"),
+            pixel_digest: d("sp"),
+            width: 256,
+            height: 256,
+        }),
         output_spec: Some(serde_json::json!({"path": format!("q/{k}.png"), "width": 512, "height": 512, "format": "png", "bit_depth": 8})),
         content_key: Some(d("key")),
-        outputs: vec![OutputRecord { path: format!("q/{k}.png"), format: "png".into(), bit_depth: 8, width: 512, height: 512, file_digest: d("of"), pixel_digest: d("op") }],
+        outputs: vec![OutputRecord {
+            path: format!("q/{k}.png"),
+            format: "png".into(),
+            bit_depth: 8,
+            width: 512,
+            height: 512,
+            file_digest: d("of"),
+            pixel_digest: d("op"),
+        }],
         seams: None,
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
-        timing: Some(Timing { synthesis_seconds: 0.4, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 0.45, finished_at: 1_700_000_000 + k as u64 }),
+        timing: Some(Timing {
+            synthesis_seconds: 0.4,
+            metrics_seconds: 0.0,
+            phases: Default::default(),
+            total_seconds: 0.45,
+            finished_at: 1_700_000_000 + k as u64,
+        }),
     }
 }
 
 fn peak_rss_mb() -> f64 {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let kb: f64 = status.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)).and_then(|v| v.parse().ok()).unwrap_or(0.0);
+    let kb: f64 = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.0);
     kb / 1024.0
 }
 
@@ -83,7 +110,15 @@ fn main() {
     }
     let mut bytes = 0u64;
     for (index, jobs_of) in per.into_iter().enumerate() {
-        let facts = ShardFacts { index, count: shards, plan_jobs: jobs, plan_digest: plan_digest.clone(), assigned: jobs_of.len(), host: format!("node{index}"), scheduler: Default::default() };
+        let facts = ShardFacts {
+            index,
+            count: shards,
+            plan_jobs: jobs,
+            plan_digest: plan_digest.clone(),
+            assigned: jobs_of.len(),
+            host: format!("node{index}"),
+            scheduler: Default::default(),
+        };
         let m = Manifest::new(jobs_of, RunFacts { shard: Some(facts), ..RunFacts::default() });
         let b = m.to_bytes();
         bytes += b.len() as u64;

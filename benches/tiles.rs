@@ -11,13 +11,13 @@ use std::path::Path;
 use std::time::Instant;
 use texsyn::RgbImage;
 use texsyn::image::io::{DecodeLimits, read_rgb8};
-use texsyn::synth::methods::tiles::common::PixelError;
-use texsyn::synth::methods::tiles::rw_tiles;
-use texsyn::synth::methods::tiles::wang_tiles::{self, Cut};
 use texsyn::synth::method::Request;
 use texsyn::synth::methods::find;
-use texsyn::synth::params::{ParamValue, resolve};
+use texsyn::synth::methods::tiles::common::PixelError;
+use texsyn::synth::methods::tiles::rw_tiles;
 use texsyn::synth::methods::tiles::wang::{TileSet, TilingOrder};
+use texsyn::synth::methods::tiles::wang_tiles::{self, Cut};
+use texsyn::synth::params::{ParamValue, resolve};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -110,8 +110,14 @@ fn main() {
                 let r = call("rw-tiles", &[]);
                 let w = call("wang-tiles", &[]);
                 println!("{name:<16} 1280x1280 {threads} thread(s)  image quilting (block 64)      {q:>8.4} s");
-                println!("{name:<16} 1280x1280 {threads} thread(s)  rw-tiles, whole call           {r:>8.4} s  quilting / rw-tiles {:>8.1}", q / r);
-                println!("{name:<16} 1280x1280 {threads} thread(s)  wang-tiles, whole call         {w:>8.4} s  quilting / wang-tiles {:>6.1}", q / w);
+                println!(
+                    "{name:<16} 1280x1280 {threads} thread(s)  rw-tiles, whole call           {r:>8.4} s  quilting / rw-tiles {:>8.1}",
+                    q / r
+                );
+                println!(
+                    "{name:<16} 1280x1280 {threads} thread(s)  wang-tiles, whole call         {w:>8.4} s  quilting / wang-tiles {:>6.1}",
+                    q / w
+                );
             }
         }
     }

@@ -31,7 +31,9 @@ fn main() {
     });
     let jobs: Vec<&Value> = manifest["jobs"]
         .as_array()
-        .map(|a| a.iter().filter(|j| j["method"] == "patch-sampling" && matches!(j["status"].as_str(), Some("ok" | "up-to-date"))).collect())
+        .map(|a| {
+            a.iter().filter(|j| j["method"] == "patch-sampling" && matches!(j["status"].as_str(), Some("ok" | "up-to-date"))).collect()
+        })
         .unwrap_or_default();
     if jobs.is_empty() {
         eprintln!("{path}: no successful patch-sampling jobs");
@@ -70,11 +72,14 @@ fn table2(jobs: &[&Value]) {
         return;
     }
     println!("## Table 2: search success on one block problem (success: error ≤ 1.03 × exhaustive optimum)\n");
-    println!("| problem | algorithm | runs | mean iterations | successes | failures | success rate | runs with chaos | mean error / optimum | optimum (positions within 3 %) |");
+    println!(
+        "| problem | algorithm | runs | mean iterations | successes | failures | success rate | runs with chaos | mean error / optimum | optimum (positions within 3 %) |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for ((file, search), runs) in &groups {
         let ok: Vec<&Run> = runs.iter().filter(|r| (r.0 as f64) <= 1.03 * r.1 as f64).collect();
-        let mean_it = if ok.is_empty() { "—".to_string() } else { format!("{:.1}", ok.iter().map(|r| r.2 as f64).sum::<f64>() / ok.len() as f64) };
+        let mean_it =
+            if ok.is_empty() { "—".to_string() } else { format!("{:.1}", ok.iter().map(|r| r.2 as f64).sum::<f64>() / ok.len() as f64) };
         let ratio = runs.iter().map(|r| if r.1 == 0 { 1.0 } else { r.0 as f64 / r.1 as f64 }).sum::<f64>() / runs.len() as f64;
         let optima: std::collections::BTreeSet<(u64, u64)> = runs.iter().map(|r| (r.1, r.4)).collect();
         let optima: Vec<String> = optima.iter().map(|(o, n)| format!("{o} ({n})")).collect();
@@ -103,11 +108,8 @@ fn figure4(jobs: &[&Value]) {
         let Some(seconds) = j["timing"]["synthesis_seconds"].as_f64() else { continue };
         let p = &j["params"];
         let search = p["search"].as_str().unwrap_or("?");
-        let label = if search == "exhaustive" {
-            format!("exhaustive ({})", p["engine"].as_str().unwrap_or("fft"))
-        } else {
-            search.to_string()
-        };
+        let label =
+            if search == "exhaustive" { format!("exhaustive ({})", p["engine"].as_str().unwrap_or("fft")) } else { search.to_string() };
         let particles = if search == "exhaustive" { 0 } else { p["particles"].as_i64().unwrap_or(0) };
         groups.entry((file_of(j), label)).or_default().entry(particles).or_default().push((seconds, j["metrics"].clone()));
     }

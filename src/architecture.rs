@@ -9,7 +9,13 @@ use std::path::{Path, PathBuf};
 const LAYERS: &[&str] = &["digest", "image", "metrics", "synth", "error", "synthesizer", "batch", "report"];
 
 /// Inside `synth`, the same rule between its modules.
-const SYNTH_LAYERS: &[&[&str]] = &[&["synth::error", "synth::rng"], &["synth::params"], &["synth::lattice", "synth::primitives"], &["synth::method"], &["synth::methods"]];
+const SYNTH_LAYERS: &[&[&str]] = &[
+    &["synth::error", "synth::rng"],
+    &["synth::params"],
+    &["synth::lattice", "synth::primitives"],
+    &["synth::method"],
+    &["synth::methods"],
+];
 
 fn rank(module: &str) -> Option<(usize, usize)> {
     let top = module.split("::").next()?;
@@ -94,7 +100,10 @@ fn graph() -> Graph {
             }
             for path in paths_in(line, parent) {
                 // The longest module that prefixes the path is what it imports.
-                let target = modules.iter().filter(|m| !m.is_empty() && (path == **m || path.starts_with(&format!("{m}::")))).max_by_key(|m| m.len());
+                let target = modules
+                    .iter()
+                    .filter(|m| !m.is_empty() && (path == **m || path.starts_with(&format!("{m}::"))))
+                    .max_by_key(|m| m.len());
                 let Some(target) = target else { continue };
                 let is_ancestor = module == *target || module.starts_with(&format!("{target}::"));
                 if !is_ancestor {

@@ -172,11 +172,7 @@ pub fn ecmascript_number(v: f64) -> String {
     } else {
         let e = n - 1;
         let esign = if e < 0 { "-" } else { "+" };
-        if k == 1 {
-            format!("{digits}e{esign}{}", e.abs())
-        } else {
-            format!("{}.{}e{esign}{}", &digits[..1], &digits[1..], e.abs())
-        }
+        if k == 1 { format!("{digits}e{esign}{}", e.abs()) } else { format!("{}.{}e{esign}{}", &digits[..1], &digits[1..], e.abs()) }
     };
     format!("{sign}{body}")
 }
@@ -188,10 +184,7 @@ mod tests {
 
     #[test]
     fn sha256_known_vector() {
-        assert_eq!(
-            Digest::of_bytes(b"abc").sha256,
-            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
-        );
+        assert_eq!(Digest::of_bytes(b"abc").sha256, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
     }
 
     #[test]
@@ -223,10 +216,7 @@ mod tests {
     #[test]
     fn canonical_json_sorts_keys_and_escapes_minimally() {
         let v = json!({"b": [1, 2.5, "x\u{1}y"], "a": {"z": null, "é": true, "\r": false}, "A": "\"\\/"});
-        assert_eq!(
-            canonical_json(&v),
-            r#"{"A":"\"\\/","a":{"\r":false,"z":null,"é":true},"b":[1,2.5,"x\u0001y"]}"#
-        );
+        assert_eq!(canonical_json(&v), r#"{"A":"\"\\/","a":{"\r":false,"z":null,"é":true},"b":[1,2.5,"x\u0001y"]}"#);
     }
 
     #[test]

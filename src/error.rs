@@ -58,7 +58,11 @@ impl fmt::Display for Error {
             ),
             Error::Locked { dir, holder } => {
                 let who = holder.map(|p| format!(" (process {p})")).unwrap_or_default();
-                write!(f, "another texsyn run is using the output directory {}{who}; wait for it to finish or choose another --out", dir.display())
+                write!(
+                    f,
+                    "another texsyn run is using the output directory {}{who}; wait for it to finish or choose another --out",
+                    dir.display()
+                )
             }
             Error::Containment { path, reason } => write!(f, "{}: {reason}", path.display()),
             Error::Manifest { path, reason } => write!(f, "{}: {reason}", path.display()),

@@ -78,7 +78,8 @@ pub fn load_image(path: impl AsRef<std::path::Path>) -> Result<RgbImage> {
 pub fn save_image(img: &RgbImage, path: impl AsRef<std::path::Path>) -> Result<()> {
     use image::io::{Encoding, Format};
     let path = path.as_ref();
-    let format = Format::from_path(path).ok_or_else(|| Error::Usage(format!("{}: the file name must end in .png or .exr", path.display())))?;
+    let format =
+        Format::from_path(path).ok_or_else(|| Error::Usage(format!("{}: the file name must end in .png or .exr", path.display())))?;
     let bit_depth = if format == Format::Exr { 32 } else { 8 };
     let encoded = image::io::encode(img, Encoding { format, bit_depth }).map_err(|source| Error::Image { path: path.into(), source })?;
     batch::outdir::write_atomic(path, &encoded.bytes)

@@ -65,7 +65,8 @@ impl Synthesizer {
         if width == 0 || height == 0 {
             return Err(Error::Usage(format!("the output size must be at least 1x1 (got {width}x{height})")));
         }
-        let params = params::resolve(method.params(), &self.given).map_err(|errors| Error::Params { method: method.name().into(), errors })?;
+        let params =
+            params::resolve(method.params(), &self.given).map_err(|errors| Error::Params { method: method.name().into(), errors })?;
         let errors = method.check(&params, sample.dimensions(), (width, height));
         if !errors.is_empty() {
             return Err(Error::Params { method: method.name().into(), errors });

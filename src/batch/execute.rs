@@ -28,7 +28,8 @@ pub struct LoadedSample {
 
 /// Reads and decodes a sample; the error names the file and the reason.
 pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
-    let (image, bytes) = imageio::read_rgb8(path, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
+    let (image, bytes) =
+        imageio::read_rgb8(path, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
     Ok(LoadedSample { pixel_digest: imageio::rgb_pixel_digest(&image), file_digest: Digest::of_bytes(&bytes), image })
 }
 
@@ -122,7 +123,11 @@ pub fn synthesize_and_encode(
         }
     };
     if synthesis.image.dimensions() != (output.width, output.height) {
-        return Err(JobFailure::WrongSize { method: method.name(), got: synthesis.image.dimensions(), want: (output.width, output.height) });
+        return Err(JobFailure::WrongSize {
+            method: method.name(),
+            got: synthesis.image.dimensions(),
+            want: (output.width, output.height),
+        });
     }
     let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
     Ok((synthesis, encoded, seconds))
@@ -182,7 +187,8 @@ pub fn execute(
 /// Where an extra output of the job whose main output is `output_path` is stored:
 /// `{output_path without its extension}.{name}`.
 pub fn extra_path(output_path: &str, name: &str) -> Result<String, JobFailure> {
-    let bad = name.is_empty() || name.starts_with('/') || name.contains('\\') || name.split('/').any(|c| c.is_empty() || c == "." || c == "..");
+    let bad =
+        name.is_empty() || name.starts_with('/') || name.contains('\\') || name.split('/').any(|c| c.is_empty() || c == "." || c == "..");
     if bad {
         return Err(JobFailure::ExtraName(name.to_string()));
     }
@@ -210,10 +216,19 @@ pub fn encode_extra(output_path: &str, extra: &ExtraOutput) -> Result<(OutputRec
             Ok((record, encoded.bytes))
         }
         ExtraContent::Json(value) => {
-            let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| JobFailure::Encode(ImageError::Encode(format!("cannot encode `{}`: {e}", extra.name))))?;
+            let mut bytes = serde_json::to_vec_pretty(value)
+                .map_err(|e| JobFailure::Encode(ImageError::Encode(format!("cannot encode `{}`: {e}", extra.name))))?;
             bytes.push(b'\n');
             let digest = Digest::of_bytes(&bytes);
-            let record = OutputRecord { path, format: "json".into(), bit_depth: 0, width: 0, height: 0, file_digest: digest.clone(), pixel_digest: digest };
+            let record = OutputRecord {
+                path,
+                format: "json".into(),
+                bit_depth: 0,
+                width: 0,
+                height: 0,
+                file_digest: digest.clone(),
+                pixel_digest: digest,
+            };
             Ok((record, bytes))
         }
     }
@@ -274,7 +289,10 @@ mod tests {
         assert_eq!((rec.format.as_str(), rec.width, rec.height), ("json", 0, 0));
         assert_eq!(rec.pixel_digest, Digest::of_bytes(&bytes));
         assert_eq!(serde_json::from_slice::<serde_json::Value>(&bytes).unwrap(), serde_json::json!({"a": [1, 2], "b": 1}));
-        let img = ExtraOutput { name: "tiles/t.png".into(), content: ExtraContent::Rgba8 { width: 2, height: 1, data: vec![1, 2, 3, 255, 4, 5, 6, 0] } };
+        let img = ExtraOutput {
+            name: "tiles/t.png".into(),
+            content: ExtraContent::Rgba8 { width: 2, height: 1, data: vec![1, 2, 3, 255, 4, 5, 6, 0] },
+        };
         let (rec, bytes) = encode_extra("o.png", &img).unwrap();
         let back = imageio::decode_output(&bytes, DecodeLimits::default()).unwrap();
         assert_eq!((rec.width, rec.height, back.channels), (2, 1, 4));

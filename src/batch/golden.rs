@@ -5,9 +5,9 @@
 //! of PNG compression never looks like a change of result. Changing a golden file is a
 //! deliberate act: `bless` prints every digest it changes.
 
+use crate::batch::manifest::{JobRecord, Manifest};
 use crate::digest::Digest;
 use crate::error::Error;
-use crate::batch::manifest::{JobRecord, Manifest};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 

@@ -240,7 +240,10 @@ impl Manifest {
         if !dup_ids.is_empty() {
             let n = dup_ids.len();
             let some: Vec<&str> = dup_ids.into_iter().take(5).collect();
-            return Err(format!("{n} job id(s) are recorded more than once (e.g. `{}`); a manifest lists each job once", some.join("`, `")));
+            return Err(format!(
+                "{n} job id(s) are recorded more than once (e.g. `{}`); a manifest lists each job once",
+                some.join("`, `")
+            ));
         }
         let mut owner: std::collections::BTreeMap<&str, &str> = std::collections::BTreeMap::new();
         for j in &self.jobs {
@@ -363,13 +366,27 @@ mod tests {
             seams: None,
             diagnostics: Value::Null,
             metrics: None,
-            timing: Some(Timing { synthesis_seconds: 1.0, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 2.0, finished_at: 5 }),
+            timing: Some(Timing {
+                synthesis_seconds: 1.0,
+                metrics_seconds: 0.0,
+                phases: Default::default(),
+                total_seconds: 2.0,
+                finished_at: 5,
+            }),
         }
     }
 
     fn with_output(mut r: JobRecord, path: &str) -> JobRecord {
         let d = Digest::of_bytes(path.as_bytes());
-        r.outputs.push(OutputRecord { path: path.into(), format: "png".into(), bit_depth: 8, width: 1, height: 1, file_digest: d.clone(), pixel_digest: d });
+        r.outputs.push(OutputRecord {
+            path: path.into(),
+            format: "png".into(),
+            bit_depth: 8,
+            width: 1,
+            height: 1,
+            file_digest: d.clone(),
+            pixel_digest: d,
+        });
         r
     }
 
@@ -380,7 +397,13 @@ mod tests {
         let path = dir.join("manifest.json");
         let load = |jobs: Vec<JobRecord>| {
             // Written as texsyn would, but with the problem in it.
-            let m = Manifest { format: FORMAT.into(), tool: Tool::current(), deterministic_digest: Digest::of_bytes(b""), jobs, run: RunFacts::default() };
+            let m = Manifest {
+                format: FORMAT.into(),
+                tool: Tool::current(),
+                deterministic_digest: Digest::of_bytes(b""),
+                jobs,
+                run: RunFacts::default(),
+            };
             std::fs::write(&path, m.to_bytes()).unwrap();
             Manifest::load(&path).map(|_| ()).map_err(|e| e.to_string())
         };

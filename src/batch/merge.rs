@@ -48,15 +48,22 @@ pub fn fragments(dir: &Path) -> Result<Vec<PathBuf>, Error> {
 pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
     let paths = fragments(dir)?;
     if paths.is_empty() {
-        return Err(Error::Usage(format!("no shard fragments (manifest.shard-I-of-N.json) in {}; run `texsyn run --shard I/N` first", dir.display())));
+        return Err(Error::Usage(format!(
+            "no shard fragments (manifest.shard-I-of-N.json) in {}; run `texsyn run --shard I/N` first",
+            dir.display()
+        )));
     }
     let mut loaded: Vec<(PathBuf, Manifest, ShardFacts)> = Vec::new();
     for p in &paths {
         let m = Manifest::load(p)?;
-        let facts = m.run.shard.clone().ok_or_else(|| Error::manifest(p, "has no `run.shard`: not a fragment written by `texsyn run --shard`"))?;
+        let facts =
+            m.run.shard.clone().ok_or_else(|| Error::manifest(p, "has no `run.shard`: not a fragment written by `texsyn run --shard`"))?;
         let expected = format!("manifest.shard-{}-of-{}.json", facts.index, facts.count);
         if p.file_name().and_then(|n| n.to_str()) != Some(expected.as_str()) {
-            return Err(Error::manifest(p, format!("records shard {}/{} but is named for another; was it renamed?", facts.index, facts.count)));
+            return Err(Error::manifest(
+                p,
+                format!("records shard {}/{} but is named for another; was it renamed?", facts.index, facts.count),
+            ));
         }
         if m.recompute_digest() != m.deterministic_digest {
             return Err(Error::manifest(p, "its deterministic digest does not match its content: it was edited after texsyn wrote it"));
@@ -79,10 +86,23 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
             ));
         }
         if f.plan_digest != first_facts.plan_digest {
-            return Err(Error::manifest(p, format!("was planned from another job set than {} (plan digests differ)", first_path.display())));
+            return Err(Error::manifest(
+                p,
+                format!("was planned from another job set than {} (plan digests differ)", first_path.display()),
+            ));
         }
         if m.tool != first.tool {
-            return Err(Error::manifest(p, format!("was written by texsyn {} ({}), {} by {} ({})", m.tool.version, m.tool.commit, first_path.display(), first.tool.version, first.tool.commit)));
+            return Err(Error::manifest(
+                p,
+                format!(
+                    "was written by texsyn {} ({}), {} by {} ({})",
+                    m.tool.version,
+                    m.tool.commit,
+                    first_path.display(),
+                    first.tool.version,
+                    first.tool.commit
+                ),
+            ));
         }
     }
 
@@ -107,7 +127,11 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
                     if comparable(other) != comparable(&rec) {
                         return Err(Error::manifest(
                             &p,
-                            format!("records job `{}` differently from {}; the fragments conflict, refusing to choose", rec.id, other_path.display()),
+                            format!(
+                                "records job `{}` differently from {}; the fragments conflict, refusing to choose",
+                                rec.id,
+                                other_path.display()
+                            ),
                         ));
                     }
                 }
@@ -198,7 +222,13 @@ mod tests {
             seams: None,
             diagnostics: serde_json::Value::Null,
             metrics: None,
-            timing: Some(Timing { synthesis_seconds: 0.5, metrics_seconds: 0.0, phases: Default::default(), total_seconds: 0.6, finished_at: 9 }),
+            timing: Some(Timing {
+                synthesis_seconds: 0.5,
+                metrics_seconds: 0.0,
+                phases: Default::default(),
+                total_seconds: 0.6,
+                finished_at: 9,
+            }),
         }
     }
 

@@ -85,7 +85,10 @@ impl OutDir {
         }
         if let Ok(meta) = std::fs::symlink_metadata(&path) {
             if meta.file_type().is_symlink() {
-                return Err(Error::Containment { path: PathBuf::from(rel), reason: "is a symlink in the output directory; refusing to write through it".into() });
+                return Err(Error::Containment {
+                    path: PathBuf::from(rel),
+                    reason: "is a symlink in the output directory; refusing to write through it".into(),
+                });
             }
         }
         Ok(path)

@@ -7,8 +7,8 @@
 
 use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
 use crate::batch::job::{self, InvalidJob, Job, JobError, JobSet};
-use crate::batch::shard::{self, Shard};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
+use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use rayon::prelude::*;
@@ -217,7 +217,14 @@ pub fn is_fragment(path: &Path) -> bool {
 fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest, JobRecord) {
     let params_json = job.params.to_json();
     let output_json = job.output.to_json();
-    let content_key = manifest::content_key(job.method.name(), job.method.algorithm_version(), &params_json, job.seed, &sample.pixel_digest, &output_json);
+    let content_key = manifest::content_key(
+        job.method.name(),
+        job.method.algorithm_version(),
+        &params_json,
+        job.seed,
+        &sample.pixel_digest,
+        &output_json,
+    );
     let record = JobRecord {
         id: job.id.clone(),
         job_file: FileRef { path: manifest::relative_path(&job.file, manifest_dir), digest: job.file_digest.clone() },

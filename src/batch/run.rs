@@ -9,11 +9,11 @@
 
 use crate::batch::execute::execute;
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
-use crate::batch::shard::Shard;
 pub use crate::batch::observer::Summary;
 use crate::batch::observer::{Event, Observer};
 use crate::batch::outdir::OutDir;
 use crate::batch::plan::{self, Action, Plan, PlanOptions};
+use crate::batch::shard::Shard;
 use crate::error::Error;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};

@@ -50,19 +50,27 @@ impl Shard {
             let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
             let count = match num("SLURM_ARRAY_TASK_COUNT")? {
                 Some(c) => c,
-                None => num("SLURM_ARRAY_TASK_MAX")?
-                    .map(|max| max + 1 - min)
-                    .ok_or_else(|| Error::Usage("--shard auto: SLURM_ARRAY_TASK_ID is set but neither SLURM_ARRAY_TASK_COUNT nor SLURM_ARRAY_TASK_MAX".into()))?,
+                None => num("SLURM_ARRAY_TASK_MAX")?.map(|max| max + 1 - min).ok_or_else(|| {
+                    Error::Usage(
+                        "--shard auto: SLURM_ARRAY_TASK_ID is set but neither SLURM_ARRAY_TASK_COUNT nor SLURM_ARRAY_TASK_MAX".into(),
+                    )
+                })?,
             };
-            let index = id.checked_sub(min).ok_or_else(|| Error::Usage(format!("--shard auto: SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}")))?;
-            return Shard::new(index, count)
-                .ok_or_else(|| Error::Usage(format!("--shard auto: array task {index} of {count} is not a valid shard (the array must be 0..N-1 or contiguous)")));
+            let index = id
+                .checked_sub(min)
+                .ok_or_else(|| Error::Usage(format!("--shard auto: SLURM_ARRAY_TASK_ID {id} is below SLURM_ARRAY_TASK_MIN {min}")))?;
+            return Shard::new(index, count).ok_or_else(|| {
+                Error::Usage(format!(
+                    "--shard auto: array task {index} of {count} is not a valid shard (the array must be 0..N-1 or contiguous)"
+                ))
+            });
         }
         if let Some(index) = num("JOB_COMPLETION_INDEX")? {
             let count = num("TEXSYN_SHARD_COUNT")?.ok_or_else(|| {
                 Error::Usage("--shard auto: JOB_COMPLETION_INDEX is set; also set TEXSYN_SHARD_COUNT to the Job's completions".into())
             })?;
-            return Shard::new(index, count).ok_or_else(|| Error::Usage(format!("--shard auto: index {index} is not below TEXSYN_SHARD_COUNT {count}")));
+            return Shard::new(index, count)
+                .ok_or_else(|| Error::Usage(format!("--shard auto: index {index} is not below TEXSYN_SHARD_COUNT {count}")));
         }
         Err(Error::Usage(
             "--shard auto: no scheduler index found (SLURM_ARRAY_TASK_ID, or JOB_COMPLETION_INDEX with TEXSYN_SHARD_COUNT); use --shard I/N".into(),
@@ -115,7 +123,11 @@ mod tests {
 
     fn jobs(n: usize) -> Vec<(String, u64)> {
         // Costs of very different sizes, like a real job set (64² tiles to 2048² quilts).
-        (0..n).map(|k| (format!("dir/job_{k:04}.toml#seed={}", k % 7), [4096u64, 65_536, 262_144, 4_194_304][k * 7 % 4] * (1 + (k % 3) as u64))).collect()
+        (0..n)
+            .map(|k| {
+                (format!("dir/job_{k:04}.toml#seed={}", k % 7), [4096u64, 65_536, 262_144, 4_194_304][k * 7 % 4] * (1 + (k % 3) as u64))
+            })
+            .collect()
     }
 
     #[test]
@@ -164,12 +176,18 @@ mod tests {
             assert!(Shard::parse(bad).is_err(), "{bad}");
         }
         let env = |pairs: &'static [(&'static str, &'static str)]| move |k: &str| pairs.iter().find(|p| p.0 == k).map(|p| p.1.to_string());
-        assert_eq!(Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "4")])).unwrap(), Shard { index: 2, count: 4 });
+        assert_eq!(
+            Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "4")])).unwrap(),
+            Shard { index: 2, count: 4 }
+        );
         assert_eq!(
             Shard::from_env(env(&[("SLURM_ARRAY_TASK_ID", "5"), ("SLURM_ARRAY_TASK_MIN", "1"), ("SLURM_ARRAY_TASK_MAX", "8")])).unwrap(),
             Shard { index: 4, count: 8 }
         );
-        assert_eq!(Shard::from_env(env(&[("JOB_COMPLETION_INDEX", "0"), ("TEXSYN_SHARD_COUNT", "3")])).unwrap(), Shard { index: 0, count: 3 });
+        assert_eq!(
+            Shard::from_env(env(&[("JOB_COMPLETION_INDEX", "0"), ("TEXSYN_SHARD_COUNT", "3")])).unwrap(),
+            Shard { index: 0, count: 3 }
+        );
         let e = Shard::from_env(env(&[("JOB_COMPLETION_INDEX", "0")])).unwrap_err();
         assert!(e.to_string().contains("TEXSYN_SHARD_COUNT"), "{e}");
         assert!(Shard::from_env(env(&[])).unwrap_err().to_string().contains("no scheduler index"));

@@ -6,14 +6,14 @@
 //! directory still has the recorded bytes and pixels. The manifest's deterministic digest is
 //! recomputed too, so an edited manifest is caught even when its jobs still reproduce.
 
-use crate::digest::Digest;
-use crate::image::io::{self as imageio, DecodeLimits};
+use crate::batch::execute::{encode_extra, extra_path, load_sample, synthesize_and_encode};
 use crate::batch::job::OutputSpec;
 use crate::batch::manifest::{JobRecord, Manifest, Status};
+use crate::digest::Digest;
+use crate::error::Error;
+use crate::image::io::{self as imageio, DecodeLimits};
 use crate::synth::methods;
 use crate::synth::params::{self, ParamValue};
-use crate::batch::execute::{encode_extra, extra_path, load_sample, synthesize_and_encode};
-use crate::error::Error;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -51,12 +51,15 @@ pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, Er
             manifest.recompute_digest().short()
         ));
     }
-    let scratch = std::env::temp_dir().join(format!("texsyn-verify-{}-{}", std::process::id(), Digest::of_bytes(manifest_path.display().to_string().as_bytes()).short()));
+    let scratch = std::env::temp_dir().join(format!(
+        "texsyn-verify-{}-{}",
+        std::process::id(),
+        Digest::of_bytes(manifest_path.display().to_string().as_bytes()).short()
+    ));
     std::fs::create_dir_all(&scratch).map_err(|e| Error::io(&scratch, "create", e))?;
     let pool = crate::batch::run::pool(threads)?;
-    report.jobs = pool.install(|| {
-        manifest.jobs.par_iter().with_max_len(1).map(|rec| (rec.id.clone(), verify_job(rec, &dir, &scratch))).collect()
-    });
+    report.jobs =
+        pool.install(|| manifest.jobs.par_iter().with_max_len(1).map(|rec| (rec.id.clone(), verify_job(rec, &dir, &scratch))).collect());
     let _ = std::fs::remove_dir_all(&scratch);
     Ok(report)
 }
@@ -81,10 +84,11 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
         )]);
     }
     // Parameters: they must resolve to exactly what was recorded.
-    let given: Vec<(String, ParamValue)> = match serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) {
-        Ok(m) => m.into_iter().collect(),
-        Err(e) => return Outcome::Mismatch(vec![format!("recorded params are malformed: {e}")]),
-    };
+    let given: Vec<(String, ParamValue)> =
+        match serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) {
+            Ok(m) => m.into_iter().collect(),
+            Err(e) => return Outcome::Mismatch(vec![format!("recorded params are malformed: {e}")]),
+        };
     let params = match params::resolve(method.params(), &given) {
         Ok(p) => p,
         Err(errs) => {

@@ -24,7 +24,11 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     let dir_real = args.dir.canonicalize().map_err(|e| Error::io(&args.dir, "open", e))?;
     let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
     if parent.canonicalize().ok().as_ref() != Some(&dir_real) {
-        return Err(Error::Usage(format!("{}: the merged manifest must be written in {} (its paths are relative to it)", out.display(), args.dir.display())));
+        return Err(Error::Usage(format!(
+            "{}: the merged manifest must be written in {} (its paths are relative to it)",
+            out.display(),
+            args.dir.display()
+        )));
     }
     let m = merge::merge(&args.dir, args.jobs.as_deref())?;
     outdir::write_atomic(&out, &m.manifest.to_bytes())?;

@@ -14,7 +14,10 @@ use texsyn::batch::shard::Shard;
 enum Mode {
     /// Created when the plan says how many jobs will run.
     Bar(Mutex<Option<ProgressBar>>),
-    Lines { last: Mutex<Instant>, every: Duration },
+    Lines {
+        last: Mutex<Instant>,
+        every: Duration,
+    },
     Json,
     Quiet,
 }
@@ -76,7 +79,9 @@ impl Observer for Progress {
                 for e in *errors {
                     self.message(&format!("error: {e}"));
                 }
-                self.json(serde_json::json!({"event": "invalid", "id": id, "errors": errors.iter().map(|e| e.to_string()).collect::<Vec<_>>()}));
+                self.json(
+                    serde_json::json!({"event": "invalid", "id": id, "errors": errors.iter().map(|e| e.to_string()).collect::<Vec<_>>()}),
+                );
             }
             Event::Planned { to_run } => {
                 self.counts.lock().expect("progress lock").0 = *to_run;
@@ -84,7 +89,10 @@ impl Observer for Progress {
                     && *to_run > 0
                 {
                     let b = ProgressBar::new(*to_run as u64);
-                    b.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} jobs  {msg}").expect("valid template"));
+                    b.set_style(
+                        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} jobs  {msg}")
+                            .expect("valid template"),
+                    );
                     b.enable_steady_tick(Duration::from_millis(200));
                     *bar.lock().expect("progress lock") = Some(b);
                 }
@@ -117,7 +125,10 @@ impl Observer for Progress {
                         if last.elapsed() >= *every || done == total {
                             *last = Instant::now();
                             let shard = self.shard.map(|s| format!(" [shard {s}]")).unwrap_or_default();
-                            eprintln!("texsyn{shard}: {done}/{total} jobs done ({failures} failed), {:.1}s", self.started.elapsed().as_secs_f64());
+                            eprintln!(
+                                "texsyn{shard}: {done}/{total} jobs done ({failures} failed), {:.1}s",
+                                self.started.elapsed().as_secs_f64()
+                            );
                         }
                     }
                     _ => {}

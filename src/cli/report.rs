@@ -28,7 +28,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<Outcome, Error> {
-    let s = texsyn::report::report(&ReportOptions { manifest: args.manifest, out: args.out, group_by: args.group_by, baseline: args.baseline })?;
+    let s = texsyn::report::report(&ReportOptions {
+        manifest: args.manifest,
+        out: args.out,
+        group_by: args.group_by,
+        baseline: args.baseline,
+    })?;
     for p in &s.problems {
         eprintln!("warning: {p}");
     }

@@ -56,7 +56,8 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok())?),
         Some(s) => Some(Shard::parse(s)?),
     };
-    let mut opts = RunOptions { out: args.out.clone(), threads: args.jobs, force: args.force, reverse: args.reverse, interrupt: None, shard };
+    let mut opts =
+        RunOptions { out: args.out.clone(), threads: args.jobs, force: args.force, reverse: args.reverse, interrupt: None, shard };
     if args.dry_run {
         return dry_run(&args, &opts);
     }

@@ -116,15 +116,17 @@ fn scripts(args: &Args, texsyn: &Path, inputs: &[PathBuf], out: &Path) -> (Strin
 
 /// Runs `sbatch ARGS` and returns its `--parsable` job id.
 fn sbatch(args: &[&str]) -> Result<String, Error> {
-    let output = Command::new("sbatch")
-        .arg("--parsable")
-        .args(args)
-        .output()
-        .map_err(|e| Error::Usage(format!("cannot run sbatch ({e}); is Slurm installed on this machine? Without --submit the scripts are printed")))?;
+    let output = Command::new("sbatch").arg("--parsable").args(args).output().map_err(|e| {
+        Error::Usage(format!("cannot run sbatch ({e}); is Slurm installed on this machine? Without --submit the scripts are printed"))
+    })?;
     if !output.status.success() {
         let code = output.status.code().map_or("a signal".to_string(), |c| format!("status {c}"));
         let stderr = String::from_utf8_lossy(&output.stderr);
-        return Err(Error::Usage(format!("sbatch {} ended with {code}{}", args.join(" "), if stderr.trim().is_empty() { String::new() } else { format!(": {}", stderr.trim()) })));
+        return Err(Error::Usage(format!(
+            "sbatch {} ended with {code}{}",
+            args.join(" "),
+            if stderr.trim().is_empty() { String::new() } else { format!(": {}", stderr.trim()) }
+        )));
     }
     let text = String::from_utf8_lossy(&output.stdout);
     // --parsable prints `id` or `id;cluster`.

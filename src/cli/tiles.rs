@@ -52,7 +52,8 @@ pub fn run(cmd: Command) -> Result<Outcome, Error> {
     let img = loaded.render(w, h, seed, order);
     let fill = started.elapsed().as_secs_f64();
     let bit_depth = if format == Format::Exr { 32 } else { 8 };
-    let encoded = texsyn::image::io::encode(&img, Encoding { format, bit_depth }).map_err(|source| Error::Image { path: out.clone(), source })?;
+    let encoded =
+        texsyn::image::io::encode(&img, Encoding { format, bit_depth }).map_err(|source| Error::Image { path: out.clone(), source })?;
     texsyn::batch::outdir::write_atomic(&out, &encoded.bytes)?;
     eprintln!(
         "{}: {w}x{h} from {} {} tiles (seed {seed}), filled in {fill:.3} s; pixels {}",

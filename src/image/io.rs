@@ -166,8 +166,7 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
     if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
         return decode_exr(bytes, limits);
     }
-    let format = image::guess_format(bytes)
-        .map_err(|_| ImageError::Decode("not a recognised image (expected PNG, JPEG or EXR)".into()))?;
+    let format = image::guess_format(bytes).map_err(|_| ImageError::Decode("not a recognised image (expected PNG, JPEG or EXR)".into()))?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
         return Err(ImageError::Decode(format!("unsupported image format {format:?} (expected PNG, JPEG or EXR)")));
     }
@@ -382,14 +381,8 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
             let wide: Vec<u16> = img.as_raw().iter().map(|&v| v as u16 * 257).collect();
             let be: Vec<u8> = wide.iter().flat_map(|s| s.to_be_bytes()).collect();
             let mut bytes = Vec::new();
-            image::ImageEncoder::write_image(
-                image::codecs::png::PngEncoder::new(&mut bytes),
-                &be,
-                w,
-                h,
-                image::ExtendedColorType::Rgb16,
-            )
-            .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
+            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), &be, w, h, image::ExtendedColorType::Rgb16)
+                .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
             Ok(Encoded { bytes, pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(wide) } })
         }
         (Format::Exr, _) => {

@@ -100,10 +100,7 @@ impl RgbImage {
 
     /// Gray level `(R+G+B)/3` on unit scale, row-major (docs/methods.md B6: gray is `I`, not luma).
     pub fn gray_unit(&self) -> Vec<f64> {
-        self.data
-            .chunks_exact(3)
-            .map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0))
-            .collect()
+        self.data.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect()
     }
 }
 

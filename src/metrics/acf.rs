@@ -118,13 +118,7 @@ fn fft_size(n: usize) -> usize {
 /// The raw sums `S(dx, dy)` of B9 for a complex plane (`w × h`, row-major), by FFT.
 ///
 /// Panics if `plane.len() != w·h`.
-pub fn autocorrelation_sums(
-    plane: &[Complex64],
-    w: usize,
-    h: usize,
-    rx: usize,
-    ry: usize,
-) -> Result<Acf<Complex64>, AcfError> {
+pub fn autocorrelation_sums(plane: &[Complex64], w: usize, h: usize, rx: usize, ry: usize) -> Result<Acf<Complex64>, AcfError> {
     assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
     if rx >= w || ry >= h {
         return Err(AcfError::OffsetsOutsidePlane);
@@ -195,13 +189,7 @@ pub fn autocorrelation_sums(
     Ok(Acf { rx, ry, values })
 }
 
-fn normalise(
-    sums: Acf<Complex64>,
-    w: usize,
-    h: usize,
-    form: AcfForm,
-    plane_is_zero: bool,
-) -> Result<Acf<Complex64>, AcfError> {
+fn normalise(sums: Acf<Complex64>, w: usize, h: usize, form: AcfForm, plane_is_zero: bool) -> Result<Acf<Complex64>, AcfError> {
     let s00 = sums.get(0, 0).re;
     if form != AcfForm::RawOverlapMean && (plane_is_zero || s00.is_nan() || s00 <= 0.0) {
         return Err(AcfError::ZeroPlane);
@@ -229,14 +217,7 @@ fn normalise(
 ///
 /// Errors: [`AcfError::OffsetsOutsidePlane`] when `rx ≥ w` or `ry ≥ h`; [`AcfError::ZeroPlane`]
 /// for a normalised form of an identically zero plane. Panics if `plane.len() != w·h`.
-pub fn autocorrelation(
-    plane: &[f64],
-    w: usize,
-    h: usize,
-    rx: usize,
-    ry: usize,
-    form: AcfForm,
-) -> Result<Acf<f64>, AcfError> {
+pub fn autocorrelation(plane: &[f64], w: usize, h: usize, rx: usize, ry: usize, form: AcfForm) -> Result<Acf<f64>, AcfError> {
     assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
     let complex: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
     let sums = autocorrelation_sums(&complex, w, h, rx, ry)?;

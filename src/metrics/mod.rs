@@ -31,17 +31,14 @@ use serde::{Deserialize, Serialize};
 use crate::image::RgbImage;
 use crate::image::seam_grid::SeamGrid;
 
-pub use acf::{
-    Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance,
-};
+pub use acf::{Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance};
 pub use histogram::{KL_EPSILON, gray_counts, gray_level, kl_divergence, kl_divergence_eps, normalise};
 pub use orientation::{StructureTensor, orientation_bin, orientation_counts, structure_tensor};
 pub use seams::seam_visibility;
 pub use verbatim::{verbatim, verbatim_fraction};
 
 /// Every metric name [`evaluate`] accepts, in report order.
-pub const METRIC_NAMES: &[&str] =
-    &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
+pub const METRIC_NAMES: &[&str] = &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
 
 /// The metrics' named parameters (§5.6 "Options"); record them in the manifest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

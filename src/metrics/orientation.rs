@@ -256,8 +256,7 @@ mod tests {
     #[test]
     fn orientation_range_is_half_open_at_minus_90() {
         // atan2(−0, negative) = −π would give −90°; it must be reported as +90°.
-        let t =
-            StructureTensor { width: 2, height: 1, sxx: vec![0.0, 1.0], sxy: vec![-0.0, -1e-300], syy: vec![1.0, 2.0] };
+        let t = StructureTensor { width: 2, height: 1, sxx: vec![0.0, 1.0], sxy: vec![-0.0, -1e-300], syy: vec![1.0, 2.0] };
         assert_eq!(t.orientation_deg(0), Some(90.0));
         let o = t.orientation_deg(1).unwrap();
         assert!(o > -90.0 && o <= 90.0, "{o}");

@@ -197,7 +197,10 @@ fn unknown_name_is_an_error_listing_the_valid_names() {
         assert!(err.contains(name), "{err} lacks {name}");
     }
     let bad = MetricParams { sigma: 0.0, ..MetricParams::default() };
-    assert_eq!(evaluate_with(&["kl_gray"], &img, &img, None, &bad).unwrap_err(), MetricError::Parameter("sigma must be positive and finite, got 0".into()));
+    assert_eq!(
+        evaluate_with(&["kl_gray"], &img, &img, None, &bad).unwrap_err(),
+        MetricError::Parameter("sigma must be positive and finite, got 0".into())
+    );
 }
 
 #[test]

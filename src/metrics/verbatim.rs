@@ -44,10 +44,11 @@ fn row_hashes(img: &RgbImage, k: usize) -> Vec<u64> {
         }
         out[y * nx] = mix(hsh);
         for x in 1..nx {
-            hsh = hsh
-                .wrapping_sub(pixel_word(img, x - 1, y).wrapping_mul(top))
-                .wrapping_mul(ROW_BASE)
-                .wrapping_add(pixel_word(img, x + k - 1, y));
+            hsh = hsh.wrapping_sub(pixel_word(img, x - 1, y).wrapping_mul(top)).wrapping_mul(ROW_BASE).wrapping_add(pixel_word(
+                img,
+                x + k - 1,
+                y,
+            ));
             out[y * nx + x] = mix(hsh);
         }
     }
@@ -150,9 +151,8 @@ mod tests {
         let mut n = 0;
         for y in 0..=oh - k {
             for x in 0..=ow - k {
-                let hit = sw >= k
-                    && sh >= k
-                    && (0..=sh - k).any(|sy| (0..=sw - k).any(|sx| windows_equal(output, x, y, sample, sx, sy, k)));
+                let hit =
+                    sw >= k && sh >= k && (0..=sh - k).any(|sy| (0..=sw - k).any(|sx| windows_equal(output, x, y, sample, sx, sy, k)));
                 n += hit as usize;
             }
         }

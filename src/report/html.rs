@@ -324,9 +324,11 @@ fn provenance_html(manifest: &Manifest, digest_ok: bool) -> String {
     row("started / finished (Unix s)", format!("{} / {}", r.started_at, r.finished_at));
     row("wall time (s)", fmt::sig(r.wall_seconds));
     row("jobs ran / up to date / failed / invalid", format!("{} / {} / {} / {}", r.ran, r.up_to_date, r.failed, r.invalid));
-    out.push_str("</tbody></table>\n<table class=\"provenance\"><thead><tr><th>job</th><th>status</th><th>method</th><th>params</th>\
+    out.push_str(
+        "</tbody></table>\n<table class=\"provenance\"><thead><tr><th>job</th><th>status</th><th>method</th><th>params</th>\
         <th>seed</th><th>sample</th><th>sample pixels sha256</th><th>output</th><th>output pixels sha256</th><th>output file sha256</th>\
-        <th>content key</th></tr></thead><tbody>\n");
+        <th>content key</th></tr></thead><tbody>\n",
+    );
     for j in &manifest.jobs {
         let sample = j.sample.as_ref();
         let output = j.outputs.first();
@@ -389,7 +391,9 @@ pub fn page(
         out.push_str("</ul></div>\n");
     }
     if model.metric_names.is_empty() {
-        out.push_str("<p>No job recorded metrics (a job file asks for them with <code>metrics = true</code>); only the time table is shown.</p>\n");
+        out.push_str(
+            "<p>No job recorded metrics (a job file asks for them with <code>metrics = true</code>); only the time table is shown.</p>\n",
+        );
     }
     out.push_str(&excluded_html(model));
     out.push_str(&tables_html(model, tables, assets));

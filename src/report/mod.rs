@@ -20,11 +20,11 @@ pub mod tables;
 
 pub use model::{GroupBy, GroupKey};
 
-use crate::image::io::{self as imageio, DecodeLimits, Encoding, Format};
 use crate::batch::manifest::Manifest;
-use crate::error::Error;
 use crate::batch::outdir::OutDir;
+use crate::error::Error;
 use crate::image::RgbImage;
+use crate::image::io::{self as imageio, DecodeLimits, Encoding, Format};
 use html::{Assets, ImageRef, Shown};
 use rayon::prelude::*;
 use sheet::{Cell, Picture};
@@ -73,7 +73,8 @@ fn load(path: &Path, expected_sha256: &str, as_sample: bool) -> Result<RgbImage,
 
 /// Encodes a picture of the report at `rel` (named in the error).
 fn png(img: &RgbImage, rel: &str) -> Result<Vec<u8>, Error> {
-    let encoded = imageio::encode(img, Encoding { format: Format::Png, bit_depth: 8 }).map_err(|source| Error::Image { path: rel.into(), source })?;
+    let encoded =
+        imageio::encode(img, Encoding { format: Format::Png, bit_depth: 8 }).map_err(|source| Error::Image { path: rel.into(), source })?;
     Ok(encoded.bytes)
 }
 
@@ -104,7 +105,10 @@ impl Writer {
     fn put(&mut self, rel: &str, bytes: &[u8]) -> Result<(), Error> {
         let path = self.dir.resolve(rel)?;
         if path.canonicalize().is_ok_and(|c| self.protected.contains(&c)) {
-            return Err(Error::Containment { path, reason: "is a file the manifest refers to; write the report to a directory of its own".into() });
+            return Err(Error::Containment {
+                path,
+                reason: "is a file the manifest refers to; write the report to a directory of its own".into(),
+            });
         }
         crate::batch::outdir::write_atomic(&path, bytes)?;
         self.written.push(rel.to_string());

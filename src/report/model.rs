@@ -408,8 +408,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
     for e in &entries {
         names.extend(e.metrics.keys().map(String::as_str));
     }
-    let mut metric_names: Vec<String> =
-        crate::metrics::METRIC_NAMES.iter().filter(|n| names.contains(*n)).map(|n| n.to_string()).collect();
+    let mut metric_names: Vec<String> = crate::metrics::METRIC_NAMES.iter().filter(|n| names.contains(*n)).map(|n| n.to_string()).collect();
     metric_names.extend(names.iter().filter(|n| !crate::metrics::METRIC_NAMES.contains(n)).map(|n| n.to_string()));
 
     let grouping = match group_by {
@@ -493,17 +492,12 @@ mod tests {
 
     #[test]
     fn numeric_values_sort_numerically() {
-        let mut v = vec![
-            KeyValue::Num(100.0, "100".into()),
-            KeyValue::Text("dp".into()),
-            KeyValue::Num(50.0, "50".into()),
-            KeyValue::Missing,
-        ];
+        let mut v =
+            vec![KeyValue::Num(100.0, "100".into()), KeyValue::Text("dp".into()), KeyValue::Num(50.0, "50".into()), KeyValue::Missing];
         v.sort();
         let texts: Vec<String> = v.iter().map(KeyValue::text).collect();
         assert_eq!(texts, ["none", "50", "100", "dp"]);
     }
-
 
     fn manifest(jobs: Vec<Value>) -> Manifest {
         let d = serde_json::json!({"sha256": "00"});
@@ -604,7 +598,10 @@ mod tests {
         let pairs: Vec<(String, String)> = s[0].pairs.iter().map(|&(g, b)| (label(g), label(b))).collect();
         assert_eq!(
             pairs,
-            [("coevolution rows=8".to_string(), "TES (reconstructed) rows=8".to_string()), ("coevolution rows=32".into(), "TES (reconstructed) rows=32".into())]
+            [
+                ("coevolution rows=8".to_string(), "TES (reconstructed) rows=8".to_string()),
+                ("coevolution rows=32".into(), "TES (reconstructed) rows=32".into())
+            ]
         );
         assert!(s[0].title.starts_with("Speed-up over TES (reconstructed) — "), "{}", s[0].title);
         // Ratio of the cells' means: 4.0 / mean(0.5, 1.5) and 20 / 2.

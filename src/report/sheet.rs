@@ -95,11 +95,7 @@ pub fn compose(title: &str, rows: &[Vec<Option<Cell>>], aligned: bool) -> RgbIma
     let col_widths: Vec<u32> =
         (0..ncols).map(|c| laid.iter().filter_map(|r| r.get(c)?.as_ref().map(|l| l.width)).max().unwrap_or(0)).collect();
     let widths_of = |r: &Vec<Option<Laid>>| -> Vec<u32> {
-        if aligned {
-            col_widths[..r.len()].to_vec()
-        } else {
-            r.iter().map(|c| c.as_ref().map_or(0, |l| l.width)).collect()
-        }
+        if aligned { col_widths[..r.len()].to_vec() } else { r.iter().map(|c| c.as_ref().map_or(0, |l| l.width)).collect() }
     };
     let content_width = laid
         .iter()
@@ -212,9 +208,7 @@ mod tests {
         assert_eq!(pa.1, pb.1, "same row");
         assert!(pb.0 >= pa.0 + MIN_CELL_WIDTH, "second cell to the right of the first");
         // Caption ink directly under each image.
-        let ink_below = |x0: u32, y0: u32, w: u32| {
-            (y0..y0 + 20).any(|y| (x0..x0 + w).any(|x| sheet.get(x, y) != BACKGROUND))
-        };
+        let ink_below = |x0: u32, y0: u32, w: u32| (y0..y0 + 20).any(|y| (x0..x0 + w).any(|x| sheet.get(x, y) != BACKGROUND));
         assert!(ink_below(pa.0, pa.1 + 30 + CAPTION_GAP, 40));
         assert!(ink_below(pb.0, pb.1 + 50 + CAPTION_GAP, 60));
     }

@@ -116,10 +116,7 @@ pub fn build(model: &Model) -> Vec<Table> {
             let mean = (0..model.groups.len())
                 .map(|g| {
                     let means: Vec<f64> = cells.iter().filter_map(|row| row[g].as_ref().and_then(|c| c.mean)).collect();
-                    MeanCell {
-                        mean: (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64),
-                        samples: means.len(),
-                    }
+                    MeanCell { mean: (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64), samples: means.len() }
                 })
                 .collect();
             Table { measure: measure.to_string(), title: format!("Table {} — {measure}: {}", i + 1, describe(measure)), cells, mean }
@@ -154,9 +151,7 @@ fn baseline_group(model: &Model, g: usize, baseline: &str) -> Option<usize> {
     let group = &model.groups[g];
     let matches: Vec<usize> = (0..model.groups.len())
         .filter(|&b| model.groups[b].method.as_deref() == Some(baseline))
-        .filter(|&b| {
-            model.groups[b].key.iter().all(|(name, value)| group.key.iter().all(|(n, v)| n != name || v == value))
-        })
+        .filter(|&b| model.groups[b].key.iter().all(|(name, value)| group.key.iter().all(|(n, v)| n != name || v == value)))
         .collect();
     (matches.len() == 1).then(|| matches[0])
 }
@@ -193,7 +188,11 @@ pub fn speedups(model: &Model, tables: &[Table], baseline: &str) -> Vec<Speedup>
             mean.iter().any(|m| m.0.is_some()).then(|| Speedup {
                 measure: t.measure.clone(),
                 baseline: baseline.to_string(),
-                title: format!("Speed-up over {shown} — {}: {shown}'s mean time / the column's (above 1: faster)", t.measure, shown = super::model::method_label(baseline)),
+                title: format!(
+                    "Speed-up over {shown} — {}: {shown}'s mean time / the column's (above 1: faster)",
+                    t.measure,
+                    shown = super::model::method_label(baseline)
+                ),
                 pairs: pairs.clone(),
                 cells,
                 mean,

@@ -6,9 +6,9 @@
 //! for reliability, so a stochastic sample fails loudly ("no lattice found; give t1/t2") instead of
 //! producing a meaningless lattice. Everything is integer offsets of the ACF grid, as in the paper.
 
-use crate::synth::error::SynthError;
 use crate::image::RgbImage;
 use crate::metrics::{AcfForm, autocorrelation, centred_gray};
+use crate::synth::error::SynthError;
 use crate::synth::params::{Default, ParamKind, ParamSpec, Params};
 
 /// `t1_x, t1_y, t2_x, t2_y`: the lattice a job may give instead of having it extracted. Declared
@@ -107,7 +107,8 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
     }
     let plane = centred_gray(img);
     let (rx, ry) = (w / 2, h / 2);
-    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased).map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
+    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased)
+        .map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
     let (rx, ry) = (rx as i64, ry as i64);
     let a = |dx: i64, dy: i64| acf.get(dx, dy);
     let inside = |dx: i64, dy: i64| dx.abs() <= rx && dy.abs() <= ry;
@@ -160,17 +161,16 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
         .collect();
     // 5. Dominant peaks.
     ranked.sort_by(|x, y| {
-        y.1.partial_cmp(&x.1)
-            .unwrap()
-            .then(y.2.partial_cmp(&x.2).unwrap())
-            .then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1)))
+        y.1.partial_cmp(&x.1).unwrap().then(y.2.partial_cmp(&x.2).unwrap()).then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1)))
     });
     ranked.truncate(opts.max_peaks);
     let c: Vec<((i64, i64), f64)> = ranked.into_iter().filter(|p| p.2 > 0.0 && len(p.0) >= opts.min_length).map(|p| (p.0, p.2)).collect();
     // 6. Shortest vector, then the shortest one far enough in angle.
     let shortest = |cands: &mut dyn Iterator<Item = &((i64, i64), f64)>| -> Option<(i64, i64)> {
         cands
-            .min_by(|x, y| dot(x.0, x.0).cmp(&dot(y.0, y.0)).then(y.1.partial_cmp(&x.1).unwrap()).then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1))))
+            .min_by(|x, y| {
+                dot(x.0, x.0).cmp(&dot(y.0, y.0)).then(y.1.partial_cmp(&x.1).unwrap()).then(order(x.0.0, x.0.1).cmp(&order(y.0.0, y.0.1)))
+            })
             .map(|p| p.0)
     };
     let t1 = shortest(&mut c.iter()).ok_or_else(|| SynthError::Sample(format!("{NONE} (no dominant autocorrelation peak)")))?;
@@ -217,7 +217,14 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
         )));
     }
     if explained * 2 < c.len() {
-        return Err(SynthError::Sample(format!("{NONE} (the lattice ({}, {}), ({}, {}) explains only {explained} of {} dominant peaks)", t1.0, t1.1, t2.0, t2.1, c.len())));
+        return Err(SynthError::Sample(format!(
+            "{NONE} (the lattice ({}, {}), ({}, {}) explains only {explained} of {} dominant peaks)",
+            t1.0,
+            t1.1,
+            t2.0,
+            t2.1,
+            c.len()
+        )));
     }
     let (t1, t2) = canonical(t1, t2);
     Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained })

@@ -80,4 +80,3 @@ pub trait Method: Send + Sync {
     /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
     fn synthesize(&self, request: &Request) -> Result<Synthesis, SynthError>;
 }
-

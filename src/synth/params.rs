@@ -42,14 +42,24 @@ impl ParamValue {
 /// The type and allowed values of a parameter.
 #[derive(Clone, Copy, Debug)]
 pub enum ParamKind {
-    Int { min: i64, max: i64 },
-    Float { min: f64, max: f64 },
+    Int {
+        min: i64,
+        max: i64,
+    },
+    Float {
+        min: f64,
+        max: f64,
+    },
     Bool,
     Choice(&'static [&'static str]),
     /// An integer in `min..=max`, or the one word `word` for a value the method works out itself
     /// (e.g. `rows = "cover"`: as many lattice rows as cover the output), so that a literal 0
     /// never has to mean "automatic" and can be refused.
-    IntOr { min: i64, max: i64, word: &'static str },
+    IntOr {
+        min: i64,
+        max: i64,
+        word: &'static str,
+    },
 }
 
 impl ParamKind {
@@ -78,7 +88,10 @@ pub enum Default {
     Str(&'static str),
     /// Computed from the other (already resolved) parameters, e.g. `overlap = round(block / 6)`.
     /// `compute` sees the explicitly given and fixed values; `None` when it cannot be derived.
-    Derived { rule: &'static str, compute: fn(&Params) -> Option<ParamValue> },
+    Derived {
+        rule: &'static str,
+        compute: fn(&Params) -> Option<ParamValue>,
+    },
 }
 
 impl Default {
@@ -299,17 +312,19 @@ pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Pa
                 continue;
             }
             let Some(v) = compute(&Params(out.clone())) else {
-                errors.push(ParamError::new(spec.name, format!("its default ({rule}) cannot be computed from the other parameters; set it explicitly")));
+                errors.push(ParamError::new(
+                    spec.name,
+                    format!("its default ({rule}) cannot be computed from the other parameters; set it explicitly"),
+                ));
                 continue;
             };
             match spec.check(&v) {
                 Ok(v) => {
                     out.insert(spec.name.to_string(), v);
                 }
-                Err(e) => errors.push(ParamError::new(
-                    spec.name,
-                    format!("its default ({rule}) gives {}: {e}; set it explicitly", v.display()),
-                )),
+                Err(e) => {
+                    errors.push(ParamError::new(spec.name, format!("its default ({rule}) gives {}: {e}; set it explicitly", v.display())))
+                }
             }
         }
     }
@@ -414,8 +429,12 @@ mod tests {
 
     #[test]
     fn int_or_word_takes_a_number_in_range_or_its_word_only() {
-        const S: &[ParamSpec] =
-            &[ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 64, word: "cover" }, default: Default::Str("cover"), doc: "" }];
+        const S: &[ParamSpec] = &[ParamSpec {
+            name: "rows",
+            kind: ParamKind::IntOr { min: 1, max: 64, word: "cover" },
+            default: Default::Str("cover"),
+            doc: "",
+        }];
         assert_eq!(resolve(S, &[]).unwrap().int_or_word("rows").unwrap(), None);
         assert_eq!(resolve(S, &given(&[("rows", ParamValue::Int(8))])).unwrap().int_or_word("rows").unwrap(), Some(8));
         let zero = resolve(S, &given(&[("rows", ParamValue::Int(0))])).unwrap_err();

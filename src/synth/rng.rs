@@ -92,10 +92,30 @@ mod tests {
 
     #[test]
     fn streams_are_reproducible_and_label_dependent() {
-        let a: Vec<u64> = (0..4).map({ let mut s = Stream::new(7, "x"); move |_| s.next_u64() }).collect();
-        let b: Vec<u64> = (0..4).map({ let mut s = Stream::new(7, "x"); move |_| s.next_u64() }).collect();
-        let c: Vec<u64> = (0..4).map({ let mut s = Stream::new(7, "y"); move |_| s.next_u64() }).collect();
-        let d: Vec<u64> = (0..4).map({ let mut s = Stream::new(8, "x"); move |_| s.next_u64() }).collect();
+        let a: Vec<u64> = (0..4)
+            .map({
+                let mut s = Stream::new(7, "x");
+                move |_| s.next_u64()
+            })
+            .collect();
+        let b: Vec<u64> = (0..4)
+            .map({
+                let mut s = Stream::new(7, "x");
+                move |_| s.next_u64()
+            })
+            .collect();
+        let c: Vec<u64> = (0..4)
+            .map({
+                let mut s = Stream::new(7, "y");
+                move |_| s.next_u64()
+            })
+            .collect();
+        let d: Vec<u64> = (0..4)
+            .map({
+                let mut s = Stream::new(8, "x");
+                move |_| s.next_u64()
+            })
+            .collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
         assert_ne!(a, d);

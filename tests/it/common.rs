@@ -36,7 +36,12 @@ pub fn scratch(tag: &str) -> PathBuf {
 
 /// A command and what it printed, for assertion messages.
 pub fn show(cmd: &Command, out: &Output) -> String {
-    format!("{cmd:?} exited {:?}\nstdout:\n{}\nstderr:\n{}", out.status.code(), String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
+    format!(
+        "{cmd:?} exited {:?}\nstdout:\n{}\nstderr:\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
 }
 
 /// stdout and stderr together.

@@ -4,7 +4,6 @@
 
 use super::common::*;
 
-
 fn lattice(sample: &str, extra: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_texsyn"))
         .arg("lattice")
@@ -31,7 +30,9 @@ fn structured_samples_have_the_expected_lattices() {
 
 #[test]
 fn other_samples_have_none_and_say_why() {
-    for sample in ["pebbles_beige", "hedge_leaves", "wood_weathered", "flagstone_gray", "grass_gray", "gravel_gray", "cork", "roughcast_plaster"] {
+    for sample in
+        ["pebbles_beige", "hedge_leaves", "wood_weathered", "flagstone_gray", "grass_gray", "gravel_gray", "cork", "roughcast_plaster"]
+    {
         let out = lattice(sample, &[]);
         assert_eq!(out.status.code(), Some(1), "{sample}");
         let err = String::from_utf8_lossy(&out.stderr);

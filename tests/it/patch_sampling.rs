@@ -4,7 +4,6 @@
 
 use super::common::*;
 
-
 fn sample() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/pebbles_beige.png").display().to_string().replace('\\', "/")
 }
@@ -58,7 +57,16 @@ fn diagnostics_reach_the_manifest_and_do_not_depend_on_threads() {
     let mut runs = Vec::new();
     for (threads, rayon) in [("1", "1"), ("2", "3")] {
         let out = d.join(format!("out{threads}"));
-        let st = texsyn().current_dir(&d).env("RAYON_NUM_THREADS", rayon).arg("run").arg("jobs").arg("-o").arg(&out).args(["-j", threads, "-q"]).output().unwrap();
+        let st = texsyn()
+            .current_dir(&d)
+            .env("RAYON_NUM_THREADS", rayon)
+            .arg("run")
+            .arg("jobs")
+            .arg("-o")
+            .arg(&out)
+            .args(["-j", threads, "-q"])
+            .output()
+            .unwrap();
         assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
         runs.push(manifest(&out));
     }

@@ -3,7 +3,6 @@
 
 use super::common::*;
 
-
 /// job id → pixel digest of its first output.
 fn pixel_digests(out: &Path) -> BTreeMap<String, String> {
     manifest(out)["jobs"]

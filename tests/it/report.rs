@@ -160,7 +160,9 @@ fn check_measure_csv(dir: &Path, measure: &str, exp: &BTreeMap<(String, String, 
     };
     assert_eq!(body.len(), samples.len() + 1, "{measure}: a row per sample and a mean row");
     for col in columns {
-        let at = |f: &str| header.iter().position(|h| *h == format!("{col}:{f}")).unwrap_or_else(|| panic!("{measure}: no column {col}:{f} in {header:?}"));
+        let at = |f: &str| {
+            header.iter().position(|h| *h == format!("{col}:{f}")).unwrap_or_else(|| panic!("{measure}: no column {col}:{f} in {header:?}"))
+        };
         let (im, isd, in_) = (at("mean"), at("sd"), at("n"));
         let mut sample_means = Vec::new();
         for s in &samples {
@@ -279,9 +281,7 @@ fn find(sheet: &RgbImage, img: &RgbImage) -> Option<(u32, u32)> {
     let (w, h) = img.dimensions();
     for y0 in 0..=sheet.height().checked_sub(h)? {
         for x0 in 0..=sheet.width().checked_sub(w)? {
-            if sheet.get(x0, y0) == img.get(0, 0)
-                && (0..h).all(|y| (0..w).all(|x| sheet.get(x0 + x, y0 + y) == img.get(x, y)))
-            {
+            if sheet.get(x0, y0) == img.get(0, 0) && (0..h).all(|y| (0..w).all(|x| sheet.get(x0 + x, y0 + y) == img.get(x, y))) {
                 return Some((x0, y0));
             }
         }
@@ -397,7 +397,12 @@ struct Tag {
 }
 
 fn unescape(s: &str) -> String {
-    s.replace("&quot;", "\"").replace("&#39;", "'").replace("&lt;", "<").replace("&gt;", ">").replace("&nbsp;", "\u{a0}").replace("&amp;", "&")
+    s.replace("&quot;", "\"")
+        .replace("&#39;", "'")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&nbsp;", "\u{a0}")
+        .replace("&amp;", "&")
 }
 
 /// A small start-tag scanner, enough for the serialised DOM (attributes are double-quoted).
@@ -473,8 +478,12 @@ fn html_page_renders_in_headless_chromium_with_every_image_and_the_manifests_num
     let dom = dump_dom(&dir.join("index.html"));
     let all = tags(&dom);
     let body = all.iter().find(|t| t.name == "body").expect("a body");
-    assert_eq!(body.attrs.get("data-images-ok").map(String::as_str), Some(format!("{n_img}/{n_img}").as_str()),
-        "every image decoded in Chromium; failed: {:?}", body.attrs.get("data-images-failed"));
+    assert_eq!(
+        body.attrs.get("data-images-ok").map(String::as_str),
+        Some(format!("{n_img}/{n_img}").as_str()),
+        "every image decoded in Chromium; failed: {:?}",
+        body.attrs.get("data-images-failed")
+    );
 
     // Per-job values: exactly the manifest's, for every ok job and every measure.
     let mut seen = 0;
@@ -483,7 +492,11 @@ fn html_page_renders_in_headless_chromium_with_every_image_and_the_manifests_num
         for measure in METRICS.iter().copied().chain(["synthesis_seconds"]) {
             let cell = all
                 .iter()
-                .find(|t| t.name == "td" && t.attrs.get("data-job").map(String::as_str) == Some(id) && t.attrs.get("data-metric").map(String::as_str) == Some(measure))
+                .find(|t| {
+                    t.name == "td"
+                        && t.attrs.get("data-job").map(String::as_str) == Some(id)
+                        && t.attrs.get("data-metric").map(String::as_str) == Some(measure)
+                })
                 .unwrap_or_else(|| panic!("no cell for {id} {measure}"));
             match value(j, measure) {
                 Some(v) => {
@@ -543,7 +556,9 @@ fn html_page_renders_in_headless_chromium_with_every_image_and_the_manifests_num
     // The jobs that did not count are listed with their status.
     for (id, status) in [("typo.toml", "invalid"), ("blocked.toml", "failed")] {
         assert!(
-            all.iter().any(|t| t.name == "tr" && t.attrs.get("data-job").map(String::as_str) == Some(id) && t.attrs.get("data-status").map(String::as_str) == Some(status)),
+            all.iter().any(|t| t.name == "tr"
+                && t.attrs.get("data-job").map(String::as_str) == Some(id)
+                && t.attrs.get("data-status").map(String::as_str) == Some(status)),
             "{id} listed as {status}"
         );
     }
@@ -595,7 +610,13 @@ fn bad_manifests_and_usage_exit_2() {
         (vec![wrong_type.display().to_string(), "-o".into(), d.join("r3").display().to_string()], "metric not a number"),
         (vec![run().out.join("manifest.json").display().to_string()], "no -o"),
         (
-            vec![run().out.join("manifest.json").display().to_string(), "-o".into(), d.join("r4").display().to_string(), "--group-by".into(), "colour".into()],
+            vec![
+                run().out.join("manifest.json").display().to_string(),
+                "-o".into(),
+                d.join("r4").display().to_string(),
+                "--group-by".into(),
+                "colour".into(),
+            ],
             "unknown grouping",
         ),
     ] {

@@ -4,7 +4,6 @@
 
 use super::common::*;
 
-
 fn jobs() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/cluster_jobs")
 }
@@ -33,7 +32,10 @@ fn merged_shards_equal_one_machine_for_every_split() {
             assert!(matches!(o.status.code(), Some(0 | 1)), "shard {i}/{n}: {}", text(&o));
             let frag = json(&out.join(format!("manifest.shard-{i}-of-{n}.json")));
             let facts = &frag["run"]["shard"];
-            assert_eq!((facts["index"].as_u64(), facts["count"].as_u64(), facts["plan_jobs"].as_u64()), (Some(i as u64), Some(n as u64), Some(41)));
+            assert_eq!(
+                (facts["index"].as_u64(), facts["count"].as_u64(), facts["plan_jobs"].as_u64()),
+                (Some(i as u64), Some(n as u64), Some(41))
+            );
             assigned += frag["jobs"].as_array().unwrap().len();
         }
         assert_eq!(assigned, total, "n={n}: every job in exactly one fragment");
@@ -90,10 +92,20 @@ fn a_missing_shard_is_named_job_by_job_and_a_rerun_redoes_only_its_part() {
         let o = run(&["run", jobs, "-o", out_s, "--shard", bad]);
         assert_eq!(o.status.code(), Some(2), "{bad}: {}", text(&o));
     }
-    let o = texsyn().args(["run", jobs, "-o", out_s, "--shard", "auto"]).env_remove("SLURM_ARRAY_TASK_ID").env_remove("JOB_COMPLETION_INDEX").output().unwrap();
+    let o = texsyn()
+        .args(["run", jobs, "-o", out_s, "--shard", "auto"])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("no scheduler index found"), "{}", text(&o));
-    let o = texsyn().args(["run", jobs, "-o", out_s, "-q", "--shard", "auto"]).env("SLURM_ARRAY_TASK_ID", "2").env("SLURM_ARRAY_TASK_COUNT", "3").output().unwrap();
+    let o = texsyn()
+        .args(["run", jobs, "-o", out_s, "-q", "--shard", "auto"])
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap();
     assert!(matches!(o.status.code(), Some(0 | 1)), "{}", text(&o));
     assert_eq!(json(&out.join("manifest.shard-2-of-3.json"))["run"]["shard"]["scheduler"]["SLURM_ARRAY_TASK_ID"], "2");
 }

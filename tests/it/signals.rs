@@ -3,7 +3,6 @@
 
 use super::common::*;
 
-
 fn stop_with(signal: &str, expected: i32) {
     let out = std::env::temp_dir().join(format!("texsyn-signal-{signal}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
@@ -16,7 +15,10 @@ fn stop_with(signal: &str, expected: i32) {
     // Wait until some job has finished (the manifest lists one), then signal.
     let started = Instant::now();
     loop {
-        let done = std::fs::read(out.join("manifest.json")).ok().and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok()).is_some_and(|m| m["run"]["ran"].as_u64() > Some(0));
+        let done = std::fs::read(out.join("manifest.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+            .is_some_and(|m| m["run"]["ran"].as_u64() > Some(0));
         if done || started.elapsed() > Duration::from_secs(120) {
             break;
         }
@@ -35,7 +37,10 @@ fn stop_with(signal: &str, expected: i32) {
     assert!(not_run > 0, "{signal}: the bundled run is far from done after one job");
     assert_eq!(recorded + not_run, 407, "{signal}: every job is recorded or listed as not run");
     // The next run does exactly the jobs that did not run.
-    let again = Command::new(env!("CARGO_BIN_EXE_texsyn")).args(["run", jobs.to_str().unwrap(), "-o", out.to_str().unwrap(), "--dry-run"]).output().unwrap();
+    let again = Command::new(env!("CARGO_BIN_EXE_texsyn"))
+        .args(["run", jobs.to_str().unwrap(), "-o", out.to_str().unwrap(), "--dry-run"])
+        .output()
+        .unwrap();
     let plan = String::from_utf8_lossy(&again.stdout);
     assert_eq!(plan.lines().filter(|l| l.contains("will run")).count(), not_run, "{plan}");
     let _ = std::fs::remove_dir_all(&out);

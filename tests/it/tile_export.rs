@@ -4,7 +4,6 @@
 
 use super::common::*;
 
-
 /// Writes one exporting job per tile method and runs them.
 fn exported(tag: &str) -> PathBuf {
     let dir = scratch(tag);

@@ -262,7 +262,6 @@ fn reject_shared_outputs(plan: &mut JobSet) {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -285,7 +284,11 @@ mod tests {
     #[test]
     fn a_complete_job_parses_with_defaults_filled() {
         let d = tmpdir("ok");
-        let f = write(&d, "a.toml", "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 7\n[output]\npath = \"x/a.png\"\nwidth = 100\nheight = 80\n[params]\nblock = 30\n");
+        let f = write(
+            &d,
+            "a.toml",
+            "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 7\n[output]\npath = \"x/a.png\"\nwidth = 100\nheight = 80\n[params]\nblock = 30\n",
+        );
         let plan = read_all(&[f]);
         assert!(plan.invalid.is_empty(), "{:?}", plan.invalid);
         let j = &plan.jobs[0];
@@ -352,7 +355,9 @@ mod tests {
         std::os::unix::fs::symlink(d.join("loop_b.png"), d.join("loop_a.png")).unwrap();
         std::os::unix::fs::symlink(d.join("loop_a.png"), d.join("loop_b.png")).unwrap();
         std::os::unix::fs::symlink(d.join("gone.png"), d.join("dangling.png")).unwrap();
-        let job = |sample: &str| format!("sample = \"{sample}\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"{sample}\"\nwidth = 8\nheight = 8\n");
+        let job = |sample: &str| {
+            format!("sample = \"{sample}\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"{sample}\"\nwidth = 8\nheight = 8\n")
+        };
         let a = write(&d, "a.toml", &job("loop_a.png"));
         let b = write(&d, "b.toml", &job("dangling.png"));
         let plan = read_all(&[a, b]);
@@ -422,4 +427,3 @@ mod tests {
         assert!(plan.invalid[0].errors[0].message.contains("also written by b.toml"));
     }
 }
-

@@ -69,4 +69,3 @@ pub fn normalise_output_path(path: &str) -> Result<String, String> {
     }
     Ok(parts.join("/"))
 }
-

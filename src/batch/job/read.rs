@@ -13,16 +13,9 @@ use std::path::Path;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
-
-
-
-
-
-
 pub(super) fn read_job_file(f: &JobFile) -> Result<Vec<Job>, Vec<JobError>> {
-    let bytes = std::fs::read(&f.path).map_err(|e| {
-        vec![JobError { file: f.path.clone(), position: None, key: None, message: format!("cannot read job file: {e}") }]
-    })?;
+    let bytes = std::fs::read(&f.path)
+        .map_err(|e| vec![JobError { file: f.path.clone(), position: None, key: None, message: format!("cannot read job file: {e}") }])?;
     let src = String::from_utf8(bytes.clone()).map_err(|e| {
         vec![JobError {
             file: f.path.clone(),
@@ -49,9 +42,6 @@ pub(super) fn read_job_file(f: &JobFile) -> Result<Vec<Job>, Vec<JobError>> {
     }
 }
 
-
-
-
 /// The top-level keys, each checked for type; `[params]` and `[sweep]` are returned for later,
 /// since they need the method.
 fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t Spanned<DeValue<'t>>>, Option<&'t Spanned<DeValue<'t>>>) {
@@ -77,7 +67,9 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
             "sample" => match v.get_ref() {
                 DeValue::String(s) if !s.is_empty() => raw.sample = Some((s.to_string(), v.span())),
                 DeValue::String(_) => ctx.err(Some(v.span()), Some("sample"), "sample path is empty"),
-                other => ctx.err(Some(v.span()), Some("sample"), format!("expected a string (the sample's path), found {}", type_name(other))),
+                other => {
+                    ctx.err(Some(v.span()), Some("sample"), format!("expected a string (the sample's path), found {}", type_name(other)))
+                }
             },
             "method" => match v.get_ref() {
                 DeValue::String(s) => match methods::find(s) {
@@ -198,7 +190,8 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     else {
         return Vec::new();
     };
-    let ready = Ready { method, sample, path_template, path_span, width, height, format, bit_depth, file_digest: Digest::of_bytes(file_bytes) };
+    let ready =
+        Ready { method, sample, path_template, path_span, width, height, format, bit_depth, file_digest: Digest::of_bytes(file_bytes) };
     sweep::expand(ctx, &raw, &ready)
 }
 
@@ -224,11 +217,9 @@ fn read_metrics(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
                 }
             }
         }
-        other => ctx.err(
-            Some(v.span()),
-            Some("metrics"),
-            format!("expected true, false or a list of metric names, found {}", type_name(other)),
-        ),
+        other => {
+            ctx.err(Some(v.span()), Some("metrics"), format!("expected true, false or a list of metric names, found {}", type_name(other)))
+        }
     }
 }
 
@@ -288,7 +279,6 @@ fn check_output_format(ctx: &mut Ctx, raw: &Raw) -> Option<(Format, u8)> {
         }
     }
 }
-
 
 /// Why `p` is not a readable file, in words.
 pub(super) fn missing_file_reason(p: &Path) -> &'static str {

@@ -57,9 +57,9 @@ pub(super) fn type_name(v: &DeValue) -> &'static str {
 
 pub(super) fn de_int(v: &DeValue) -> Option<Result<i64, String>> {
     match v {
-        DeValue::Integer(i) => Some(
-            i64::from_str_radix(i.as_str(), i.radix()).map_err(|_| format!("integer {} is out of range", i.as_str())),
-        ),
+        DeValue::Integer(i) => {
+            Some(i64::from_str_radix(i.as_str(), i.radix()).map_err(|_| format!("integer {} is out of range", i.as_str())))
+        }
         _ => None,
     }
 }

@@ -61,7 +61,9 @@ pub(super) fn read_sweep(ctx: &mut Ctx, t: &DeTable, method: Option<&'static dyn
             for (val, span) in &values {
                 match val {
                     ParamValue::Int(s) if *s >= 0 => {}
-                    other => ctx.err(Some(span.clone()), Some(&key), format!("seeds must be non-negative integers, got {}", other.display())),
+                    other => {
+                        ctx.err(Some(span.clone()), Some(&key), format!("seeds must be non-negative integers, got {}", other.display()))
+                    }
                 }
             }
         }
@@ -107,7 +109,6 @@ fn read_range(t: &DeTable) -> Result<Vec<i64>, String> {
     }
     Ok((0..count).map(|i| from + i * step).collect())
 }
-
 
 /// Every point of the sweep as a job (one job for a file without `[sweep]`).
 pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
@@ -210,4 +211,3 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
     }
     jobs
 }
-

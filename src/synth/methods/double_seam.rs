@@ -7,16 +7,16 @@
 //! agreement of a binary edge map. The chosen block is pasted verbatim, without blending or a cut.
 //! Comparing two lines instead of a whole overlap is the paper's speed argument.
 
+use crate::image::RgbImage;
+use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
-use crate::image::RgbImage;
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::BlockGrid;
 use crate::synth::primitives::color::HsiPlanes;
 use crate::synth::primitives::correlation::pearson_from;
 use crate::synth::primitives::edges::{otsu_edges, sobel4};
 use crate::synth::rng::Stream;
-use crate::image::seam_grid::{SeamBand, SeamGrid};
 use rayon::prelude::*;
 use std::f64::consts::TAU;
 
@@ -39,14 +39,54 @@ const PARAMS: &[ParamSpec] = &[
         default: Default::Derived { rule: "overlap", compute: |p| Some(ParamValue::Int(p.int("overlap").ok()?)) },
         doc: "spacing of the auxiliary seam line from the true one, 1..=overlap (overlap − 1 keeps it inside the window)",
     },
-    ParamSpec { name: "alpha", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.25), doc: "weight of the hue correlation (alpha + beta + gamma = 1)" },
-    ParamSpec { name: "beta", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.25), doc: "weight of the saturation correlation" },
-    ParamSpec { name: "gamma", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.5), doc: "weight of the intensity correlation" },
-    ParamSpec { name: "mu", kind: ParamKind::Float { min: 0.0, max: 1.0e6 }, default: Default::Float(2.0), doc: "edge-mismatch penalty: F_i = D_HSI / (1 + mu·D_E)" },
-    ParamSpec { name: "tau_f", kind: ParamKind::Float { min: -2.0, max: 2.0 }, default: Default::Float(1.6), doc: "candidates need F ≥ min(tau_f, F_max − eps_f)" },
-    ParamSpec { name: "eps_f", kind: ParamKind::Float { min: 0.0, max: 4.0 }, default: Default::Float(0.05), doc: "near-best margin when no position reaches tau_f" },
-    ParamSpec { name: "hue_mode", kind: ParamKind::Choice(HueMode::NAMES), default: Default::Str("linear"), doc: "linear: Pearson on H/360 (faithful); circular: circular correlation (hue is an angle)" },
-    ParamSpec { name: "clamp_negative", kind: ParamKind::Bool, default: Default::Bool(false), doc: "use max(D_HSI, 0) so a negative correlation is not softened by the edge term" },
+    ParamSpec {
+        name: "alpha",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.25),
+        doc: "weight of the hue correlation (alpha + beta + gamma = 1)",
+    },
+    ParamSpec {
+        name: "beta",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.25),
+        doc: "weight of the saturation correlation",
+    },
+    ParamSpec {
+        name: "gamma",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.5),
+        doc: "weight of the intensity correlation",
+    },
+    ParamSpec {
+        name: "mu",
+        kind: ParamKind::Float { min: 0.0, max: 1.0e6 },
+        default: Default::Float(2.0),
+        doc: "edge-mismatch penalty: F_i = D_HSI / (1 + mu·D_E)",
+    },
+    ParamSpec {
+        name: "tau_f",
+        kind: ParamKind::Float { min: -2.0, max: 2.0 },
+        default: Default::Float(1.6),
+        doc: "candidates need F ≥ min(tau_f, F_max − eps_f)",
+    },
+    ParamSpec {
+        name: "eps_f",
+        kind: ParamKind::Float { min: 0.0, max: 4.0 },
+        default: Default::Float(0.05),
+        doc: "near-best margin when no position reaches tau_f",
+    },
+    ParamSpec {
+        name: "hue_mode",
+        kind: ParamKind::Choice(HueMode::NAMES),
+        default: Default::Str("linear"),
+        doc: "linear: Pearson on H/360 (faithful); circular: circular correlation (hue is an angle)",
+    },
+    ParamSpec {
+        name: "clamp_negative",
+        kind: ParamKind::Bool,
+        default: Default::Bool(false),
+        doc: "use max(D_HSI, 0) so a negative correlation is not softened by the edge term",
+    },
     ParamSpec {
         name: "level_penalty",
         kind: ParamKind::Float { min: 0.0, max: 1000.0 },
@@ -256,7 +296,10 @@ impl Method for DoubleSeam {
         let smaller = sample.0.min(sample.1) as i64;
         let mut errors = super::check_block_and_overlap(cfg.block, cfg.overlap_or_derived(), sample);
         if aux > g {
-            errors.push(ParamError::new("aux_dist", format!("aux_dist {aux} exceeds the overlap ({g}): the auxiliary line must lie in existing output")));
+            errors.push(ParamError::new(
+                "aux_dist",
+                format!("aux_dist {aux} exceeds the overlap ({g}): the auxiliary line must lie in existing output"),
+            ));
         }
         let a = g - 1 - aux;
         if block <= smaller && a < 0 && block - a > smaller {
@@ -306,7 +349,13 @@ impl Method for DoubleSeam {
                     let y = st.below((sh - s.block + 1) as u64) as i32;
                     (x, y)
                 } else {
-                    let case = if bi == 0 { Case::Horizontal } else if bj == 0 { Case::Vertical } else { Case::L };
+                    let case = if bi == 0 {
+                        Case::Horizontal
+                    } else if bj == 0 {
+                        Case::Vertical
+                    } else {
+                        Case::L
+                    };
                     if !stats.iter().any(|(c, _)| *c == case) {
                         let ls = lines(case, s.block, s.g, s.a);
                         let computed = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
@@ -316,8 +365,7 @@ impl Method for DoubleSeam {
                     let (positions, scores) = score_all(&prep, &s, case, st, &out, (ox as i32, oy as i32));
                     let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                     let theta = s.tau.min(f_max - s.eps);
-                    let members: Vec<(i32, i32)> =
-                        positions.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(p, _)| *p).collect();
+                    let members: Vec<(i32, i32)> = positions.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(p, _)| *p).collect();
                     if members.is_empty() {
                         return Err(SynthError::Failed(format!("no candidate position at grid ({bi}, {bj}) (all scores undefined)")));
                     }
@@ -614,7 +662,18 @@ mod tests {
         // Recompute F for a few candidates straight from the definition (B8, eqs. 6–10).
         let sample = structured();
         let p = params(&[("block", ParamValue::Int(24)), ("clamp_negative", ParamValue::Bool(false))]);
-        let s = Settings { block: 24, g: 4, a: -1, weights: [0.25, 0.25, 0.5], mu: 2.0, tau: 1.6, eps: 0.05, circular: false, clamp: false, level_penalty: 0.0 };
+        let s = Settings {
+            block: 24,
+            g: 4,
+            a: -1,
+            weights: [0.25, 0.25, 0.5],
+            mu: 2.0,
+            tau: 1.6,
+            eps: 0.05,
+            circular: false,
+            clamp: false,
+            level_penalty: 0.0,
+        };
         assert_eq!(p.int("overlap").unwrap(), 4);
         assert_eq!(Settings::of(&DoubleSeamConfig::from_params(&p).unwrap()), s);
         let planes = HsiPlanes::of(&sample);
@@ -633,12 +692,18 @@ mod tests {
             let (x, y) = positions[k];
             let mut f = 0.0;
             for line in &ls {
-                let o = |plane: &Vec<f64>| -> Vec<f64> { line.iter().map(|&(c, r)| plane[((origin.1 + r) * 60 + origin.0 + c) as usize]).collect() };
+                let o = |plane: &Vec<f64>| -> Vec<f64> {
+                    line.iter().map(|&(c, r)| plane[((origin.1 + r) * 60 + origin.0 + c) as usize]).collect()
+                };
                 let c = |plane: &Vec<f64>| -> Vec<f64> { line.iter().map(|&(cc, r)| plane[((y + r) * 96 + x + cc) as usize]).collect() };
-                let d = 0.25 * pearson(&o(&out.h), &c(&prep.planes.h)) + 0.25 * pearson(&o(&out.s), &c(&prep.planes.s)) + 0.5 * pearson(&o(&out.i), &c(&prep.planes.i));
+                let d = 0.25 * pearson(&o(&out.h), &c(&prep.planes.h))
+                    + 0.25 * pearson(&o(&out.s), &c(&prep.planes.s))
+                    + 0.5 * pearson(&o(&out.i), &c(&prep.planes.i));
                 let mism = line
                     .iter()
-                    .filter(|&&(cc, r)| out.e[((origin.1 + r) * 60 + origin.0 + cc) as usize] != prep.edges[((y + r) * 96 + x + cc) as usize])
+                    .filter(|&&(cc, r)| {
+                        out.e[((origin.1 + r) * 60 + origin.0 + cc) as usize] != prep.edges[((y + r) * 96 + x + cc) as usize]
+                    })
                     .count();
                 f += d / (1.0 + 2.0 * mism as f64 / line.len() as f64);
             }

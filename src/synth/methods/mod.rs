@@ -30,7 +30,14 @@ crate::choice! {
 
 impl Engine {
     /// The tolerance set of `search` for the block at `origin` of `canvas`, computed this way.
-    pub(crate) fn candidates(self, search: &mut OverlapSearch, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+    pub(crate) fn candidates(
+        self,
+        search: &mut OverlapSearch,
+        canvas: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        tolerance: f64,
+    ) -> Candidates {
         match self {
             Engine::Fft => search.candidates(canvas, origin, regions, tolerance),
             Engine::Direct => search.candidates_direct(canvas, origin, regions, tolerance),
@@ -62,7 +69,10 @@ pub(crate) fn check_block_and_overlap(block: u32, overlap: u32, sample: (u32, u3
         ));
     }
     if overlap > block / 2 {
-        errors.push(ParamError::new("overlap", format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2)));
+        errors.push(ParamError::new(
+            "overlap",
+            format!("overlap {overlap} is more than half the block ({block}); use at most {}", block / 2),
+        ));
     }
     errors
 }

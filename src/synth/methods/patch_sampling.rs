@@ -215,11 +215,7 @@ const PARAMS: &[ParamSpec] = &[
 fn waves(grid: &BlockGrid) -> Vec<Vec<(u32, u32)>> {
     let last = 2 * (grid.rows - 1) + (grid.cols - 1);
     (0..=last)
-        .map(|t| {
-            (0..grid.rows)
-                .filter_map(|bi| t.checked_sub(2 * bi).filter(|&bj| bj < grid.cols).map(|bj| (bi, bj)))
-                .collect()
-        })
+        .map(|t| (0..grid.rows).filter_map(|bi| t.checked_sub(2 * bi).filter(|&bj| bj < grid.cols).map(|bj| (bi, bj))).collect())
         .collect()
 }
 
@@ -417,7 +413,13 @@ impl std::default::Default for SwarmConfig {
 
 impl std::default::Default for ChaosConfig {
     fn default() -> ChaosConfig {
-        ChaosConfig { distance_threshold: 0.01, variance_threshold: 0.001, logistic_mu: 4.0, chaos_steps: 200, rediversify: Rediversify::WorseHalf }
+        ChaosConfig {
+            distance_threshold: 0.01,
+            variance_threshold: 0.001,
+            logistic_mu: 4.0,
+            chaos_steps: 200,
+            rediversify: Rediversify::WorseHalf,
+        }
     }
 }
 
@@ -639,7 +641,10 @@ impl Method for PatchSampling {
                 if v > limit {
                     errors.push(ParamError::new(
                         key,
-                        format!("{key} {v} puts the first block outside the {}x{} sample; use 0..={limit} (or -1 for random)", sample.0, sample.1),
+                        format!(
+                            "{key} {v} puts the first block outside the {}x{} sample; use 0..={limit} (or -1 for random)",
+                            sample.0, sample.1
+                        ),
                     ));
                 }
             }
@@ -700,10 +705,7 @@ impl Method for PatchSampling {
                 let canvas = &canvas;
                 let layout = &layout;
                 let settings = &settings;
-                wave.par_iter()
-                    .with_max_len(1)
-                    .map(|&(bi, bj)| swarm_block(sample, canvas, layout, bi, bj, settings, req.seed))
-                    .collect()
+                wave.par_iter().with_max_len(1).map(|&(bi, bj)| swarm_block(sample, canvas, layout, bi, bj, settings, req.seed)).collect()
             };
             if settings.optimum {
                 let s = search.as_mut().expect("exhaustive search prepared");
@@ -733,22 +735,11 @@ impl Method for PatchSampling {
 
 /// `SSD(sample block at (x, y), output block, Ω)` (eq. 7).
 fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: (u32, u32), regions: &[Rect]) -> u64 {
-    regions
-        .iter()
-        .map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h))
-        .sum()
+    regions.iter().map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
 }
 
 /// The swarm search of one block (§4.2 step 5, §4.3).
-fn swarm_block(
-    sample: &RgbImage,
-    canvas: &RgbImage,
-    layout: &BlockGrid,
-    bi: u32,
-    bj: u32,
-    settings: &Settings,
-    seed: u64,
-) -> BlockResult {
+fn swarm_block(sample: &RgbImage, canvas: &RgbImage, layout: &BlockGrid, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
     let regions = layout.overlap_regions(bi, bj);
     let origin = (bj * layout.stride(), bi * layout.stride());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
@@ -791,17 +782,7 @@ fn swarm_block(
             }
         }
     }
-    BlockResult {
-        bi,
-        bj,
-        pos,
-        error,
-        zone_pixels,
-        swarm: Some(outcome),
-        candidates: None,
-        optimum: None,
-        near_optimum: None,
-    }
+    BlockResult { bi, bj, pos, error, zone_pixels, swarm: Some(outcome), candidates: None, optimum: None, near_optimum: None }
 }
 
 /// A particle's patch: its position rounded half away from zero, clamped to the box.
@@ -829,7 +810,8 @@ fn exhaustive_block(
     let regions = layout.overlap_regions(bi, bj);
     let origin = (bj * layout.stride(), bi * layout.stride());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
-    let mut result = BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
+    let mut result =
+        BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
     let eps = settings.tolerance;
     let mut best: Option<Candidates> = None;
     let members: Vec<(u32, u32, u64)> = if eps <= 0.0 {
@@ -1071,7 +1053,8 @@ mod tests {
     #[test]
     fn pixels_do_not_depend_on_the_thread_count() {
         let s = texture(90, 90);
-        for (search, blend) in [("cpso", "feather"), ("pso", "feather"), ("exhaustive", "feather"), ("cpso", "cut"), ("exhaustive", "cut")] {
+        for (search, blend) in [("cpso", "feather"), ("pso", "feather"), ("exhaustive", "feather"), ("cpso", "cut"), ("exhaustive", "cut")]
+        {
             let p = params(&[
                 ("block", ParamValue::Int(18)),
                 ("search", ParamValue::Str(search.to_string())),
@@ -1094,7 +1077,8 @@ mod tests {
     #[test]
     fn waves_equal_raster_order() {
         let s = texture(90, 90);
-        let p = params(&[("block", ParamValue::Int(20)), ("search", ParamValue::Str("pso".into())), ("diagnostics", ParamValue::Bool(true))]);
+        let p =
+            params(&[("block", ParamValue::Int(20)), ("search", ParamValue::Str("pso".into())), ("diagnostics", ParamValue::Bool(true))]);
         let out = run(&s, 130, 110, &p, 2);
         let l = BlockGrid::new(20, 3, 130, 110);
         let mut canvas = RgbImage::new(l.canvas().0, l.canvas().1);
@@ -1200,7 +1184,8 @@ mod tests {
     #[test]
     fn a_cut_paste_copies_sample_pixels_only() {
         let s = texture(64, 64);
-        let colours: std::collections::HashSet<[u8; 3]> = (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
+        let colours: std::collections::HashSet<[u8; 3]> =
+            (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
         let p = params(&[("block", ParamValue::Int(16)), ("blend", ParamValue::Str("cut".into()))]);
         let out = run(&s, 70, 60, &p, 2).image;
         for y in 0..60 {
@@ -1308,7 +1293,13 @@ mod tests {
                 delta_rms: 0.0,
                 polish_radius: 2,
             },
-            chaos: ChaosConfig { distance_threshold: 0.02, variance_threshold: 0.5, logistic_mu: 3.9, chaos_steps: 50, rediversify: Rediversify::None },
+            chaos: ChaosConfig {
+                distance_threshold: 0.02,
+                variance_threshold: 0.5,
+                logistic_mu: 3.9,
+                chaos_steps: 50,
+                rediversify: Rediversify::None,
+            },
             exhaustive: ExhaustiveConfig { tolerance: 0.0, candidates: CandidateRule::NearBest, engine: Engine::Direct },
             blend: Blend::Cut,
             first_x: Some(3),
@@ -1328,7 +1319,10 @@ mod tests {
         let s = Settings::of(&cfg);
         assert_eq!(s.swarm.update, pso::UpdateOrder::Asynchronous);
         assert!(s.swarm.chaos.is_none(), "pso has no chaos part");
-        assert_eq!(Settings::of(&PatchSamplingConfig { search: Search::Cpso, ..cfg.clone() }).swarm.chaos.unwrap().rediversify, pso::Rediversify::None);
+        assert_eq!(
+            Settings::of(&PatchSamplingConfig { search: Search::Cpso, ..cfg.clone() }).swarm.chaos.unwrap().rediversify,
+            pso::Rediversify::None
+        );
         assert_eq!((s.blend, s.first), (OverlapRule::Cut, Some((3, 0))));
     }
 

@@ -252,7 +252,8 @@ mod tests {
     fn fft_and_direct_search_give_the_same_pixels() {
         let s = sample();
         let fft = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3))]);
-        let direct = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
+        let direct =
+            params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
         let a = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9 }).unwrap();
         let b = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9 }).unwrap();
         assert_eq!(a.image, b.image);
@@ -261,7 +262,8 @@ mod tests {
     #[test]
     fn every_output_pixel_comes_from_the_sample_without_blending() {
         let s = sample();
-        let colours: std::collections::HashSet<[u8; 3]> = (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
+        let colours: std::collections::HashSet<[u8; 3]> =
+            (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
         let p = params(&[("block", ParamValue::Int(20))]);
         let out = Quilting.synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1 }).unwrap();
         for y in 0..90 {
@@ -314,10 +316,16 @@ mod tests {
 
     #[test]
     fn a_non_default_config_round_trips() {
-        let cfg = QuiltingConfig { block: 40, overlap: Some(7), tolerance: 0.3, search: Engine::Direct, cut: Cut::None, blend: Blend::Feather };
+        let cfg =
+            QuiltingConfig { block: 40, overlap: Some(7), tolerance: 0.3, search: Engine::Direct, cut: Cut::None, blend: Blend::Feather };
         let d = QuiltingConfig::default();
         assert!(
-            cfg.block != d.block && cfg.overlap != d.overlap && cfg.tolerance != d.tolerance && cfg.search != d.search && cfg.cut != d.cut && cfg.blend != d.blend
+            cfg.block != d.block
+                && cfg.overlap != d.overlap
+                && cfg.tolerance != d.tolerance
+                && cfg.search != d.search
+                && cfg.cut != d.cut
+                && cfg.blend != d.blend
         );
         let p = resolve(PARAMS, &cfg.to_params()).unwrap();
         assert_eq!(QuiltingConfig::from_params(&p).unwrap(), cfg);

@@ -62,10 +62,7 @@ pub fn rect_ssd(a: &RgbImage, ax: u32, ay: u32, b: &RgbImage, bx: u32, by: u32, 
 
 /// SSD over a set of offsets: `Σ e(a(pa + o), b(pb + o))` for `o` in `offsets`.
 pub fn masked_ssd(a: &RgbImage, pa: (u32, u32), b: &RgbImage, pb: (u32, u32), offsets: &[(u32, u32)]) -> u64 {
-    offsets
-        .iter()
-        .map(|&(dx, dy)| pixel_error(a.get(pa.0 + dx, pa.1 + dy), b.get(pb.0 + dx, pb.1 + dy)) as u64)
-        .sum()
+    offsets.iter().map(|&(dx, dy)| pixel_error(a.get(pa.0 + dx, pa.1 + dy), b.get(pb.0 + dx, pb.1 + dy)) as u64).sum()
 }
 
 /// Per-pixel error surface `E(p) = e(a(pa + p), b(pb + p))` over a `w × h` rectangle, row-major.

@@ -134,10 +134,7 @@ impl<'a> OverlapSearch<'a> {
     /// Exact SSD of the candidate at `(x, y)`: the block's `regions` (disjoint rectangles relative
     /// to the block origin) against `target` at `origin`.
     pub fn exact_ssd(&self, x: u32, y: u32, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> u64 {
-        regions
-            .iter()
-            .map(|r| rect_ssd(self.sample, x + r.x, y + r.y, target, origin.0 + r.x, origin.1 + r.y, r.w, r.h))
-            .sum()
+        regions.iter().map(|r| rect_ssd(self.sample, x + r.x, y + r.y, target, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
     }
 
     /// Every candidate position's exact SSD by direct summation (row-major). The reference the fast
@@ -356,11 +353,8 @@ mod tests {
         let sample = noise(70, 64, 21);
         let target = noise(120, 120, 22);
         let mut search = OverlapSearch::new(&sample, 20, 20);
-        let shapes: [&[Rect]; 3] = [
-            &[Rect::new(0, 0, 5, 20)],
-            &[Rect::new(0, 0, 20, 5)],
-            &[Rect::new(0, 0, 5, 20), Rect::new(5, 0, 15, 5)],
-        ];
+        let shapes: [&[Rect]; 3] =
+            [&[Rect::new(0, 0, 5, 20)], &[Rect::new(0, 0, 20, 5)], &[Rect::new(0, 0, 5, 20), Rect::new(5, 0, 15, 5)]];
         for k in 0..9u32 {
             let regions = shapes[(k % 3) as usize];
             let origin = (k * 9, 100 - k * 7);

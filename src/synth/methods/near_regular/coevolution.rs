@@ -43,10 +43,10 @@
 //! against the (possibly moved) even ones: each individual's own fitness never decreases when it
 //! moves (its old origin is a candidate), every lattice edge has one odd and one even end so the
 //! total edge fitness never decreases either, and the result does not depend on thread count.
+use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, bbox_of, converged, fits, texels_within};
+use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
-use crate::image::RgbImage;
-use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, bbox_of, converged, fits, texels_within};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::feather;
 use crate::synth::primitives::overlap::pixel_error;
@@ -56,8 +56,6 @@ use std::time::Instant;
 
 pub struct Coevolution;
 
-
-
 const PARAMS: &[ParamSpec] = &[
     GRID_PARAMS[0],
     GRID_PARAMS[1],
@@ -66,10 +64,30 @@ const PARAMS: &[ParamSpec] = &[
     GRID_PARAMS[4],
     GRID_PARAMS[5],
     GRID_PARAMS[6],
-    ParamSpec { name: "rho", kind: ParamKind::Float { min: 0.0, max: 0.5 }, default: Default::Float(1.0 / 6.0), doc: "overlap width as a fraction of the texel (at least 2 px)" },
-    ParamSpec { name: "c_tol", kind: ParamKind::Float { min: 0.0, max: 1.0 }, default: Default::Float(0.05), doc: "candidate tolerance: 0 keeps only the best-fitting samples, larger trades seams for variety" },
-    ParamSpec { name: "t_m", kind: ParamKind::Float { min: 0.0, max: 10.0 }, default: Default::Float(0.02), doc: "termination: stop when the relative spread of the last `window` averages is at most t_m" },
-    ParamSpec { name: "window", kind: ParamKind::Int { min: 1, max: 1000 }, default: Default::Int(5), doc: "averages in the termination window (M)" },
+    ParamSpec {
+        name: "rho",
+        kind: ParamKind::Float { min: 0.0, max: 0.5 },
+        default: Default::Float(1.0 / 6.0),
+        doc: "overlap width as a fraction of the texel (at least 2 px)",
+    },
+    ParamSpec {
+        name: "c_tol",
+        kind: ParamKind::Float { min: 0.0, max: 1.0 },
+        default: Default::Float(0.05),
+        doc: "candidate tolerance: 0 keeps only the best-fitting samples, larger trades seams for variety",
+    },
+    ParamSpec {
+        name: "t_m",
+        kind: ParamKind::Float { min: 0.0, max: 10.0 },
+        default: Default::Float(0.02),
+        doc: "termination: stop when the relative spread of the last `window` averages is at most t_m",
+    },
+    ParamSpec {
+        name: "window",
+        kind: ParamKind::Int { min: 1, max: 1000 },
+        default: Default::Int(5),
+        doc: "averages in the termination window (M)",
+    },
     ParamSpec { name: "iter_max", kind: ParamKind::Int { min: 1, max: 100_000 }, default: Default::Int(50), doc: "iteration cap" },
     ParamSpec {
         name: "mask",
@@ -84,10 +102,6 @@ const PARAMS: &[ParamSpec] = &[
         doc: "mutation radius in px: after evolution each individual, with probability u(I) (eq. 5), moves its sample origin to the fittest one within this disc; 0 = off (the paper's setting)",
     },
 ];
-
-
-
-
 
 crate::choice! {
     /// Which pixels an individual paints: its exact lattice cell, or the paper's Bresenham mask.
@@ -117,7 +131,16 @@ pub struct CoevolutionConfig {
 
 impl std::default::Default for CoevolutionConfig {
     fn default() -> CoevolutionConfig {
-        CoevolutionConfig { grid: LatticeGrid::default(), rho: 1.0 / 6.0, c_tol: 0.05, t_m: 0.02, window: 5, iter_max: 50, mask: Mask::Exact, r_mut: 0 }
+        CoevolutionConfig {
+            grid: LatticeGrid::default(),
+            rho: 1.0 / 6.0,
+            c_tol: 0.05,
+            t_m: 0.02,
+            window: 5,
+            iter_max: 50,
+            mask: Mask::Exact,
+            r_mut: 0,
+        }
     }
 }
 
@@ -206,8 +229,6 @@ impl Shape {
         }
     }
 }
-
-
 
 /// One precomputed fitness table (`H` or `V`): value, penalty flag and the shift used.
 pub(crate) struct Table {
@@ -306,8 +327,6 @@ pub(crate) fn build_table(sample: &RgbImage, g: &Geometry, texels: &[(i64, i64)]
     }
     t
 }
-
-
 
 /// Where the output lattice sits: its size and the output position of cell (0, 0)'s origin.
 pub(crate) fn place(g: &Geometry, grid: &LatticeGrid, width: u32, height: u32) -> (usize, usize, (i64, i64)) {
@@ -461,7 +480,6 @@ pub(crate) fn feather_strips(
         }
     }
 }
-
 
 /// Degree-normalised fitness of sample `k` at `(r, c)` given the current assignment, and whether
 /// any term is a penalty.
@@ -625,7 +643,9 @@ impl Method for Coevolution {
         let texels = texels_within(&g, shape.bbox, w, h);
         let s = texels.len();
         if s < 2 {
-            return Err(SynthError::Failed(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed")));
+            return Err(SynthError::Failed(format!(
+                "the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed"
+            )));
         }
         let rho = cfg.rho;
         let (sh, sv) = (Strips::new(&g, rho, true), Strips::new(&g, rho, false));
@@ -770,8 +790,8 @@ impl Method for Coevolution {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use super::super::grid::{cross, texels};
+    use super::*;
     use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
@@ -830,10 +850,18 @@ mod tests {
             for c in 0..cols {
                 let k = assign[r * cols + c];
                 let mut f = 0.0;
-                if c > 0 { f += th.f[assign[r * cols + c - 1] * tex.len() + k]; }
-                if c + 1 < cols { f += th.f[k * tex.len() + assign[r * cols + c + 1]]; }
-                if r > 0 { f += tv.f[assign[(r - 1) * cols + c] * tex.len() + k]; }
-                if r + 1 < rows { f += tv.f[k * tex.len() + assign[(r + 1) * cols + c]]; }
+                if c > 0 {
+                    f += th.f[assign[r * cols + c - 1] * tex.len() + k];
+                }
+                if c + 1 < cols {
+                    f += th.f[k * tex.len() + assign[r * cols + c + 1]];
+                }
+                if r > 0 {
+                    f += tv.f[assign[(r - 1) * cols + c] * tex.len() + k];
+                }
+                if r + 1 < rows {
+                    f += tv.f[k * tex.len() + assign[(r + 1) * cols + c]];
+                }
                 if (r + c) % 2 == 1 { odd += f } else { even += f }
             }
         }
@@ -843,7 +871,12 @@ mod tests {
     #[test]
     fn a_periodic_sample_is_reproduced_with_perfect_fitness() {
         let img = periodic();
-        let p = params(&[("t1_x", ParamValue::Int(20)), ("t2_x", ParamValue::Int(6)), ("t2_y", ParamValue::Int(16)), ("c_tol", ParamValue::Float(0.0))]);
+        let p = params(&[
+            ("t1_x", ParamValue::Int(20)),
+            ("t2_x", ParamValue::Int(6)),
+            ("t2_y", ParamValue::Int(16)),
+            ("c_tol", ParamValue::Float(0.0)),
+        ]);
         let out = Coevolution.synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4 }).unwrap();
         assert_eq!(out.image.dimensions(), (90, 70));
         let hist = out.diagnostics["mean_fitness"].as_array().unwrap();
@@ -877,10 +910,22 @@ mod tests {
         assert!(text.iter().any(|m| m.contains("rows and cols")), "{text:?}");
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(64, 64, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
-        let e = Coevolution.synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1 }).unwrap_err().to_string();
+        let e = Coevolution
+            .synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1 })
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no lattice found; give t1/t2"), "{e}");
-        let small = params(&[("t1_x", ParamValue::Int(20)), ("t2_x", ParamValue::Int(6)), ("t2_y", ParamValue::Int(16)), ("rows", ParamValue::Int(2)), ("cols", ParamValue::Int(2))]);
-        let e = Coevolution.synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1 }).unwrap_err().to_string();
+        let small = params(&[
+            ("t1_x", ParamValue::Int(20)),
+            ("t2_x", ParamValue::Int(6)),
+            ("t2_y", ParamValue::Int(16)),
+            ("rows", ParamValue::Int(2)),
+            ("cols", ParamValue::Int(2)),
+        ]);
+        let e = Coevolution
+            .synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1 })
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("uncovered"), "{e}");
     }
 
@@ -890,10 +935,13 @@ mod tests {
     fn defaults_and_r_mut_0_reproduce_the_golden_pixels() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         for name in ["weave_gray", "tiles_terracotta"] {
-            let (sample, _) = crate::image::io::read_rgb8(&root.join(format!("jobs/samples/{name}.png")), crate::image::io::DecodeLimits::default()).unwrap();
+            let (sample, _) =
+                crate::image::io::read_rgb8(&root.join(format!("jobs/samples/{name}.png")), crate::image::io::DecodeLimits::default())
+                    .unwrap();
             let golden: serde_json::Value =
                 serde_json::from_slice(&std::fs::read(root.join(format!("golden/coevolution/{name}.json"))).unwrap()).unwrap();
-            let want = golden[format!("coevolution/{name}.toml")][format!("coevolution/{name}.png")]["sha256"].as_str().unwrap().to_string();
+            let want =
+                golden[format!("coevolution/{name}.toml")][format!("coevolution/{name}.png")]["sha256"].as_str().unwrap().to_string();
             for p in [params(&[]), params(&[("r_mut", ParamValue::Int(0)), ("mask", ParamValue::Str("exact".into()))])] {
                 let out = Coevolution.synthesize(&Request { sample: &sample, width: 384, height: 384, params: &p, seed: 7 }).unwrap();
                 assert_eq!(crate::image::io::rgb_pixel_digest(&out.image).sha256, want, "{name}");
@@ -970,7 +1018,10 @@ mod tests {
             let origins: Vec<(i64, i64)> = (0..rows * cols).map(|_| tex[st.below_usize(tex.len())]).collect();
             let corners = [g.point(0, 0), g.point(cols as i64, 0), g.point(0, rows as i64), g.point(cols as i64, rows as i64)];
             let p0 = (-corners.iter().map(|c| c.0).min().unwrap(), -corners.iter().map(|c| c.1).min().unwrap());
-            let (w, h) = (corners.iter().map(|c| c.0 + p0.0).max().unwrap() as u32 + 3, corners.iter().map(|c| c.1 + p0.1).max().unwrap() as u32 + 3);
+            let (w, h) = (
+                corners.iter().map(|c| c.0 + p0.0).max().unwrap() as u32 + 3,
+                corners.iter().map(|c| c.1 + p0.1).max().unwrap() as u32 + 3,
+            );
             let a = render(&sample, &g, &exact, &origins, rows, cols, p0, w, h, true).unwrap();
             let b = render(&sample, &g, &bres, &origins, rows, cols, p0, w, h, true).unwrap();
             let mut differing = 0;

@@ -24,9 +24,24 @@ pub(crate) const GRID_PARAMS: [ParamSpec; 7] = [
     VECTOR_PARAMS[1],
     VECTOR_PARAMS[2],
     VECTOR_PARAMS[3],
-    ParamSpec { name: "rows", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice rows (along t2), or \"cover\": enough to cover the output" },
-    ParamSpec { name: "cols", kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" }, default: Default::Str("cover"), doc: "output lattice columns (along t1), or \"cover\": enough to cover the output" },
-    ParamSpec { name: "fill", kind: ParamKind::Choice(Fill::NAMES), default: Default::Str("error"), doc: "output pixels the lattice does not cover: an error, or black" },
+    ParamSpec {
+        name: "rows",
+        kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" },
+        default: Default::Str("cover"),
+        doc: "output lattice rows (along t2), or \"cover\": enough to cover the output",
+    },
+    ParamSpec {
+        name: "cols",
+        kind: ParamKind::IntOr { min: 1, max: 4096, word: "cover" },
+        default: Default::Str("cover"),
+        doc: "output lattice columns (along t1), or \"cover\": enough to cover the output",
+    },
+    ParamSpec {
+        name: "fill",
+        kind: ParamKind::Choice(Fill::NAMES),
+        default: Default::Str("error"),
+        doc: "output pixels the lattice does not cover: an error, or black",
+    },
 ];
 
 /// The typed form of [`GRID_PARAMS`].
@@ -79,12 +94,16 @@ impl LatticeGrid {
         let mut errors = Vec::new();
         if let Some(GivenVectors { t1, t2 }) = self.lattice {
             if cross(t1, t2) == 0 {
-                errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
+                errors
+                    .push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
             }
             let g_w = t1.0.abs() + t2.0.abs();
             let g_h = t1.1.abs() + t2.1.abs();
             if g_w > sample.0 as i64 || g_h > sample.1 as i64 {
-                errors.push(ParamError::new("t1_x", format!("a texel spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
+                errors.push(ParamError::new(
+                    "t1_x",
+                    format!("a texel spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1),
+                ));
             }
         }
         if self.rows.is_none() != self.cols.is_none() {
@@ -219,7 +238,8 @@ mod tests {
 
     #[test]
     fn non_default_configs_round_trip_through_the_tables() {
-        let grid = LatticeGrid { lattice: Some(GivenVectors { t1: (20, 0), t2: (6, 16) }), rows: Some(3), cols: Some(4), fill: Fill::Black };
+        let grid =
+            LatticeGrid { lattice: Some(GivenVectors { t1: (20, 0), t2: (6, 16) }), rows: Some(3), cols: Some(4), fill: Fill::Black };
         let c = CoevolutionConfig { grid, rho: 0.25, c_tol: 0.0, t_m: 0.5, window: 3, iter_max: 7, mask: Mask::Bresenham, r_mut: 2 };
         let d = CoevolutionConfig::default();
         assert!(c.grid != d.grid && c.rho != d.rho && c.c_tol != d.c_tol && c.t_m != d.t_m && c.window != d.window);

@@ -8,9 +8,9 @@
 //! Efros–Freeman cuts on the rectangular overlaps.
 
 use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, converged, texels};
+use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
-use crate::image::RgbImage;
 use crate::synth::params::{self, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::boundary_cut::{horizontal_cut, vertical_cut};
 use crate::synth::primitives::overlap::pixel_error;
@@ -27,8 +27,18 @@ const PARAMS: &[ParamSpec] = &[
     GRID_PARAMS[4],
     GRID_PARAMS[5],
     GRID_PARAMS[6],
-    ParamSpec { name: "t_m", kind: ParamKind::Float { min: 0.0, max: 10.0 }, default: Default::Float(0.02), doc: "termination threshold (as coevolution)" },
-    ParamSpec { name: "window", kind: ParamKind::Int { min: 1, max: 1000 }, default: Default::Int(5), doc: "averages in the termination window (M)" },
+    ParamSpec {
+        name: "t_m",
+        kind: ParamKind::Float { min: 0.0, max: 10.0 },
+        default: Default::Float(0.02),
+        doc: "termination threshold (as coevolution)",
+    },
+    ParamSpec {
+        name: "window",
+        kind: ParamKind::Int { min: 1, max: 1000 },
+        default: Default::Int(5),
+        doc: "averages in the termination window (M)",
+    },
     ParamSpec { name: "iter_max", kind: ParamKind::Int { min: 1, max: 100_000 }, default: Default::Int(50), doc: "iteration cap" },
 ];
 
@@ -93,7 +103,10 @@ impl Blocks<'_> {
         let mut sum = 0u64;
         for dy in 0..h {
             for dx in 0..w {
-                sum += pixel_error(self.sample.get((a.0 + dx) as u32, (a.1 + dy) as u32), self.sample.get((b.0 + dx) as u32, (b.1 + dy) as u32)) as u64;
+                sum += pixel_error(
+                    self.sample.get((a.0 + dx) as u32, (a.1 + dy) as u32),
+                    self.sample.get((b.0 + dx) as u32, (b.1 + dy) as u32),
+                ) as u64;
             }
         }
         -(sum as f64) / (w * h) as f64
@@ -232,7 +245,9 @@ impl Method for Tes {
         let tex = texels(&g, sample.width() as i64, sample.height() as i64);
         let s = tex.len();
         if s < 2 {
-            return Err(SynthError::Failed(format!("the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed")));
+            return Err(SynthError::Failed(format!(
+                "the lattice t1 = {t1:?}, t2 = {t2:?} fits only {s} complete texel(s) in the sample; at least 2 are needed"
+            )));
         }
         let (x0, x1, y0, y1) = g.bbox;
         let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
@@ -304,7 +319,13 @@ impl Method for Tes {
             "iterations": iterations,
             "mean_fitness": history,
         });
-        Ok(Synthesis { image, seams: None, diagnostics, phases: vec![("lattice".into(), lattice_seconds), ("iterations".into(), iter_seconds)], extras: Vec::new() })
+        Ok(Synthesis {
+            image,
+            seams: None,
+            diagnostics,
+            phases: vec![("lattice".into(), lattice_seconds), ("iterations".into(), iter_seconds)],
+            extras: Vec::new(),
+        })
     }
 }
 
@@ -332,7 +353,8 @@ fn render(b: &Blocks, grid: &Grid, width: u32, height: u32) -> RgbImage {
             if !b.inside(ext.0, ext.1, b.ovw, b.bh) {
                 continue;
             }
-            let e: Vec<u32> = (0..b.bh).flat_map(|y| (0..b.ovw).map(move |x| (x, y))).map(|(x, y)| pixel_error(px(ext, x, y), px(ob, x, y))).collect();
+            let e: Vec<u32> =
+                (0..b.bh).flat_map(|y| (0..b.ovw).map(move |x| (x, y))).map(|(x, y)| pixel_error(px(ext, x, y), px(ob, x, y))).collect();
             let cut = vertical_cut(&e, b.bh as usize, b.ovw as usize);
             for y in 0..b.bh {
                 for x in 0..cut[y as usize] as i64 {
@@ -349,7 +371,8 @@ fn render(b: &Blocks, grid: &Grid, width: u32, height: u32) -> RgbImage {
             if !b.inside(ext.0, ext.1, b.bw, b.ovh) {
                 continue;
             }
-            let e: Vec<u32> = (0..b.ovh).flat_map(|y| (0..b.bw).map(move |x| (x, y))).map(|(x, y)| pixel_error(px(ext, x, y), px(ob, x, y))).collect();
+            let e: Vec<u32> =
+                (0..b.ovh).flat_map(|y| (0..b.bw).map(move |x| (x, y))).map(|(x, y)| pixel_error(px(ext, x, y), px(ob, x, y))).collect();
             let cut = horizontal_cut(&e, b.ovh as usize, b.bw as usize);
             for x in 0..b.bw {
                 for y in 0..cut[x as usize] as i64 {

@@ -128,7 +128,10 @@ impl Alignment {
             let l = extract(sample, &LatticeOptions::default()).map_err(|e| {
                 let e = e.to_string();
                 let why = e.strip_prefix("no lattice found; give t1/t2").unwrap_or(&e).trim();
-                SynthError::Sample(format!("align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}", if why.is_empty() { String::new() } else { format!(" {why}") }))
+                SynthError::Sample(format!(
+                    "align = \"lattice\": no lattice found in the sample; give t1_x..t2_y or use align = \"none\"{}",
+                    if why.is_empty() { String::new() } else { format!(" {why}") }
+                ))
             })?;
             Alignment::new(l.t1, l.t2, "extracted").map(Some)
         }
@@ -318,7 +321,13 @@ pub fn residual_px(al: &Alignment, vectors: [V; 2]) -> f64 {
 
 /// Up to `n` tile sizes from `sizes` with the smallest phase residual (ties to the size closest to
 /// `current`, then the smaller): `(tile, residual in px)`.
-pub fn suggest(al: &Alignment, sizes: impl Iterator<Item = i64>, vectors: impl Fn(i64) -> [V; 2], current: i64, n: usize) -> Vec<(i64, f64)> {
+pub fn suggest(
+    al: &Alignment,
+    sizes: impl Iterator<Item = i64>,
+    vectors: impl Fn(i64) -> [V; 2],
+    current: i64,
+    n: usize,
+) -> Vec<(i64, f64)> {
     let mut all: Vec<(i64, f64)> = sizes.map(|t| (t, residual_px(al, vectors(t)))).collect();
     all.sort_by(|a, b| a.1.partial_cmp(&b.1).unwrap().then((a.0 - current).abs().cmp(&(b.0 - current).abs())).then(a.0.cmp(&b.0)));
     all.truncate(n);
@@ -357,7 +366,10 @@ pub fn check(mode: Align, given: Option<GivenVectors>, sample: (u32, u32)) -> Ve
         errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));
     }
     if t1.0.abs() + t2.0.abs() > sample.0 as i64 || t1.1.abs() + t2.1.abs() > sample.1 as i64 {
-        errors.push(ParamError::new("t1_x", format!("a lattice cell spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1)));
+        errors.push(ParamError::new(
+            "t1_x",
+            format!("a lattice cell spanned by t1 = {t1:?}, t2 = {t2:?} does not fit in the {}x{} sample", sample.0, sample.1),
+        ));
     }
     errors
 }

@@ -78,7 +78,10 @@ fn finish(index: Index, images: Vec<(u32, u32, Vec<u8>)>) -> Vec<ExtraOutput> {
     let mut extras: Vec<ExtraOutput> = images
         .into_iter()
         .enumerate()
-        .map(|(k, (width, height, data))| ExtraOutput { name: format!("tiles/{}", tile_file(k)), content: ExtraContent::Rgba8 { width, height, data } })
+        .map(|(k, (width, height, data))| ExtraOutput {
+            name: format!("tiles/{}", tile_file(k)),
+            content: ExtraContent::Rgba8 { width, height, data },
+        })
         .collect();
     let json = serde_json::to_value(&index).expect("the index serialises");
     extras.push(ExtraOutput { name: "tiles/index.json".into(), content: ExtraContent::Json(json) });
@@ -165,7 +168,13 @@ pub fn export_rw(set: &RwTileSet, order: TilingOrder, seed: u64, output: (u32, u
             .tiles
             .iter()
             .enumerate()
-            .map(|(k, tile)| IndexTile { file: tile_file(k), colours: tile.colours, offset: [x0 as i64, y0 as i64], width: w as u32, height: h as u32 })
+            .map(|(k, tile)| IndexTile {
+                file: tile_file(k),
+                colours: tile.colours,
+                offset: [x0 as i64, y0 as i64],
+                width: w as u32,
+                height: h as u32,
+            })
             .collect(),
     };
     finish(index, images)
@@ -210,7 +219,13 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
     }
     for (k, t) in index.tiles.iter().enumerate() {
         if t.colours != set.colours(k) {
-            return Err(at(format!("tile {k} ({}) has colours {:?}; tile {k} of a {} set must have {:?}", t.file, t.colours, index.tile_set, set.colours(k))));
+            return Err(at(format!(
+                "tile {k} ({}) has colours {:?}; tile {k} of a {} set must have {:?}",
+                t.file,
+                t.colours,
+                index.tile_set,
+                set.colours(k)
+            )));
         }
     }
     let (tile, ov) = (index.tile as i32, index.overlap as i32);
@@ -278,7 +293,14 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
                         }
                     }
                 }
-                tiles.push(RwTile { colours: t.colours, raster, labels: Vec::new(), centre_block: 0, strip_costs: [0; 4], pocket_costs: Vec::new() });
+                tiles.push(RwTile {
+                    colours: t.colours,
+                    raster,
+                    labels: Vec::new(),
+                    centre_block: 0,
+                    strip_costs: [0; 4],
+                    pocket_costs: Vec::new(),
+                });
             }
             Ok(Loaded::Rw(index, RwTileSet { geometry: g, set, pa: [(0, 0); 2], pb: [(0, 0); 2], tiles }))
         }

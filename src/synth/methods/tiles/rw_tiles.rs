@@ -249,7 +249,9 @@ impl RwAlign {
             for a in [0, 2] {
                 let (ob, oa) = (g.origin(b), g.origin(a));
                 let covers = |o: (i32, i32), x: i32, y: i32| x >= o.0 && x < o.0 + g.s && y >= o.1 && y < o.1 + g.s;
-                let pixels = (0..g.f).flat_map(|y| (0..g.f).map(move |x| (x, y))).filter(|&(x, y)| g.in_r(x, y) && covers(ob, x, y) && covers(oa, x, y));
+                let pixels = (0..g.f)
+                    .flat_map(|y| (0..g.f).map(move |x| (x, y)))
+                    .filter(|&(x, y)| g.in_r(x, y) && covers(ob, x, y) && covers(oa, x, y));
                 let anchors = ((ob.0 as i64, ob.1 as i64), (oa.0 as i64, oa.1 as i64));
                 overlaps.push(Overlap { anchors, pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
@@ -309,7 +311,8 @@ pub fn build_tile_set_aligned(
         })
         .collect();
     let choices = choices?;
-    let built: Result<Vec<RwTileSet>, SynthError> = choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+    let built: Result<Vec<RwTileSet>, SynthError> =
+        choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let fit: Vec<bool> = choices.iter().map(|(pa, pb)| representative(sample, &[pa[0], pa[1], pb[0], pb[1]], g.s as u32)).collect();
@@ -318,7 +321,14 @@ pub fn build_tile_set_aligned(
 }
 
 /// Builds every tile of `set` from the given patch corners.
-pub fn build_from_patches(sample: &RgbImage, g: &Geometry, set: TileSet, err: PixelError, pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> Result<RwTileSet, SynthError> {
+pub fn build_from_patches(
+    sample: &RgbImage,
+    g: &Geometry,
+    set: TileSet,
+    err: PixelError,
+    pa: [(u32, u32); 2],
+    pb: [(u32, u32); 2],
+) -> Result<RwTileSet, SynthError> {
     let tiles: Result<Vec<RwTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|t| {
@@ -361,10 +371,10 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     // §3.3: the four strips.
     let (h, s) = (g.h, g.s);
     let strips = [
-        Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 },  // O_n: B1 west / B2 east
-        Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 },  // O_e: B2 north / B3 south
-        Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 },  // O_s: B4 west / B3 east
-        Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 },  // O_w: B1 north / B4 south
+        Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 }, // O_n: B1 west / B2 east
+        Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 }, // O_e: B2 north / B3 south
+        Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
+        Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
     ];
     let mut ends = [(0i32, 0i32); 4];
     let mut strip_costs = [0u64; 4];
@@ -649,8 +659,8 @@ impl Method for RwTiles {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::params::resolve;
     use crate::synth::methods::tiles::rw_set::locate;
+    use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
         let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
@@ -748,7 +758,8 @@ mod tests {
         assert_eq!(small.image.dimensions(), (300, 200));
         assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let single = one.install(|| RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
+        let single =
+            one.install(|| RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
         assert_eq!(single.image, big.image);
         assert_eq!(single.diagnostics, big.diagnostics);
         let other = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10 }).unwrap();
@@ -835,7 +846,9 @@ mod tests {
                 }
             }
         }
-        let none = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(64))]), seed: 1 }).unwrap();
+        let none = RwTiles
+            .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(64))]), seed: 1 })
+            .unwrap();
         assert!(none.diagnostics["patches"]["seam_cost"].as_u64().unwrap() > 0);
         assert!(none.diagnostics.get("align").is_none());
     }
@@ -868,7 +881,15 @@ mod tests {
     fn seam_bands_repeat_every_half_tile() {
         let g = Geometry::new(64, 8);
         let sg = seam_grid(&g, 100, 70);
-        assert_eq!(sg.columns, vec![SeamBand { start: 1, len: 8 }, SeamBand { start: 32, len: 9 }, SeamBand { start: 64, len: 9 }, SeamBand { start: 96, len: 4 }]);
+        assert_eq!(
+            sg.columns,
+            vec![
+                SeamBand { start: 1, len: 8 },
+                SeamBand { start: 32, len: 9 },
+                SeamBand { start: 64, len: 9 },
+                SeamBand { start: 96, len: 4 }
+            ]
+        );
         assert_eq!(sg.rows.len(), 3);
     }
 

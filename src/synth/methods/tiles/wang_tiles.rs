@@ -181,7 +181,15 @@ const UNSET: u8 = u8::MAX;
 
 /// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
 /// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
-pub fn build_tile_set(sample: &RgbImage, t: i32, ov: i32, set: TileSet, cut: Cut, err: PixelError, seed: u64) -> Result<WangTileSet, SynthError> {
+pub fn build_tile_set(
+    sample: &RgbImage,
+    t: i32,
+    ov: i32,
+    set: TileSet,
+    cut: Cut,
+    err: PixelError,
+    seed: u64,
+) -> Result<WangTileSet, SynthError> {
     build_tile_set_searched(sample, t, ov, set, cut, err, seed, 1).map(|(s, _)| s)
 }
 
@@ -258,7 +266,8 @@ impl WangAlign {
         let mut overlaps = Vec::new();
         for e in [W, E] {
             for n in [N, S] {
-                let pixels = (0..g.t).flat_map(|y| (0..g.t).map(move |x| (x, y))).filter(|&(x, y)| g.in_diamond(e, x, y) && g.in_diamond(n, x, y));
+                let pixels =
+                    (0..g.t).flat_map(|y| (0..g.t).map(move |x| (x, y))).filter(|&(x, y)| g.in_diamond(e, x, y) && g.in_diamond(n, x, y));
                 let anchor = |d: usize| (g.centre(d).0 as i64, g.centre(d).1 as i64);
                 overlaps.push(Overlap { anchors: (anchor(e), anchor(n)), pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
@@ -319,14 +328,13 @@ pub fn build_tile_set_aligned(
         })
         .collect();
     let choices = choices?;
-    let built: Result<Vec<WangTileSet>, SynthError> = choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+    let built: Result<Vec<WangTileSet>, SynthError> =
+        choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let a = g.a as u32;
-    let fit: Vec<bool> = choices
-        .iter()
-        .map(|(dn, de)| representative(sample, &[dn[0], dn[1], de[0], de[1]].map(|(x, y)| (x - a, y - a)), 2 * a))
-        .collect();
+    let fit: Vec<bool> =
+        choices.iter().map(|(dn, de)| representative(sample, &[dn[0], dn[1], de[0], de[1]].map(|(x, y)| (x - a, y - a)), 2 * a)).collect();
     let best = pick_candidate(&costs, &fit);
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
@@ -489,7 +497,9 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             let i = (y * t + x) as usize;
             if labels[i] == UNSET {
                 fallback_pixels += 1;
-                labels[i] = (0..4).find(|&d| g.in_diamond(d, x, y)).ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
+                labels[i] = (0..4)
+                    .find(|&d| g.in_diamond(d, x, y))
+                    .ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
             }
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
         }
@@ -570,8 +580,17 @@ impl Method for WangTiles {
         let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
         let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let (tiles, chosen) =
-            build_tile_set_aligned(req.sample, t, ov, set, cfg.cut, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
+        let (tiles, chosen) = build_tile_set_aligned(
+            req.sample,
+            t,
+            ov,
+            set,
+            cfg.cut,
+            cfg.pixel_error,
+            req.seed,
+            cfg.patch_candidates as usize,
+            align.as_ref(),
+        )?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
@@ -717,7 +736,8 @@ mod tests {
             assert_eq!(small.image.dimensions(), (300, 200));
             assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-            let single = one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
+            let single =
+                one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
             assert_eq!(single.image, big.image);
             assert_eq!(single.diagnostics, big.diagnostics);
         }
@@ -784,7 +804,9 @@ mod tests {
             }
         }
         // The faithful mode puts the diamonds out of phase.
-        let none = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(32))]), seed: 1 }).unwrap();
+        let none = WangTiles
+            .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(32))]), seed: 1 })
+            .unwrap();
         assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
         assert!(none.diagnostics.get("align").is_none());
     }
