@@ -188,6 +188,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::excessive_precision)] // the RFC 8785 examples, digit for digit
     fn ecmascript_numbers_match_rfc8785_examples() {
         let cases: &[(f64, &str)] = &[
             (0.0, "0"),

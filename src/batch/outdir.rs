@@ -83,13 +83,13 @@ impl OutDir {
                 reason: format!("would be written to {}, outside the output directory (a symlink?); refusing", real_parent.display()),
             });
         }
-        if let Ok(meta) = std::fs::symlink_metadata(&path) {
-            if meta.file_type().is_symlink() {
-                return Err(Error::Containment {
-                    path: PathBuf::from(rel),
-                    reason: "is a symlink in the output directory; refusing to write through it".into(),
-                });
-            }
+        if let Ok(meta) = std::fs::symlink_metadata(&path)
+            && meta.file_type().is_symlink()
+        {
+            return Err(Error::Containment {
+                path: PathBuf::from(rel),
+                reason: "is a symlink in the output directory; refusing to write through it".into(),
+            });
         }
         Ok(path)
     }

@@ -32,7 +32,7 @@ impl Shard {
     }
 
     pub fn new(index: usize, count: usize) -> Option<Shard> {
-        (count >= 1 && count <= MAX_SHARDS && index < count).then_some(Shard { index, count })
+        ((1..=MAX_SHARDS).contains(&count) && index < count).then_some(Shard { index, count })
     }
 
     /// The shard the scheduler gave this process: Slurm's `SLURM_ARRAY_TASK_ID` and

@@ -125,7 +125,7 @@ mod tests {
         draw_text(&mut img, 10.0, 5.0, "quilting", 16.0, [0, 0, 0]);
         let (x0, y0, x1, y1) = ink_bounds(&img).expect("text leaves ink");
         let w = text_width("quilting", 16.0);
-        assert!(x0 >= 10 && x0 <= 12, "left edge {x0}");
+        assert!((10..=12).contains(&x0), "left edge {x0}");
         assert!((x1 as f32) <= 10.0 + w + 1.0 && (x1 as f32) >= 10.0 + w - 4.0, "right edge {x1} vs width {w}");
         assert!(y0 >= 5 && y1 < 5 + line_height(16.0), "rows {y0}..{y1}");
     }

@@ -492,8 +492,7 @@ mod tests {
 
     #[test]
     fn numeric_values_sort_numerically() {
-        let mut v =
-            vec![KeyValue::Num(100.0, "100".into()), KeyValue::Text("dp".into()), KeyValue::Num(50.0, "50".into()), KeyValue::Missing];
+        let mut v = [KeyValue::Num(100.0, "100".into()), KeyValue::Text("dp".into()), KeyValue::Num(50.0, "50".into()), KeyValue::Missing];
         v.sort();
         let texts: Vec<String> = v.iter().map(KeyValue::text).collect();
         assert_eq!(texts, ["none", "50", "100", "dp"]);

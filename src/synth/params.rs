@@ -361,6 +361,73 @@ pub fn edit_distance(a: &str, b: &str) -> usize {
     prev[b.len()]
 }
 
+fn not_resolved(name: &str, expected: &str, found: Option<&ParamValue>) -> SynthError {
+    let found = found.map_or("nothing", ParamValue::type_name);
+    SynthError::param(name, format!("expected {expected}, found {found} (the method's parameter table and its reader disagree)"))
+}
+
+/// A parameter whose value is one of a fixed set of words, as an enum. Declared with [`choice!`],
+/// which gives the words once: the same list is the [`ParamKind::Choice`] of the method's table
+/// (what job files may say) and the parser of its typed config.
+pub trait Choice: Sized + Copy + 'static {
+    /// The words, in declaration order.
+    const NAMES: &'static [&'static str];
+    fn parse(word: &str) -> Option<Self>;
+    fn name(self) -> &'static str;
+}
+
+/// Declares a [`Choice`] enum: `choice! { pub enum Cut { Dp = "dp", None = "none" } }`.
+#[macro_export]
+#[doc(hidden)]
+macro_rules! choice {
+    ($(#[$meta:meta])* $vis:vis enum $name:ident { $($(#[$vmeta:meta])* $variant:ident = $word:literal),+ $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        $vis enum $name { $($(#[$vmeta])* $variant),+ }
+        impl $crate::synth::params::Choice for $name {
+            const NAMES: &'static [&'static str] = &[$($word),+];
+            fn parse(word: &str) -> Option<Self> {
+                match word { $($word => Some($name::$variant),)+ _ => None }
+            }
+            fn name(self) -> &'static str {
+                match self { $($name::$variant => $word),+ }
+            }
+        }
+    };
+}
+pub use choice;
+
+/// A method's typed configuration: the same parameters as its [`ParamSpec`] table, as Rust
+/// fields. `Default` gives the table's defaults (derived ones as `None`: computed at resolution);
+/// [`MethodConfig::to_params`] feeds the table's validation, so a bad value gets the same message
+/// from Rust as from a job file; [`MethodConfig::from_params`] reads resolved parameters back.
+pub trait MethodConfig: Sized + Clone + std::fmt::Debug + std::default::Default {
+    /// The method's name in job files.
+    const METHOD: &'static str;
+    /// The given values, as a job file's `[params]` would hold them (unset derived ones omitted).
+    fn to_params(&self) -> Vec<(String, ParamValue)>;
+    /// Reads fully resolved parameters.
+    fn from_params(p: &Params) -> Result<Self, SynthError>;
+}
+
+/// Shorthands for [`MethodConfig::to_params`].
+pub fn int(name: &str, v: impl Into<i64>) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Int(v.into()))
+}
+pub fn float(name: &str, v: f64) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Float(v))
+}
+pub fn boolean(name: &str, v: bool) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Bool(v))
+}
+pub fn word<C: Choice>(name: &str, v: C) -> (String, ParamValue) {
+    (name.to_string(), ParamValue::Str(v.name().to_string()))
+}
+/// An [`ParamKind::IntOr`] value: the number, or the word when `None`.
+pub fn int_or(name: &str, v: Option<i64>, word: &str) -> (String, ParamValue) {
+    (name.to_string(), v.map_or_else(|| ParamValue::Str(word.to_string()), ParamValue::Int))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -451,71 +518,4 @@ mod tests {
         assert_eq!(nearest("zzzzzz", &["tolerance", "block"]), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
     }
-}
-
-fn not_resolved(name: &str, expected: &str, found: Option<&ParamValue>) -> SynthError {
-    let found = found.map_or("nothing", ParamValue::type_name);
-    SynthError::param(name, format!("expected {expected}, found {found} (the method's parameter table and its reader disagree)"))
-}
-
-/// A parameter whose value is one of a fixed set of words, as an enum. Declared with [`choice!`],
-/// which gives the words once: the same list is the [`ParamKind::Choice`] of the method's table
-/// (what job files may say) and the parser of its typed config.
-pub trait Choice: Sized + Copy + 'static {
-    /// The words, in declaration order.
-    const NAMES: &'static [&'static str];
-    fn parse(word: &str) -> Option<Self>;
-    fn name(self) -> &'static str;
-}
-
-/// Declares a [`Choice`] enum: `choice! { pub enum Cut { Dp = "dp", None = "none" } }`.
-#[macro_export]
-#[doc(hidden)]
-macro_rules! choice {
-    ($(#[$meta:meta])* $vis:vis enum $name:ident { $($(#[$vmeta:meta])* $variant:ident = $word:literal),+ $(,)? }) => {
-        $(#[$meta])*
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        $vis enum $name { $($(#[$vmeta])* $variant),+ }
-        impl $crate::synth::params::Choice for $name {
-            const NAMES: &'static [&'static str] = &[$($word),+];
-            fn parse(word: &str) -> Option<Self> {
-                match word { $($word => Some($name::$variant),)+ _ => None }
-            }
-            fn name(self) -> &'static str {
-                match self { $($name::$variant => $word),+ }
-            }
-        }
-    };
-}
-pub use choice;
-
-/// A method's typed configuration: the same parameters as its [`ParamSpec`] table, as Rust
-/// fields. `Default` gives the table's defaults (derived ones as `None`: computed at resolution);
-/// [`MethodConfig::to_params`] feeds the table's validation, so a bad value gets the same message
-/// from Rust as from a job file; [`MethodConfig::from_params`] reads resolved parameters back.
-pub trait MethodConfig: Sized + Clone + std::fmt::Debug + std::default::Default {
-    /// The method's name in job files.
-    const METHOD: &'static str;
-    /// The given values, as a job file's `[params]` would hold them (unset derived ones omitted).
-    fn to_params(&self) -> Vec<(String, ParamValue)>;
-    /// Reads fully resolved parameters.
-    fn from_params(p: &Params) -> Result<Self, SynthError>;
-}
-
-/// Shorthands for [`MethodConfig::to_params`].
-pub fn int(name: &str, v: impl Into<i64>) -> (String, ParamValue) {
-    (name.to_string(), ParamValue::Int(v.into()))
-}
-pub fn float(name: &str, v: f64) -> (String, ParamValue) {
-    (name.to_string(), ParamValue::Float(v))
-}
-pub fn boolean(name: &str, v: bool) -> (String, ParamValue) {
-    (name.to_string(), ParamValue::Bool(v))
-}
-pub fn word<C: Choice>(name: &str, v: C) -> (String, ParamValue) {
-    (name.to_string(), ParamValue::Str(v.name().to_string()))
-}
-/// An [`ParamKind::IntOr`] value: the number, or the word when `None`.
-pub fn int_or(name: &str, v: Option<i64>, word: &str) -> (String, ParamValue) {
-    (name.to_string(), v.map_or_else(|| ParamValue::Str(word.to_string()), ParamValue::Int))
 }

@@ -201,12 +201,12 @@ fn a_killed_run_resumes_without_redoing_finished_jobs() {
     // Wait until a few jobs are recorded, then kill -9 in the middle of the run.
     let deadline = Instant::now() + Duration::from_secs(120);
     let recorded = loop {
-        if let Ok(bytes) = std::fs::read(out.join("manifest.json")) {
-            if let Ok(m) = serde_json::from_slice::<Value>(&bytes) {
-                let ok = m["jobs"].as_array().unwrap().iter().filter(|j| j["status"] == "ok").count();
-                if ok >= 3 {
-                    break ok;
-                }
+        if let Ok(bytes) = std::fs::read(out.join("manifest.json"))
+            && let Ok(m) = serde_json::from_slice::<Value>(&bytes)
+        {
+            let ok = m["jobs"].as_array().unwrap().iter().filter(|j| j["status"] == "ok").count();
+            if ok >= 3 {
+                break ok;
             }
         }
         assert!(Instant::now() < deadline, "the run made no progress");

@@ -164,10 +164,10 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }
     }
     let format_and_depth = check_output_format(ctx, &raw);
-    if let Some((template, span)) = &raw.output_path {
-        if let Err(e) = normalise_output_path(template) {
-            ctx.err(Some(span.clone()), Some("output.path"), e);
-        }
+    if let Some((template, span)) = &raw.output_path
+        && let Err(e) = normalise_output_path(template)
+    {
+        ctx.err(Some(span.clone()), Some("output.path"), e);
     }
     if let Some(m) = method {
         // Report parameter problems even when other keys are broken too.

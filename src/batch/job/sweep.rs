@@ -169,7 +169,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
                 continue;
             }
         };
-        let path = match expand_template(&path_template, method.name(), seed, &params) {
+        let path = match expand_template(path_template, method.name(), seed, &params) {
             Ok(p) => p,
             Err(e) => {
                 ctx.err(Some(path_span.clone()), Some("output.path"), e);

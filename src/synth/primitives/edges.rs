@@ -78,6 +78,6 @@ mod tests {
         let g = sobel4(&plane, w, h);
         assert!(g[2 * w + 4] > 1.0 && g[2 * w + 3] > 1.0);
         assert_eq!(g[2 * w], 0.0);
-        assert!(sobel4(&vec![0.3; 20], 5, 4).iter().all(|&v| v == 0.0));
+        assert!(sobel4(&[0.3; 20], 5, 4).iter().all(|&v| v == 0.0));
     }
 }
