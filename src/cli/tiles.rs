@@ -38,7 +38,7 @@ const MAX_SIDE: u32 = 65_536;
 
 pub fn run(cmd: Command) -> Result<Outcome, Error> {
     let Command::Render { index, out, width, height, seed, tiling } = cmd;
-    let loaded = export::load(&index).map_err(|reason| Error::manifest(&index, reason))?;
+    let loaded = export::load(&index).map_err(|e| Error::Manifest { path: e.file, reason: e.reason })?;
     let ix = loaded.index();
     let (w, h) = (width.unwrap_or(ix.output[0]), height.unwrap_or(ix.output[1]));
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {

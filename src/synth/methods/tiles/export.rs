@@ -203,11 +203,26 @@ impl Loaded {
     }
 }
 
+/// Why an exported tile set cannot be used: the file (the index or one tile) and the reason.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExportError {
+    pub file: std::path::PathBuf,
+    pub reason: String,
+}
+
+impl std::fmt::Display for ExportError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.file.display(), self.reason)
+    }
+}
+
+impl std::error::Error for ExportError {}
+
 /// Reads `index.json` and its tile images, checking everything a renderer relies on: the
 /// format, the geometry, that the tiles are the set's tiles in order with their edge colours, and
 /// each image's size and (for rhombi) its alpha mask.
-pub fn load(index_path: &Path) -> Result<Loaded, String> {
-    let at = |e: String| format!("{}: {e}", index_path.display());
+pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
+    let at = |reason: String| ExportError { file: index_path.to_path_buf(), reason };
     let bytes = std::fs::read(index_path).map_err(|e| at(format!("cannot read: {e}")))?;
     let index: Index = serde_json::from_slice(&bytes).map_err(|e| at(format!("not a tile-set index: {e}")))?;
     if index.format != FORMAT {
@@ -233,15 +248,15 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
         return Err(at(format!("tile {tile} / overlap {ov} must be even, tile at least 8, overlap at least 2")));
     }
     let dir = index_path.parent().unwrap_or(Path::new("."));
-    let read_tile = |t: &IndexTile| -> Result<Vec<u8>, String> {
+    let read_tile = |t: &IndexTile| -> Result<Vec<u8>, ExportError> {
         if t.file.contains("..") || Path::new(&t.file).is_absolute() {
             return Err(at(format!("tile file `{}` must be a name inside the export folder", t.file)));
         }
         let path = dir.join(&t.file);
-        let bytes = std::fs::read(&path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-        let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default()).map_err(|e| format!("{}: {e}", path.display()))?;
+        let bytes = std::fs::read(&path).map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
+        let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default()).map_err(|e| ExportError { file: path.clone(), reason: e.to_string() })?;
         if (w, h) != (t.width, t.height) {
-            return Err(format!("{}: is {w}x{h}; the index says {}x{}", path.display(), t.width, t.height));
+            return Err(ExportError { file: path, reason: format!("is {w}x{h}; the index says {}x{}", t.width, t.height) });
         }
         Ok(data)
     };
@@ -281,11 +296,13 @@ pub fn load(index_path: &Path) -> Result<Loaded, String> {
                         let s = ((y * w + x) * 4) as usize;
                         let inside = g.in_r(fx, fy);
                         if inside != (data[s + 3] == 255) && (inside || data[s + 3] != 0) {
-                            return Err(format!(
-                                "{}: pixel ({x}, {y}) has alpha {}; a rhombus tile is opaque (255) exactly inside the rhombus and transparent (0) outside",
-                                dir.join(&t.file).display(),
-                                data[s + 3]
-                            ));
+                            return Err(ExportError {
+                                file: dir.join(&t.file),
+                                reason: format!(
+                                    "pixel ({x}, {y}) has alpha {}; a rhombus tile is opaque (255) exactly inside the rhombus and transparent (0) outside",
+                                    data[s + 3]
+                                ),
+                            });
                         }
                         if inside {
                             let d = ((fy * g.f + fx) * 3) as usize;
