@@ -8,6 +8,7 @@
 //!    the [`manifest`] rewritten as jobs finish, progress sent to an [`observer`];
 //! 5. [`verify`] re-executes a manifest's jobs; [`golden`] compares its digests with `golden/`.
 
+pub mod diff;
 pub mod execute;
 pub mod golden;
 pub mod job;

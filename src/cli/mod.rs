@@ -8,6 +8,7 @@
 //! Output to a closed pipe (`texsyn methods | head`) is not an error: [`say`] stops quietly with
 //! exit 0 instead of the panic `println!` would give, because the reader has what it wanted.
 
+mod diff;
 mod eval;
 mod golden;
 mod lattice;
@@ -30,6 +31,7 @@ Exit codes:
   1    some job failed or was invalid (the others still ran; see the manifest)
   2    usage error, or the run could not start (no job files, output directory locked)
   3    verify or golden mismatch
+  4    diff: pixels changed
   130  interrupted (Ctrl-C); finished jobs are recorded, re-run to continue
   143  stopped by SIGTERM (Slurm/Kubernetes time limit or preemption), likewise
   129  stopped by SIGHUP, likewise";
@@ -55,6 +57,10 @@ enum Command {
     /// Re-run every recorded job from a manifest alone and compare pixel digests.
     #[command(after_help = EXIT_CODES)]
     Verify(verify::Args),
+    /// What changed between two runs: jobs added, removed, failing now or fixed, pixels changed
+    /// (with the inputs that changed, key by key), times and metrics that moved.
+    #[command(after_help = diff::HELP)]
+    Diff(diff::Args),
     /// Compare a run with the expected digests in a golden directory, or record new ones.
     #[command(subcommand)]
     Golden(golden::Command),
@@ -84,6 +90,8 @@ pub enum Outcome {
     Problems,
     /// 3: `verify` or `golden check` found a difference.
     Mismatch,
+    /// 4: `diff` found jobs whose pixels changed (or that fail now).
+    PixelsChanged,
     /// 128 + the signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP): stopped after recording what finished.
     Interrupted(i32),
 }
@@ -100,6 +108,7 @@ pub fn main() -> ExitCode {
     texsyn::batch::execute::install_panic_hook();
     let result = match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Diff(args) => diff::run(args),
         Command::Merge(args) => merge::run(args),
         Command::Slurm(args) => slurm::run(args),
         Command::Verify(args) => verify::run(args),
@@ -114,6 +123,7 @@ pub fn main() -> ExitCode {
         Ok(Outcome::Success) => ExitCode::SUCCESS,
         Ok(Outcome::Problems) => ExitCode::from(1),
         Ok(Outcome::Mismatch) => ExitCode::from(3),
+        Ok(Outcome::PixelsChanged) => ExitCode::from(4),
         Ok(Outcome::Interrupted(signal)) => ExitCode::from(u8::try_from(128 + signal).unwrap_or(130)),
         Err(e) => {
             eprintln!("error: {e}");

@@ -5,6 +5,7 @@
 mod bad_input;
 mod common;
 mod compat;
+mod diff;
 mod lattice;
 mod patch_sampling;
 mod pipeline;
