@@ -601,14 +601,20 @@ impl Method for RwTiles {
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
         if s > smaller {
+            // Never advise an impossible value: the largest tile that fits must still be a valid
+            // tile (even, at least 8, room for the overlap).
+            let largest = (2 * (smaller - ov)) & !1;
+            let smallest = (2 * ov + 4).max(8);
+            let advice = if largest >= smallest {
+                format!("use tile at most {largest}")
+            } else if smaller >= 6 {
+                format!("the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample", (2 * (smaller - 2)) & !1)
+            } else {
+                "the sample is too small for any RW tile; use a larger sample".to_string()
+            };
             errors.push(ParamError::new(
                 "tile",
-                format!(
-                    "tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); use tile at most {}",
-                    sample.0,
-                    sample.1,
-                    2 * (smaller - ov)
-                ),
+                format!("tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); {advice}", sample.0, sample.1),
             ));
         }
         errors
@@ -934,5 +940,17 @@ mod tests {
         bad.0.insert("tiling".into(), ParamValue::Str("spiral".into()));
         assert!(matches!(RwTilesConfig::from_params(&bad), Err(SynthError::Param { ref key, .. }) if key == "tiling"));
         assert_eq!(RwTiles.check(&bad, (128, 128), (64, 64))[0].key, "tiling");
+    }
+
+    #[test]
+    fn a_sample_too_small_gets_possible_advice_only() {
+        let advice = |w: u32, tile: i64, ov: i64| {
+            let p = params(&[("tile", ParamValue::Int(tile)), ("overlap", ParamValue::Int(ov))]);
+            RwTiles.check(&p, (w, w), (64, 64)).into_iter().map(|e| e.message).collect::<Vec<_>>().join("\n")
+        };
+        assert!(advice(20, 64, 8).contains("use tile at most 24"), "{}", advice(20, 64, 8));
+        let m = advice(8, 64, 16);
+        assert!(m.contains("too small for overlap 16; use overlap 2 (then tile at most 12)") && !m.contains("at most -"), "{m}");
+        assert!(advice(4, 64, 2).contains("too small for any RW tile"), "{}", advice(4, 64, 2));
     }
 }

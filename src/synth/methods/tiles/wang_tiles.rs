@@ -558,14 +558,19 @@ impl Method for WangTiles {
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
         if need > smaller {
+            // Never advise an impossible value: the largest tile that fits must still be a valid
+            // tile (even, at least 8, at least twice the overlap).
+            let largest = (smaller - ov) & !1;
+            let advice = if largest >= (2 * ov).max(8) {
+                format!("use tile at most {largest}")
+            } else if smaller >= 8 + 2 {
+                format!("the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample", (smaller - 2) & !1)
+            } else {
+                "the sample is too small for any Wang tile; use a larger sample".to_string()
+            };
             errors.push(ParamError::new(
                 "tile",
-                format!(
-                    "tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); use tile at most {}",
-                    sample.0,
-                    sample.1,
-                    smaller - ov
-                ),
+                format!("tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); {advice}", sample.0, sample.1),
             ));
         }
         errors
@@ -901,5 +906,17 @@ mod tests {
         bad.0.insert("cut".into(), ParamValue::Str("zigzag".into()));
         assert!(matches!(WangTilesConfig::from_params(&bad), Err(SynthError::Param { ref key, .. }) if key == "cut"));
         assert_eq!(WangTiles.check(&bad, (128, 128), (64, 64))[0].key, "cut");
+    }
+
+    #[test]
+    fn a_sample_too_small_gets_possible_advice_only() {
+        let advice = |w: u32, tile: i64, ov: i64| {
+            let p = params(&[("tile", ParamValue::Int(tile)), ("overlap", ParamValue::Int(ov))]);
+            WangTiles.check(&p, (w, w), (64, 64)).into_iter().map(|e| e.message).collect::<Vec<_>>().join("\n")
+        };
+        assert!(advice(40, 64, 8).contains("use tile at most 32"), "{}", advice(40, 64, 8));
+        let m = advice(20, 64, 16);
+        assert!(m.contains("too small for overlap 16; use overlap 2 (then tile at most 18)") && !m.contains("at most -"), "{m}");
+        assert!(advice(6, 64, 2).contains("too small for any Wang tile"), "{}", advice(6, 64, 2));
     }
 }
