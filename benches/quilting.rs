@@ -4,34 +4,19 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::path::Path;
-use texsyn::image::io::{DecodeLimits, read_rgb8};
-use texsyn::synth::method::Request;
-use texsyn::synth::methods::find;
-use texsyn::synth::params::{ParamValue, resolve};
 use texsyn::synth::primitives::overlap::Rect;
 use texsyn::synth::primitives::overlap_search::OverlapSearch;
+use texsyn::{QuiltingConfig, Synthesizer};
 
 fn bench(c: &mut Criterion) {
-    let sample_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/pebbles_beige.png");
-    let (sample, _) = read_rgb8(&sample_path, DecodeLimits::default()).expect("bundled sample");
-    let quilting = find("quilting").unwrap();
-    let given = vec![
-        ("block".to_string(), ParamValue::Int(40)),
-        ("overlap".to_string(), ParamValue::Int(10)),
-        ("tolerance".to_string(), ParamValue::Float(0.1)),
-    ];
-    let params = resolve(quilting.params(), &given).unwrap();
+    let sample = texsyn::load_image(Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/pebbles_beige.png")).expect("bundled sample");
+    let config = QuiltingConfig { block: 40, overlap: Some(10), tolerance: 0.1, ..QuiltingConfig::default() };
+    let session = Synthesizer::new(config).seed(1).size(512, 512).build(&sample).expect("valid parameters");
     let mut group = c.benchmark_group("quilting 512x512 from 256x256, block 40");
     group.sample_size(10);
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        group.bench_function(format!("{threads} thread(s)"), |b| {
-            b.iter(|| {
-                pool.install(|| {
-                    quilting.synthesize(&Request { sample: &sample, width: 512, height: 512, params: &params, seed: 1 }).unwrap()
-                })
-            })
-        });
+        group.bench_function(format!("{threads} thread(s)"), |b| b.iter(|| pool.install(|| session.run().unwrap())));
     }
     group.finish();
 

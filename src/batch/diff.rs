@@ -196,18 +196,38 @@ mod tests {
             sample: Some(SampleRecord { path: "s.png".into(), file_digest: d("sf"), pixel_digest: d("sp"), width: 64, height: 64 }),
             output_spec: Some(serde_json::json!({"path": format!("{id}.png"), "width": 64, "height": 64})),
             content_key: None,
-            outputs: vec![OutputRecord { path: format!("{id}.png"), format: "png".into(), bit_depth: 8, width: 64, height: 64, file_digest: d(pixels), pixel_digest: d(pixels) }],
+            outputs: vec![OutputRecord {
+                path: format!("{id}.png"),
+                format: "png".into(),
+                bit_depth: 8,
+                width: 64,
+                height: 64,
+                file_digest: d(pixels),
+                pixel_digest: d(pixels),
+            }],
             seams: None,
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
-            timing: Some(Timing { synthesis_seconds: seconds, metrics_seconds: 0.0, phases: Default::default(), total_seconds: seconds, finished_at: 0 }),
+            timing: Some(Timing {
+                synthesis_seconds: seconds,
+                metrics_seconds: 0.0,
+                phases: Default::default(),
+                total_seconds: seconds,
+                finished_at: 0,
+            }),
         }
     }
 
     #[test]
     fn each_kind_of_change_is_named_with_its_reason() {
         let old = Manifest::new(
-            vec![record("same", 32, "a", 1.0), record("param", 32, "b", 1.0), record("gone", 32, "c", 1.0), record("breaks", 32, "d", 1.0), record("slow", 32, "e", 0.1)],
+            vec![
+                record("same", 32, "a", 1.0),
+                record("param", 32, "b", 1.0),
+                record("gone", 32, "c", 1.0),
+                record("breaks", 32, "d", 1.0),
+                record("slow", 32, "e", 0.1),
+            ],
             RunFacts::default(),
         );
         let mut breaks = record("breaks", 32, "d", 1.0);
@@ -215,7 +235,10 @@ mod tests {
         breaks.error = Some("quilting failed: boom".into());
         let mut slow = record("slow", 32, "e", 0.35);
         slow.metrics = Some([("kl_gray".to_string(), Some(0.2))].into());
-        let new = Manifest::new(vec![record("same", 32, "a", 1.05), record("param", 48, "b2", 1.0), record("new", 32, "f", 1.0), breaks, slow], RunFacts::default());
+        let new = Manifest::new(
+            vec![record("same", 32, "a", 1.05), record("param", 48, "b2", 1.0), record("new", 32, "f", 1.0), breaks, slow],
+            RunFacts::default(),
+        );
         let d = diff(&old, &new, &Thresholds::default());
         assert_eq!(d.added, ["new"]);
         assert_eq!(d.removed, ["gone"]);

@@ -219,7 +219,13 @@ impl Manifest {
 
     pub fn load(path: &Path) -> Result<Manifest, Error> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, "read manifest", e))?;
-        let m: Manifest = serde_json::from_slice(&bytes).map_err(|e| Error::manifest(path, format!("not a texsyn manifest: {e}")))?;
+        Manifest::parse(path, &bytes)
+    }
+
+    /// A manifest from its bytes (`path` names it in errors), with every check [`Manifest::load`]
+    /// makes. What `cargo fuzz run manifest` feeds.
+    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Manifest, Error> {
+        let m: Manifest = serde_json::from_slice(bytes).map_err(|e| Error::manifest(path, format!("not a texsyn manifest: {e}")))?;
         if m.format != FORMAT {
             return Err(Error::manifest(path, format!("unsupported manifest format `{}` (expected {FORMAT})", m.format)));
         }

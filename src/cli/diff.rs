@@ -58,7 +58,11 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         }
         for p in &d.pixels_changed {
             let why: Vec<String> = p.because.iter().map(|c| format!("{} {} → {}", c.key, short(&c.old), short(&c.new))).collect();
-            let why = if why.is_empty() { "no input changed and neither did the tool: not reproducible (a bug)".to_string() } else { why.join("; ") };
+            let why = if why.is_empty() {
+                "no input changed and neither did the tool: not reproducible (a bug)".to_string()
+            } else {
+                why.join("; ")
+            };
             say(format!("PIXELS    {}: {} ({why})", p.id, p.outputs.join(", ")));
         }
         for id in &d.fixed_now {

@@ -9,14 +9,17 @@ fn job(dir: &Path, name: &str, body: &str) {
 }
 
 fn quilt(sample: &str, block: u32, size: u32, out: &str) -> String {
-    format!("sample = \"{sample}\"\nmethod = \"quilting\"\nseed = 2\n[output]\npath = \"{out}\"\nwidth = {size}\nheight = {size}\n[params]\nblock = {block}\n")
+    format!(
+        "sample = \"{sample}\"\nmethod = \"quilting\"\nseed = 2\n[output]\npath = \"{out}\"\nwidth = {size}\nheight = {size}\n[params]\nblock = {block}\n"
+    )
 }
 
 #[test]
 fn diff_names_each_change_with_its_reason() {
     let d = scratch("diff");
     let crops = repo().join("jobs/samples/crops");
-    let (pebbles, hedge, grass) = (crops.join("pebbles_beige_128.png"), crops.join("hedge_leaves_128.png"), crops.join("grass_gray_128.png"));
+    let (pebbles, hedge, grass) =
+        (crops.join("pebbles_beige_128.png"), crops.join("hedge_leaves_128.png"), crops.join("grass_gray_128.png"));
     let (pebbles, hedge, grass) = (pebbles.to_str().unwrap(), hedge.to_str().unwrap(), grass.to_str().unwrap());
     let jobs = d.join("jobs");
     std::fs::create_dir_all(&jobs).unwrap();
@@ -26,7 +29,11 @@ fn diff_names_each_change_with_its_reason() {
     job(&jobs, "algo", &quilt(pebbles, 32, 96, "algo.png"));
     job(&jobs, "same", &quilt(hedge, 24, 96, "same.png"));
     job(&jobs, "slow", &quilt(hedge, 24, 128, "slow.png"));
-    let fails = |lattice: &str| format!("sample = \"{grass}\"\nmethod = \"coevolution\"\nseed = 1\n[output]\npath = \"fails.png\"\nwidth = 64\nheight = 64\n[params]\n{lattice}");
+    let fails = |lattice: &str| {
+        format!(
+            "sample = \"{grass}\"\nmethod = \"coevolution\"\nseed = 1\n[output]\npath = \"fails.png\"\nwidth = 64\nheight = 64\n[params]\n{lattice}"
+        )
+    };
     job(&jobs, "fails", &fails("t1_x = 20\nt2_y = 20\n"));
     let (old, new) = (d.join("old"), d.join("new"));
     run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&old).arg("-q"));
@@ -58,7 +65,9 @@ fn diff_names_each_change_with_its_reason() {
         4,
     );
     let t = text(&out);
-    let line = |prefix: &str, id: &str| t.lines().find(|l| l.starts_with(prefix) && l.contains(id)).unwrap_or_else(|| panic!("no {prefix} line for {id}:\n{t}")).to_string();
+    let line = |prefix: &str, id: &str| {
+        t.lines().find(|l| l.starts_with(prefix) && l.contains(id)).unwrap_or_else(|| panic!("no {prefix} line for {id}:\n{t}")).to_string()
+    };
     assert!(line("PIXELS", "param.toml").contains("params.block 24 → 40"), "{t}");
     assert!(line("PIXELS", "sample.toml").contains("sample.pixels"), "{t}");
     assert!(line("PIXELS", "algo.toml").contains("algorithm_version 0 → 1"), "{t}");

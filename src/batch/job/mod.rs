@@ -14,6 +14,7 @@ mod source;
 mod sweep;
 
 pub use output_path::{expand_template, normalise_output_path};
+pub use read::parse_job_file;
 
 use crate::digest::Digest;
 use crate::error::Error;

@@ -16,6 +16,12 @@ use toml::de::{DeTable, DeValue};
 pub(super) fn read_job_file(f: &JobFile) -> Result<Vec<Job>, Vec<JobError>> {
     let bytes = std::fs::read(&f.path)
         .map_err(|e| vec![JobError { file: f.path.clone(), position: None, key: None, message: format!("cannot read job file: {e}") }])?;
+    parse_job_file(f, bytes)
+}
+
+/// Validates and expands a job file's bytes (the file is named for messages and to resolve the
+/// sample; nothing else is read). What `cargo fuzz run job_file` feeds.
+pub fn parse_job_file(f: &JobFile, bytes: Vec<u8>) -> Result<Vec<Job>, Vec<JobError>> {
     let src = String::from_utf8(bytes.clone()).map_err(|e| {
         vec![JobError {
             file: f.path.clone(),

@@ -254,7 +254,8 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
         }
         let path = dir.join(&t.file);
         let bytes = std::fs::read(&path).map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
-        let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default()).map_err(|e| ExportError { file: path.clone(), reason: e.to_string() })?;
+        let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default())
+            .map_err(|e| ExportError { file: path.clone(), reason: e.to_string() })?;
         if (w, h) != (t.width, t.height) {
             return Err(ExportError { file: path, reason: format!("is {w}x{h}; the index says {}x{}", t.width, t.height) });
         }

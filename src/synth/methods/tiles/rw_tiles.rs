@@ -608,13 +608,19 @@ impl Method for RwTiles {
             let advice = if largest >= smallest {
                 format!("use tile at most {largest}")
             } else if smaller >= 6 {
-                format!("the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample", (2 * (smaller - 2)) & !1)
+                format!(
+                    "the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample",
+                    (2 * (smaller - 2)) & !1
+                )
             } else {
                 "the sample is too small for any RW tile; use a larger sample".to_string()
             };
             errors.push(ParamError::new(
                 "tile",
-                format!("tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); {advice}", sample.0, sample.1),
+                format!(
+                    "tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); {advice}",
+                    sample.0, sample.1
+                ),
             ));
         }
         errors

@@ -564,13 +564,19 @@ impl Method for WangTiles {
             let advice = if largest >= (2 * ov).max(8) {
                 format!("use tile at most {largest}")
             } else if smaller >= 8 + 2 {
-                format!("the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample", (smaller - 2) & !1)
+                format!(
+                    "the sample is too small for overlap {ov}; use overlap 2 (then tile at most {}), or a larger sample",
+                    (smaller - 2) & !1
+                )
             } else {
                 "the sample is too small for any Wang tile; use a larger sample".to_string()
             };
             errors.push(ParamError::new(
                 "tile",
-                format!("tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); {advice}", sample.0, sample.1),
+                format!(
+                    "tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); {advice}",
+                    sample.0, sample.1
+                ),
             ));
         }
         errors
