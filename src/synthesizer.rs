@@ -139,4 +139,22 @@ mod tests {
         assert_eq!(a.image, b.image);
         assert_eq!(session.params().int("overlap").unwrap(), 3, "derived default filled in");
     }
+
+    #[test]
+    fn every_typed_config_names_a_registered_method() {
+        use crate::*;
+        let names = [
+            QuiltingConfig::METHOD,
+            DoubleSeamConfig::METHOD,
+            PatchSamplingConfig::METHOD,
+            CoevolutionConfig::METHOD,
+            TesConfig::METHOD,
+            WangTilesConfig::METHOD,
+            RwTilesConfig::METHOD,
+        ];
+        assert_eq!(names.len(), methods::registry().len(), "one typed config per method");
+        for name in names {
+            assert!(methods::find(name).is_some(), "{name}");
+        }
+    }
 }

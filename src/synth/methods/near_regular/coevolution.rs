@@ -612,7 +612,7 @@ impl Mutation<'_> {
 
 impl Method for Coevolution {
     fn name(&self) -> &'static str {
-        "coevolution"
+        CoevolutionConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1

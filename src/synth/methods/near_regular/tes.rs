@@ -216,7 +216,7 @@ impl Grid {
 
 impl Method for Tes {
     fn name(&self) -> &'static str {
-        "tes"
+        TesConfig::METHOD
     }
     fn algorithm_version(&self) -> u32 {
         1
