@@ -49,8 +49,9 @@ pub(crate) const GRID_PARAMS: [ParamSpec; 7] = [
 pub struct LatticeGrid {
     /// `t1_x … t2_y`: the lattice, or `None` to extract it from the sample.
     pub lattice: Option<GivenVectors>,
-    /// `rows` (along t2) and `cols` (along t1) of the output lattice; `None` = "cover" (both or neither).
+    /// `rows`: output lattice rows (along t2); `None` = "cover". Given with `cols` or not at all.
     pub rows: Option<u32>,
+    /// `cols`: output lattice columns (along t1); `None` = "cover". Given with `rows` or not at all.
     pub cols: Option<u32>,
     /// `fill`: what uncovered output pixels become.
     pub fill: Fill,
