@@ -104,9 +104,11 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     // Earlier records of jobs not in this run stay (they still describe files in the directory),
     // unless this run now writes their output path. A shard's fragment holds its own jobs only.
     let this_run_outputs: BTreeSet<&str> = plan.entries.iter().map(|e| e.job.output.path.as_str()).collect();
-    let carried = if plan.shard.is_some() { BTreeMap::new() } else { plan.previous.clone() };
-    for (id, rec) in &carried {
-        let in_plan = plan.entries.iter().any(|e| &e.job.id == id) || plan.invalid.iter().any(|j| &j.id == id);
+    let planned: BTreeSet<&str> =
+        plan.entries.iter().map(|e| e.job.id.as_str()).chain(plan.invalid.iter().map(|j| j.id.as_str())).collect();
+    let carried = if plan.shard.is_some() { None } else { Some(&plan.previous) };
+    for (id, rec) in carried.into_iter().flatten() {
+        let in_plan = planned.contains(id.as_str());
         let clobbered = rec.outputs.iter().any(|o| this_run_outputs.contains(o.path.as_str()));
         if !in_plan && !clobbered {
             records.insert(id.clone(), rec.clone());
