@@ -32,6 +32,8 @@ fn read_golden(path: &Path) -> Result<GoldenFile, Error> {
 pub struct CheckReport {
     pub matched: usize,
     pub mismatched: Vec<String>,
+    /// The same mismatches as (job id, output path), for programs.
+    pub mismatched_outputs: Vec<(String, String)>,
     pub missing: Vec<String>,
     pub not_checked: Vec<String>,
 }
@@ -60,14 +62,17 @@ pub fn check(dir: &Path, manifest: &Manifest) -> Result<CheckReport, Error> {
             match golden.get(&rec.id).and_then(|m| m.get(&o.path)) {
                 None => report.missing.push(format!("{} ({}): no golden digest in {}", rec.id, o.path, path.display())),
                 Some(d) if *d == o.pixel_digest => report.matched += 1,
-                Some(d) => report.mismatched.push(format!(
-                    "{} ({}): pixels {} but golden {} ({})",
-                    rec.id,
-                    o.path,
-                    o.pixel_digest.short(),
-                    d.short(),
-                    path.display()
-                )),
+                Some(d) => {
+                    report.mismatched_outputs.push((rec.id.clone(), o.path.clone()));
+                    report.mismatched.push(format!(
+                        "{} ({}): pixels {} but golden {} ({})",
+                        rec.id,
+                        o.path,
+                        o.pixel_digest.short(),
+                        d.short(),
+                        path.display()
+                    ))
+                }
             }
         }
     }

@@ -27,7 +27,10 @@ pub struct Assets {
     /// Per sample, the shown output of each group that ran on it.
     pub shown: Vec<Vec<Shown>>,
     pub sheets: Vec<String>,
-    pub overview: Option<String>,
+    /// The overview's pages: every counted job's output as a thumbnail.
+    pub overview: Vec<String>,
+    /// Prefix of this section's element ids (empty when the report has one section).
+    pub anchor: String,
     pub plot: String,
     /// Width and height of the plot in CSS pixels.
     pub plot_size: (f64, f64),
@@ -50,12 +53,19 @@ tr.mean td{font-weight:bold;border-top:2px solid #777}
 figure{display:inline-block;vertical-align:top;margin:0 14px 14px 0}
 figcaption{font-size:0.85em;color:#444;max-width:420px;overflow-wrap:anywhere}
 figcaption b{color:#111}
-.missing{display:inline-block;background:#ddd;color:#900;padding:8px;box-sizing:border-box}
+.missing{display:inline-block;background:#ddd;color:#900;padding:8px;box-sizing:border-box;max-width:420px}
 img.sheet{max-width:100%;height:auto;border:1px solid #ddd}
 details{margin:0.6em 0 1.2em}
 summary{cursor:pointer}
 .problems{background:#fff3f3;border:1px solid #e99;padding:0.5em 1em}
 .digest{font-family:monospace;font-size:0.85em;overflow-wrap:anywhere}
+.summary table.counts td{text-align:right}
+.error{font-family:monospace;font-size:0.9em;white-space:pre-wrap}
+.since,.golden{background:#fffbe8;border:1px solid #e8d9a0;padding:0.3em 1em;margin:0.6em 0}
+.change{border-top:1px solid #ccc;margin-top:0.8em}
+.why{font-size:0.9em;color:#444}
+h2.part{border-bottom:2px solid #999;margin-top:2em}
+.bad{color:#900}
 ";
 
 const SCRIPT: &str = "
@@ -115,7 +125,8 @@ fn stat_cell(model: &Model, t: &Table, s: usize, g: usize, c: &Option<Stat>) -> 
 }
 
 fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
-    let mut out = String::from("<section id=\"tables\">\n<h2>Tables</h2>\n");
+    let a = &assets.anchor;
+    let mut out = format!("<section id=\"{a}tables\">\n<h2>Tables</h2>\n");
     out.push_str(&format!(
         "<p>One row per sample; columns: <code>{}</code>. A cell is the mean over the jobs that share its sample and \
          column, with the sample standard deviation and the count where there are several (a seed sweep). The mean row \
@@ -140,7 +151,7 @@ fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
         out.push_str("</tr></thead>\n<tbody>\n");
         for (s, row) in t.cells.iter().enumerate() {
             let info = &model.samples[s];
-            out.push_str(&format!("<tr data-sample=\"{}\"><td><a href=\"#sample-{s}\">{}</a></td>", h(&info.key), h(&info.key)));
+            out.push_str(&format!("<tr data-sample=\"{}\"><td><a href=\"#{a}sample-{s}\">{}</a></td>", h(&info.key), h(&info.key)));
             if time {
                 let mut sizes: Vec<(u64, String)> = model
                     .entries
@@ -179,17 +190,22 @@ fn tables_html(model: &Model, tables: &[Table], assets: &Assets) -> String {
 }
 
 fn images_html(model: &Model, assets: &Assets) -> String {
-    let mut out = String::from("<section id=\"images\">\n<h2>Images</h2>\n");
-    out.push_str("<p>Each sample, then the output of each column at the same scale (the first seed where a column ran several).</p>\n");
-    if let Some(o) = &assets.overview {
+    let a = &assets.anchor;
+    let mut out = format!("<section id=\"{a}images\">\n<h2>Images</h2>\n");
+    out.push_str("<p>Each sample, then the output of each column at the same scale (the first seed where a column ran several; every seed is on the overview).</p>\n");
+    let pages = assets.overview.len();
+    for (i, o) in assets.overview.iter().enumerate() {
         out.push_str(&format!(
-            "<details open><summary>Overview contact sheet (<a href=\"{}\">PNG</a>)</summary><img class=\"sheet\" src=\"{}\" alt=\"overview contact sheet\"></details>\n",
+            "<details{}><summary>Overview, every job{} (<a href=\"{}\">PNG</a>)</summary><img class=\"sheet\" data-role=\"overview\" src=\"{}\" alt=\"overview page {}\"></details>\n",
+            if i == 0 { " open" } else { "" },
+            if pages > 1 { format!(", page {} of {pages}", i + 1) } else { String::new() },
             h(o),
-            h(o)
+            h(o),
+            i + 1
         ));
     }
     for (s, info) in model.samples.iter().enumerate() {
-        out.push_str(&format!("<h3 id=\"sample-{s}\" data-sample=\"{}\">{}</h3>\n<div class=\"row\">", h(&info.key), h(&info.key)));
+        out.push_str(&format!("<h3 id=\"{a}sample-{s}\" data-sample=\"{}\">{}</h3>\n<div class=\"row\">", h(&info.key), h(&info.key)));
         out.push_str(&format!(
             "<figure data-role=\"sample\">{}<figcaption><b>sample {}</b><br>{}×{} · <code>{}</code></figcaption></figure>",
             img(&assets.samples[s], &format!("sample {}", info.key)),
@@ -229,9 +245,9 @@ fn images_html(model: &Model, assets: &Assets) -> String {
     out
 }
 
-fn jobs_html(model: &Model) -> String {
+fn jobs_html(model: &Model, a: &str) -> String {
     let mut out = format!(
-        "<section id=\"jobs\">\n<h2>Per-job values</h2>\n<details><summary>{} counted jobs: every metric and the time of each</summary>\n<table class=\"jobs\"><thead><tr><th>job</th><th>sample</th><th>column</th><th>seed</th>",
+        "<section id=\"{a}jobs\">\n<h2>Per-job values</h2>\n<details><summary>{} counted jobs: every metric and the time of each</summary>\n<table class=\"jobs\"><thead><tr><th>job</th><th>sample</th><th>column</th><th>seed</th>",
         model.entries.len()
     );
     for m in &model.metric_names {
@@ -268,12 +284,12 @@ fn jobs_html(model: &Model) -> String {
     out
 }
 
-fn excluded_html(model: &Model) -> String {
+fn excluded_html(model: &Model, a: &str) -> String {
     if model.excluded.is_empty() {
         return String::new();
     }
     let mut out = format!(
-        "<section id=\"excluded\">\n<h2>Jobs not counted ({})</h2>\n<p>Only jobs with status ok or up-to-date enter the tables.</p>\n\
+        "<section id=\"{a}excluded\">\n<h2>Jobs not counted ({})</h2>\n<p>Only jobs with status ok or up-to-date enter the tables.</p>\n\
          <table><thead><tr><th>job</th><th>status</th><th>reason</th></tr></thead><tbody>\n",
         model.excluded.len()
     );
@@ -356,29 +372,78 @@ fn provenance_html(manifest: &Manifest, digest_ok: bool) -> String {
     out
 }
 
-/// The whole page.
+/// One section of the page: a job directory's tables, plot and images.
+pub struct Part<'a> {
+    /// The section's name, shown as a heading when the report has several.
+    pub title: Option<String>,
+    pub model: &'a Model,
+    pub tables: &'a [Table],
+    pub assets: &'a Assets,
+}
+
+fn part_html(p: &Part) -> String {
+    let (model, assets, a) = (p.model, p.assets, &p.assets.anchor);
+    let mut out = String::new();
+    if let Some(t) = &p.title {
+        out.push_str(&format!(
+            "<section class=\"part\" id=\"{}\" data-section=\"{}\">\n<h2 class=\"part\">Section {}</h2>\n<p>{} jobs counted, {} not counted; \
+             columns: <code>{}</code>. Tables as <a href=\"{}\">Markdown</a> and <a href=\"{}\">CSV</a>.</p>\n",
+            h(a.trim_end_matches('-')),
+            h(t),
+            h(t),
+            model.entries.len(),
+            model.excluded.len(),
+            h(&model.grouping),
+            h(&assets.markdown),
+            h(&assets.csv_all)
+        ));
+    } else {
+        out.push_str("<section class=\"part\" data-section=\"\">\n");
+    }
+    if model.metric_names.is_empty() && !model.entries.is_empty() {
+        out.push_str(
+            "<p>No job here recorded metrics (a job file asks for them with <code>metrics = true</code>); only the time table is shown.</p>\n",
+        );
+    }
+    out.push_str(&excluded_html(model, a));
+    if !model.entries.is_empty() {
+        out.push_str(&tables_html(model, p.tables, assets));
+        out.push_str(&format!(
+            "<section id=\"{a}plots\">\n<h2>Plots</h2>\n<figure><img src=\"{0}\" width=\"{1}\" height=\"{2}\" alt=\"synthesis time vs output size\">\
+             <figcaption>Synthesis time against output size (pixels), one colour per column; lines join each column's mean time per size. \
+             (<a href=\"{0}\">SVG</a>)</figcaption></figure>\n</section>\n",
+            h(&assets.plot),
+            assets.plot_size.0,
+            assets.plot_size.1
+        ));
+        out.push_str(&images_html(model, assets));
+        out.push_str(&jobs_html(model, a));
+    }
+    out.push_str("</section>\n");
+    out
+}
+
+/// The whole page: summary, changes, then each section, then the provenance.
 #[allow(clippy::too_many_arguments)]
 pub fn page(
-    model: &Model,
-    tables: &[Table],
-    assets: &Assets,
+    parts: &[Part],
     manifest: &Manifest,
     source: &str,
     digest_ok: bool,
     problems: &[String],
+    summary: &str,
+    changes: &str,
 ) -> String {
+    let counted: usize = parts.iter().map(|p| p.model.entries.len()).sum();
+    let excluded: usize = parts.iter().map(|p| p.model.excluded.len()).sum();
     let mut out = format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
-         <title>texsyn report: {}</title>\n<style>{STYLE}</style>\n</head>\n<body data-images-ok=\"pending\" data-jobs-counted=\"{}\" data-jobs-excluded=\"{}\">\n\
-         <h1>texsyn report</h1>\n<p>Manifest <code>{}</code> — {} jobs counted (ok or up-to-date), {} not counted; columns: \
-         <code>{}</code>. Written by {} {} (commit <code>{}</code>); details under <a href=\"#provenance\">Provenance</a>.</p>\n",
+         <title>texsyn report: {}</title>\n<style>{STYLE}</style>\n</head>\n<body data-images-ok=\"pending\" data-jobs-counted=\"{counted}\" \
+         data-jobs-excluded=\"{excluded}\" data-sections=\"{}\">\n<h1>texsyn report</h1>\n<p>Manifest <code>{}</code> — {counted} jobs counted \
+         (ok or up-to-date), {excluded} not counted. Written by {} {} (commit <code>{}</code>); details under <a href=\"#provenance\">Provenance</a>.</p>\n",
         h(source),
-        model.entries.len(),
-        model.excluded.len(),
+        parts.len(),
         h(source),
-        model.entries.len(),
-        model.excluded.len(),
-        h(&model.grouping),
         h(&manifest.tool.name),
         h(&manifest.tool.version),
         h(&manifest.tool.commit.chars().take(12).collect::<String>())
@@ -390,23 +455,24 @@ pub fn page(
         }
         out.push_str("</ul></div>\n");
     }
-    if model.metric_names.is_empty() {
-        out.push_str(
-            "<p>No job recorded metrics (a job file asks for them with <code>metrics = true</code>); only the time table is shown.</p>\n",
-        );
+    out.push_str(summary);
+    out.push_str(changes);
+    if parts.len() > 1 {
+        out.push_str("<nav id=\"sections\"><h2>Sections</h2><ul>");
+        for p in parts {
+            out.push_str(&format!(
+                "<li><a href=\"#{}\">{}</a> — {} jobs{}</li>",
+                h(p.assets.anchor.trim_end_matches('-')),
+                h(p.title.as_deref().unwrap_or("")),
+                p.model.entries.len(),
+                if p.model.excluded.is_empty() { String::new() } else { format!(", {} not counted", p.model.excluded.len()) }
+            ));
+        }
+        out.push_str("</ul></nav>\n");
     }
-    out.push_str(&excluded_html(model));
-    out.push_str(&tables_html(model, tables, assets));
-    out.push_str(&format!(
-        "<section id=\"plots\">\n<h2>Plots</h2>\n<figure><img src=\"{0}\" width=\"{1}\" height=\"{2}\" alt=\"synthesis time vs output size\">\
-         <figcaption>Synthesis time against output size (pixels), one colour per column; lines join each column's mean time per size. \
-         (<a href=\"{0}\">SVG</a>)</figcaption></figure>\n</section>\n",
-        h(&assets.plot),
-        assets.plot_size.0,
-        assets.plot_size.1
-    ));
-    out.push_str(&images_html(model, assets));
-    out.push_str(&jobs_html(model));
+    for p in parts {
+        out.push_str(&part_html(p));
+    }
     out.push_str(&provenance_html(manifest, digest_ok));
     out.push_str(&format!("<script>{SCRIPT}</script>\n</body>\n</html>\n"));
     out

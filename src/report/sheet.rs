@@ -150,6 +150,34 @@ pub fn flow(cells: Vec<Cell>, max_width: u32) -> Vec<Vec<Option<Cell>>> {
     rows
 }
 
+/// Splits rows into pages whose rows together stay within `max_height` pixels (a page holds at
+/// least one row), so a long contact sheet stays an image a viewer can open.
+pub fn paginate(rows: Vec<Vec<Option<Cell>>>, max_height: u32) -> Vec<Vec<Vec<Option<Cell>>>> {
+    let mut pages: Vec<Vec<Vec<Option<Cell>>>> = Vec::new();
+    let mut page = Vec::new();
+    let mut used = 0;
+    for row in rows {
+        let h = row.iter().flatten().map(|c| lay(c).height).max().unwrap_or(0) + GAP;
+        if !page.is_empty() && used + h > max_height {
+            pages.push(std::mem::take(&mut page));
+            used = 0;
+        }
+        used += h;
+        page.push(row);
+    }
+    if !page.is_empty() {
+        pages.push(page);
+    }
+    pages
+}
+
+/// The integer reduction that brings an image's longer side down to between `min_side` and
+/// twice that (1 for images that are already small): thumbnails stay legible and are still an
+/// exact block average of the image.
+pub fn thumbnail_factor(width: u32, height: u32, min_side: u32) -> u32 {
+    (width.max(height) / min_side.max(1)).max(1)
+}
+
 /// Reduces by an integer factor, each output pixel the mean of its `k × k` block (clipped at the
 /// edges), so every image on a sheet shrinks alike.
 pub fn downscale(img: &RgbImage, k: u32) -> RgbImage {
@@ -218,6 +246,20 @@ mod tests {
         let cell = |w| Cell { picture: Picture::Missing { width: w, height: 10, why: "gone".into() }, caption: vec![] };
         let rows = flow(vec![cell(300), cell(300), cell(300)], 700);
         assert_eq!(rows.iter().map(Vec::len).collect::<Vec<_>>(), [2, 1]);
+    }
+
+    #[test]
+    fn thumbnails_stay_at_least_the_minimum_side_and_pages_split_rows() {
+        for (w, h) in [(1280, 1280), (384, 256), (768, 100), (255, 255), (129, 40)] {
+            let k = thumbnail_factor(w, h, 128);
+            let side = w.max(h).div_ceil(k);
+            assert!((128..256).contains(&side), "{w}×{h}: 1:{k} gives {side}");
+        }
+        assert_eq!(thumbnail_factor(100, 60, 128), 1, "small images stay 1:1");
+        let row = || vec![Some(Cell { picture: Picture::Image(RgbImage::new(100, 100)), caption: vec!["x".into()] })];
+        let pages = paginate((0..7).map(|_| row()).collect(), 400);
+        assert!(pages.len() > 1 && pages.iter().all(|p| !p.is_empty()));
+        assert_eq!(pages.iter().map(Vec::len).sum::<usize>(), 7, "no row lost");
     }
 
     #[test]

@@ -24,4 +24,11 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
     let old_jobs: Vec<Value> = old["jobs"].as_array().unwrap().iter().map(strip).collect();
     let new_jobs: Vec<Value> = new["jobs"].as_array().unwrap().iter().map(strip).collect();
     assert_eq!(old_jobs, new_jobs);
+    // The morning-after tools read it as the older night: same pixels, the tool named as changed.
+    let o = run_ok(texsyn().arg("diff").arg(&m).arg(fresh.join("manifest.json")));
+    assert!(text(&o).contains("0 pixels changed"), "{}", text(&o));
+    let report = scratch("compat-report").join("r");
+    run_ok(texsyn().arg("report").arg(fresh.join("manifest.json")).arg("-o").arg(&report).arg("--since").arg(&m));
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(page.contains("data-pixels-changed=\"0\"") && page.contains("data-unchanged=\"4\""), "since block");
 }

@@ -3,6 +3,7 @@
 //! is named with its reason, the exit code says pixels changed, and bad manifests exit 2.
 
 use super::common::*;
+use super::report::{Tag, decode, dump_dom, tags};
 
 fn job(dir: &Path, name: &str, body: &str) {
     write(&dir.join(format!("{name}.toml")), body);
@@ -61,7 +62,7 @@ fn diff_names_each_change_with_its_reason() {
     std::fs::rename(&edited, &edited_in_place).unwrap();
 
     let out = run_expect(
-        texsyn().arg("diff").arg(&edited_in_place).arg(new.join("manifest.json")).args(["--time-seconds", "0", "--time-relative", "0.5"]),
+        texsyn().arg("diff").arg(&edited_in_place).arg(new.join("manifest.json")).args(["--time-seconds", "0.05", "--time-relative", "3"]),
         4,
     );
     let t = text(&out);
@@ -75,7 +76,11 @@ fn diff_names_each_change_with_its_reason() {
     assert!(slow.contains("output_spec.width 128 → 512") && slow.contains("output_spec.height 128 → 512"), "{t}");
     assert!(line("SLOWER", "slow.toml").contains("×"), "16 times the pixels is well over 1.5 times slower:\n{t}");
     assert!(line("FAILS NOW", "fails.toml").contains("no lattice found"), "{t}");
-    assert!(!t.contains("same.toml"), "an unchanged job is not listed:\n{t}");
+    // (Its time may move with the machine's load; its pixels and status may not.)
+    assert!(
+        !t.lines().any(|l| l.contains("same.toml") && !l.starts_with("SLOWER") && !l.starts_with("FASTER")),
+        "an unchanged job is not listed:\n{t}"
+    );
 
     // The same as JSON, for programs.
     let out = run_expect(texsyn().arg("diff").arg(&edited_in_place).arg(new.join("manifest.json")).arg("--json"), 4);
@@ -94,4 +99,62 @@ fn diff_names_each_change_with_its_reason() {
     let out = run_expect(texsyn().arg("diff").arg(&truncated).arg(new.join("manifest.json")), 2);
     assert!(text(&out).contains("truncated.json") && text(&out).contains("not a texsyn manifest"), "{}", text(&out));
     run_expect(texsyn().arg("diff").arg(d.join("missing.json")).arg(new.join("manifest.json")), 2);
+
+    // The morning page: the same changes, with old | new | difference pictures.
+    let report = d.join("report");
+    run_ok(texsyn().arg("report").arg(new.join("manifest.json")).arg("-o").arg(&report).arg("--since").arg(&edited_in_place));
+    let page = report.join("index.html");
+    let source = std::fs::read_to_string(&page).unwrap();
+    let all = tags(&source);
+    let change = |id: &str| -> Vec<Tag> {
+        let start = source.find(&format!("<div class=\"change\" data-job=\"{id}\"")).unwrap_or_else(|| panic!("no panels for {id}"));
+        let end = source[start..].find("</div>\n</div>").map_or(source.len(), |e| start + e);
+        tags(&source[start..end])
+    };
+    let panel = |id: &str, role: &str| -> String {
+        let tags = change(id);
+        let at = tags.iter().position(|t| t.name == "figure" && t.attrs.get("data-panel").map(String::as_str) == Some(role));
+        let next = &tags[at.unwrap_or_else(|| panic!("{id}: no {role} panel")) + 1];
+        if next.name == "img" { format!("img {}", next.attrs["src"]) } else { format!("gone {}", next.text) }
+    };
+    // A parameter and a sample changed: all three panels are pictures, the old read from the old run.
+    for id in ["param.toml", "sample.toml"] {
+        for role in ["old", "new", "difference"] {
+            let p = panel(id, role);
+            assert!(p.starts_with("img "), "{id} {role}: {p}");
+            let img = decode(&report.join(p.trim_start_matches("img ")));
+            assert_eq!(img.dimensions(), (96, 96), "{id} {role}: at 1:1");
+        }
+        let shown = decode(&report.join(panel(id, "old").trim_start_matches("img ")));
+        let old_file = decode(&old.join(id.replace(".toml", ".png")));
+        assert_eq!(shown.as_raw(), old_file.as_raw(), "{id}: the old panel is the old run's image");
+    }
+    // The size changed: no difference map across sizes, and it says so.
+    assert!(panel("slow.toml", "difference").contains("sizes differ"), "{}", panel("slow.toml", "difference"));
+    // The old record of algo.toml does not match the file on disk: not shown, and said why.
+    assert!(panel("algo.toml", "old").contains("gone or was overwritten"), "{}", panel("algo.toml", "old"));
+    // The summary names the regressions first.
+    let since = all.iter().find(|t| t.name == "div" && t.attrs.get("class").map(String::as_str) == Some("since")).expect("a since block");
+    assert_eq!(since.attrs["data-failed-now"], "1");
+    assert_eq!(since.attrs["data-pixels-changed"], "4");
+    assert!(source.find("id=\"summary\"").unwrap() < source.find("id=\"changes\"").unwrap());
+    assert!(source.contains("FAILS NOW <b>fails.toml</b>") && source.contains("no lattice found"));
+    // In a real browser: every image decodes, and the timings shown are the manifests'.
+    let dom = dump_dom(&page);
+    let body = tags(&dom).into_iter().find(|t| t.name == "body").unwrap();
+    let n_img = all.iter().filter(|t| t.name == "img").count();
+    assert_eq!(body.attrs["data-images-ok"], format!("{n_img}/{n_img}"), "failed: {:?}", body.attrs.get("data-images-failed"));
+    let new_m = json(&new.join("manifest.json"));
+    let old_m = json(&edited_in_place);
+    let seconds = |m: &Value, id: &str| {
+        m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == id).unwrap()["timing"]["synthesis_seconds"].as_f64().unwrap()
+    };
+    for t in tags(&dom).iter().filter(|t| t.attrs.contains_key("data-old") && !t.attrs.contains_key("data-metric")) {
+        let id = &t.attrs["data-job"];
+        assert_eq!(t.attrs["data-old"].parse::<f64>().unwrap(), seconds(&old_m, id), "{id} old time");
+        assert_eq!(t.attrs["data-new"].parse::<f64>().unwrap(), seconds(&new_m, id), "{id} new time");
+    }
+    // A truncated old manifest is a clear error, not a panic.
+    let o = run_expect(texsyn().arg("report").arg(new.join("manifest.json")).arg("-o").arg(d.join("r2")).arg("--since").arg(&truncated), 2);
+    assert!(text(&o).contains("truncated.json"), "{}", text(&o));
 }

@@ -289,7 +289,7 @@ fn find(sheet: &RgbImage, img: &RgbImage) -> Option<(u32, u32)> {
     None
 }
 
-fn decode(path: &Path) -> RgbImage {
+pub fn decode(path: &Path) -> RgbImage {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     imageio::native_to_rgb8(&imageio::decode_native(&bytes, DecodeLimits::default()).unwrap())
 }
@@ -321,9 +321,48 @@ fn contact_sheets_hold_the_sample_and_each_columns_output_at_one_scale() {
             assert!(ink, "{rel}: caption under the image");
         }
     }
-    let overview = decode(&dir.join("sheets/overview.png"));
-    let sample = decode(&repo().join("jobs/samples/weave_gray.png"));
-    assert!(find(&overview, &sample).is_some(), "the overview holds the samples (small enough for 1:1 here)");
+}
+
+/// The overview pages of a report section (`sheets/overview.png`, `overview-2.png`, …).
+fn overview_pages(sheets: &Path) -> Vec<RgbImage> {
+    let mut pages = vec![decode(&sheets.join("overview.png"))];
+    for i in 2.. {
+        let p = sheets.join(format!("overview-{i}.png"));
+        if !p.exists() {
+            break;
+        }
+        pages.push(decode(&p));
+    }
+    pages
+}
+
+#[test]
+fn the_overview_shows_every_seed_legibly_within_2000_px() {
+    let r = run();
+    let dir = report("overview", &[]);
+    let pages = overview_pages(&dir.join("sheets"));
+    for p in &pages {
+        assert!(p.width() <= 2040, "an overview page is {} px wide", p.width());
+    }
+    // Every counted job, not one seed per column: the outputs are 100 px, so they stay 1:1.
+    for j in ok_jobs(&r.manifest) {
+        let out = decode(&r.out.join(j["outputs"][0]["path"].as_str().unwrap()));
+        assert!(pages.iter().any(|p| find(p, &out).is_some()), "{} is not on the overview", j["id"]);
+    }
+    // A sample larger than 255 px is reduced by an integer factor to at least 128 px: bricks is
+    // 256 px, so it appears at 1:2, each pixel the mean of a 2×2 block.
+    let bricks = decode(&repo().join("jobs/samples/bricks_gray.png"));
+    let half = RgbImage::from_fn(128, 128, |x, y| {
+        let mut sum = [0u32; 3];
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let p = bricks.get(2 * x + dx, 2 * y + dy);
+            for c in 0..3 {
+                sum[c] += p[c] as u32;
+            }
+        }
+        [0, 1, 2].map(|c| ((sum[c] + 2) / 4) as u8)
+    });
+    assert!(pages.iter().any(|p| find(p, &half).is_some()), "the 256 px sample at 1:2 on the overview");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -348,7 +387,7 @@ fn chromium() -> PathBuf {
 }
 
 /// The page's DOM after its scripts ran, as Chromium serialises it.
-fn dump_dom(page: &Path) -> String {
+pub fn dump_dom(page: &Path) -> String {
     let profile = scratch("chromium-profile");
     let url = format!("file://{}", page.canonicalize().unwrap().display());
     let mut child = Command::new(chromium())
@@ -390,10 +429,10 @@ fn dump_dom(page: &Path) -> String {
 }
 
 /// One start tag: name, attributes, and the text up to its closing tag (tags stripped).
-struct Tag {
-    name: String,
-    attrs: BTreeMap<String, String>,
-    text: String,
+pub struct Tag {
+    pub name: String,
+    pub attrs: BTreeMap<String, String>,
+    pub text: String,
 }
 
 fn unescape(s: &str) -> String {
@@ -406,7 +445,7 @@ fn unescape(s: &str) -> String {
 }
 
 /// A small start-tag scanner, enough for the serialised DOM (attributes are double-quoted).
-fn tags(html: &str) -> Vec<Tag> {
+pub fn tags(html: &str) -> Vec<Tag> {
     let mut out = Vec::new();
     let b = html.as_bytes();
     let mut i = 0;
@@ -660,4 +699,141 @@ fn the_report_writes_only_inside_its_directory() {
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("the manifest refers to"));
     assert_eq!(std::fs::read(run_dir.join("images/samples/bricks_gray.png")).unwrap(), before);
+}
+
+/// A nightly directory mixing job directories: `quilt/` (quilting, a seed sweep and a failing
+/// job), `seams/b20` and `seams/b30` (double-seam at two blocks: one sweep, one section) and
+/// `tiles/` (wang-tiles). Built once for the tests below.
+fn mixed_run() -> &'static PathBuf {
+    static RUN: OnceLock<PathBuf> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let d = scratch("mixed");
+        let jobs = d.join("jobs");
+        let sample = repo().join("jobs/samples/crops/pebbles_beige_128.png");
+        let s = sample.to_str().unwrap();
+        let job = |rel: &str, body: String| write(&jobs.join(rel), &body);
+        job(
+            "quilt/a.toml",
+            format!("sample = \"{s}\"\nmethod = \"quilting\"\n[output]\npath = \"quilt/a{{seed}}.png\"\nwidth = 96\nheight = 96\n[sweep]\nseed = [1, 2, 3]\n"),
+        );
+        job("quilt/broken.toml", format!("sample = \"{s}\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"blocked.png\"\nwidth = 96\nheight = 96\n"));
+        for b in [20, 30] {
+            job(
+                &format!("seams/b{b}/x.toml"),
+                format!(
+                    "sample = \"{s}\"\nmethod = \"double-seam\"\nseed = 1\n[output]\npath = \"seams/b{b}.png\"\nwidth = 96\nheight = 96\n[params]\nblock = {b}\n"
+                ),
+            );
+        }
+        job("tiles/w.toml", format!("sample = \"{s}\"\nmethod = \"wang-tiles\"\nseed = 1\n[output]\npath = \"tiles/w.png\"\nwidth = 128\nheight = 128\n"));
+        let out = d.join("out");
+        std::fs::create_dir_all(out.join("blocked.png")).unwrap();
+        run_expect(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("-q"), 1);
+        out
+    })
+}
+
+#[test]
+fn a_mixed_run_gets_a_section_per_job_directory_with_only_its_columns() {
+    let out = mixed_run();
+    let dir = scratch("mixed-report").join("report");
+    run_ok(texsyn().arg("report").arg(out.join("manifest.json")).arg("-o").arg(&dir));
+    let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    let all = tags(&page);
+    let sections: Vec<&str> = all
+        .iter()
+        .filter(|t| t.name == "section" && t.attrs.contains_key("data-section"))
+        .map(|t| t.attrs["data-section"].as_str())
+        .collect();
+    // seams/b20 and seams/b30 split a sweep of one method: one section, its table B=20 beside B=30.
+    assert_eq!(sections, ["quilt/", "seams/", "tiles/"]);
+    let (header, _) = csv_table(&dir.join("sections/seams/tables/synthesis_seconds.csv"));
+    assert!(header.iter().any(|h| h.contains("block=20")) && header.iter().any(|h| h.contains("block=30")), "{header:?}");
+    assert!(!header.iter().any(|h| h.contains("quilting") || h.contains("wang")), "only the section's own methods: {header:?}");
+    // No column of any table in which every cell is "not run".
+    let mut columns: BTreeMap<(String, String), (usize, usize)> = BTreeMap::new();
+    for t in all.iter().filter(|t| t.name == "td" && t.attrs.contains_key("data-group") && t.attrs.contains_key("data-n")) {
+        let c = columns.entry((t.attrs["data-metric"].clone(), t.attrs["data-group"].clone())).or_default();
+        c.0 += 1;
+        c.1 += usize::from(t.attrs["data-n"] == "0");
+    }
+    assert!(!columns.is_empty());
+    for ((measure, group), (cells, not_run)) in &columns {
+        assert!(not_run < cells, "{measure} {group}: every cell is \"not run\"");
+    }
+    // The summary comes first: counts, then the failure with its error text, then the slowest jobs.
+    let summary = page.find("id=\"summary\"").expect("a summary");
+    assert!(summary < page.find("data-section=").unwrap(), "the summary leads the page");
+    let count =
+        |k: &str| all.iter().find(|t| t.attrs.get("data-count").map(String::as_str) == Some(k)).map(|t| t.attrs["data-value"].clone());
+    assert_eq!(count("jobs").as_deref(), Some("7"));
+    assert_eq!(count("failed").as_deref(), Some("1"));
+    let failure = all
+        .iter()
+        .find(|t| t.name == "li" && t.attrs.get("data-job").map(String::as_str) == Some("quilt/broken.toml"))
+        .expect("failure listed");
+    assert!(failure.text.contains("blocked.png"), "the error text is shown: {}", failure.text);
+    assert!(page.contains("class=\"slowest\""));
+    // Each section has its own overview with every seed.
+    for s in ["quilt", "seams", "tiles"] {
+        assert!(dir.join(format!("sections/{s}/sheets/overview.png")).is_file(), "{s}: overview");
+    }
+    let pages = overview_pages(&dir.join("sections/quilt/sheets"));
+    for seed in 1..=3 {
+        let img = decode(&out.join(format!("quilt/a{seed}.png")));
+        assert!(pages.iter().any(|p| find(p, &img).is_some()), "seed {seed} on the quilt overview");
+    }
+}
+
+#[test]
+fn a_report_replaces_its_own_stale_files_and_refuses_a_foreign_page() {
+    let out = mixed_run();
+    let dir = scratch("stale").join("report");
+    let manifest = out.join("manifest.json");
+    // First one section (files at the top), then per directory: the old layout's files go.
+    run_ok(texsyn().arg("report").arg(&manifest).arg("-o").arg(&dir).args(["--sections", "one"]));
+    assert!(dir.join("sheets/overview.png").is_file() && dir.join("tables/all.csv").is_file());
+    std::fs::write(dir.join("notes.txt"), "mine").unwrap();
+    let o = run_ok(texsyn().arg("report").arg(&manifest).arg("-o").arg(&dir));
+    assert!(text(&o).contains("stale files of the previous report removed"), "{}", text(&o));
+    assert!(!dir.join("sheets").exists() && !dir.join("tables").exists(), "the old layout is gone");
+    assert!(dir.join("sections/quilt/sheets/overview.png").is_file());
+    assert_eq!(std::fs::read_to_string(dir.join("notes.txt")).unwrap(), "mine", "files the report did not write stay");
+    let listed = std::fs::read_to_string(dir.join(".texsyn-report")).unwrap();
+    for f in walk(&dir) {
+        let rel = f.strip_prefix(&dir).unwrap().to_string_lossy().into_owned();
+        assert!(rel == "notes.txt" || rel.starts_with(".texsyn") || listed.lines().any(|l| l == rel), "{rel} is not listed");
+    }
+    // A page this tool did not list: refused, nothing touched.
+    let foreign = scratch("foreign").join("report");
+    std::fs::create_dir_all(&foreign).unwrap();
+    std::fs::write(foreign.join("index.html"), "<p>someone else's</p>").unwrap();
+    let o = run_expect(texsyn().arg("report").arg(&manifest).arg("-o").arg(&foreign), 2);
+    assert!(text(&o).contains("without the list of its files"), "{}", text(&o));
+    assert_eq!(std::fs::read_to_string(foreign.join("index.html")).unwrap(), "<p>someone else's</p>");
+}
+
+#[test]
+fn golden_mismatches_lead_the_page_with_the_new_image() {
+    let out = mixed_run();
+    let d = scratch("golden-report");
+    let golden = d.join("golden");
+    run_ok(texsyn().args(["golden", "bless"]).arg(&golden).arg(out.join("manifest.json")));
+    // Someone's change moved one output: its golden digest no longer matches.
+    let file = golden.join("tiles/w.json");
+    let text_before = std::fs::read_to_string(&file).unwrap();
+    let digest = pixels(&out.join("tiles/w.png"));
+    std::fs::write(&file, text_before.replace(&digest, &"0".repeat(64))).unwrap();
+    let dir = d.join("report");
+    run_ok(texsyn().arg("report").arg(out.join("manifest.json")).arg("-o").arg(&dir).arg("--golden").arg(&golden));
+    let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    let all = tags(&page);
+    let g = all.iter().find(|t| t.attrs.contains_key("data-golden-mismatched")).expect("a golden block");
+    assert_eq!(g.attrs["data-golden-mismatched"], "1");
+    assert_eq!(g.attrs["data-golden-matched"], "5");
+    let change =
+        all.iter().find(|t| t.name == "div" && t.attrs.get("data-job").map(String::as_str) == Some("tiles/w.toml")).expect("panels");
+    assert_eq!(change.attrs["data-source"], "golden");
+    assert!(page.contains("golden/ keeps digests, not images"), "says why there is no old image");
+    assert!(page.find("id=\"changes\"").unwrap() < page.find("data-section=").unwrap(), "changes before the sections");
 }

@@ -57,6 +57,16 @@ fn merged_shards_equal_one_machine_for_every_split() {
     let o = run(&["verify", out.join("manifest.json").to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("40 verified, 0 mismatched"), "{}", text(&o));
+    // The merged night compares with the single-machine one: nothing changed, one failure named.
+    let report = scratch("merged-report").join("r");
+    let o = run(&["report", out.join("manifest.json").to_str().unwrap(), "-o", report.to_str().unwrap(), "--since"]
+        .into_iter()
+        .chain([local.join("manifest.json").to_str().unwrap()])
+        .collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", text(&o));
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(page.contains("data-pixels-changed=\"0\"") && page.contains("data-failed-now=\"0\""), "since block");
+    assert!(page.contains("data-job=\"fails.toml\" data-status=\"failed\""), "the failure is listed");
 }
 
 #[test]
