@@ -50,6 +50,7 @@ fn record(k: usize) -> JobRecord {
             pixel_digest: d("op"),
         }],
         seams: None,
+        warnings: Vec::new(),
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
         timing: Some(Timing {

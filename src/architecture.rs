@@ -15,6 +15,7 @@ const SYNTH_LAYERS: &[&[&str]] = &[
     &["synth::lattice", "synth::primitives"],
     &["synth::method"],
     &["synth::methods"],
+    &["synth::advice"],
 ];
 
 fn rank(module: &str) -> Option<(usize, usize)> {

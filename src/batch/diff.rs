@@ -206,6 +206,7 @@ mod tests {
                 pixel_digest: d(pixels),
             }],
             seams: None,
+            warnings: Vec::new(),
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

@@ -144,6 +144,11 @@ pub struct JobRecord {
     pub metrics: Option<std::collections::BTreeMap<String, Option<f64>>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub timing: Option<Timing>,
+    /// Plain sentences when the job's method and parameters do not fit its sample (`texsyn
+    /// advise`); the job still ran. Deterministic: a function of the sample's pixels and the
+    /// parameters.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Facts about the run that wrote the manifest (not reproducible by nature).
@@ -370,6 +375,7 @@ mod tests {
             content_key: None,
             outputs: vec![],
             seams: None,
+            warnings: Vec::new(),
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -220,6 +220,7 @@ mod tests {
             content_key: Some(Digest::of_bytes(pixels.as_bytes())),
             outputs: Vec::new(),
             seams: None,
+            warnings: Vec::new(),
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

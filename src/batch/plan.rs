@@ -11,6 +11,7 @@ use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, S
 use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
+use crate::synth::advice::{self, Analysis};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt;
@@ -138,6 +139,14 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let loaded: BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>> =
         sample_paths.par_iter().map(|p| (p.clone(), load_sample(p).map(Arc::new))).collect::<Vec<_>>().into_iter().collect();
 
+    // Whether each method fits its sample (`texsyn advise`), once per distinct sample pixels.
+    let mut digests: Vec<(&str, &Arc<LoadedSample>)> =
+        loaded.values().filter_map(|l| l.as_ref().ok()).map(|s| (s.pixel_digest.sha256.as_str(), s)).collect();
+    digests.sort_by(|a, b| a.0.cmp(b.0));
+    digests.dedup_by(|a, b| a.0 == b.0);
+    let analyses: BTreeMap<String, Analysis> =
+        digests.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
+
     let mut entries = Vec::new();
     for job in set.jobs {
         let sample = match &loaded[&job.sample] {
@@ -154,7 +163,8 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        let (content_key, record) = base_record(&job, &sample, &opts.out);
+        let (content_key, mut record) = base_record(&job, &sample, &opts.out);
+        record.warnings = advice::warning(&analyses[&sample.pixel_digest.sha256], job.method.name(), &job.params).into_iter().collect();
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         entries.push(Entry { job, sample, content_key, record, action });
     }
@@ -249,6 +259,7 @@ fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest
         diagnostics: serde_json::Value::Null,
         metrics: None,
         timing: None,
+        warnings: Vec::new(),
     };
     (content_key, record)
 }
@@ -297,5 +308,6 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         diagnostics: serde_json::Value::Null,
         metrics: None,
         timing: None,
+        warnings: Vec::new(),
     }
 }

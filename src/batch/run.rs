@@ -96,6 +96,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         rec.status = Status::UpToDate;
         // Provenance of this run's job file (it may have been renamed or edited harmlessly).
         rec.job_file = e.record.job_file.clone();
+        rec.warnings = e.record.warnings.clone();
         records.insert(e.job.id.clone(), rec);
     }
     for inv in &plan.invalid {
@@ -153,6 +154,11 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     let mut to_run: Vec<_> = plan.to_run().collect();
     if opts.reverse {
         to_run.reverse();
+    }
+    for e in &to_run {
+        for w in &e.record.warnings {
+            observer.event(&Event::Warning(format!("{}: {w}", e.job.id)));
+        }
     }
     observer.event(&Event::Planned { to_run: to_run.len() });
     let interrupted = AtomicBool::new(false);

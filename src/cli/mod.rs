@@ -8,6 +8,7 @@
 //! Output to a closed pipe (`texsyn methods | head`) is not an error: [`say`] stops quietly with
 //! exit 0 instead of the panic `println!` would give, because the reader has what it wanted.
 
+mod advise;
 mod diff;
 mod eval;
 mod golden;
@@ -69,6 +70,10 @@ enum Command {
     /// Find the translation vectors t1, t2 of a near-regular sample (exit 0), or say why there
     /// are none (exit 1).
     Lattice(lattice::Args),
+    /// Describe a sample (lattice, orientation, stochastic) and say which methods fit it with
+    /// their defaults, which need other parameters, and which are not for it.
+    #[command(after_help = advise::HELP)]
+    Advise(advise::Args),
     /// Score any image against a sample with the metrics texsyn records (paper 003's four
     /// measures, the verbatim-copy fraction; seam visibility needs a method's grid and is undefined here).
     Eval(eval::Args),
@@ -115,6 +120,7 @@ pub fn main() -> ExitCode {
         Command::Golden(cmd) => golden::run(cmd),
         Command::Methods => methods::run(),
         Command::Lattice(args) => lattice::run(args),
+        Command::Advise(args) => advise::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Tiles(cmd) => tiles::run(cmd),
         Command::Report(args) => report::run(args),

@@ -66,6 +66,7 @@ summary{cursor:pointer}
 .why{font-size:0.9em;color:#444}
 h2.part{border-bottom:2px solid #999;margin-top:2em}
 .bad{color:#900}
+.warning{color:#8a4b00}
 ";
 
 const SCRIPT: &str = "
@@ -220,7 +221,7 @@ fn images_html(model: &Model, assets: &Assets) -> String {
             let n = model.entries_of(s, shown.group).count();
             let size = e.output.as_ref().map(|o| format!("{}×{}", o.width, o.height)).unwrap_or_default();
             out.push_str(&format!(
-                "<figure data-group=\"{}\" data-job=\"{}\">{}<figcaption><b>{}</b><br>{}<br>{}{} · {}</figcaption></figure>",
+                "<figure data-group=\"{}\" data-job=\"{}\">{}<figcaption><b>{}</b><br>{}<br>{}{} · {}{}</figcaption></figure>",
                 h(&g.label),
                 h(&e.job_id),
                 img(&shown.image, &format!("{} on {}", g.label, info.key)),
@@ -228,7 +229,8 @@ fn images_html(model: &Model, assets: &Assets) -> String {
                 h(&g.params_label),
                 e.seed.map(|x| format!("seed {x}")).unwrap_or_default(),
                 if n > 1 { format!(" (1 of {n} jobs)") } else { String::new() },
-                size
+                size,
+                e.warnings.iter().map(|w| format!("<br><span class=\"warning\" data-warning=\"1\">⚠ {}</span>", h(w))).collect::<String>()
             ));
         }
         out.push_str("</div>\n");

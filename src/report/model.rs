@@ -187,6 +187,8 @@ pub struct Entry {
     pub metrics: BTreeMap<String, Option<f64>>,
     pub synthesis_seconds: Option<f64>,
     pub output: Option<OutputInfo>,
+    /// Why the method may not look right on this sample (`texsyn advise`).
+    pub warnings: Vec<String>,
 }
 
 /// A job that did not count, with why.
@@ -380,6 +382,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
             metrics: metrics_and_summary(job),
             synthesis_seconds: job.timing.as_ref().map(|t| t.synthesis_seconds),
             output,
+            warnings: job.warnings.clone(),
         });
     }
 

@@ -98,6 +98,20 @@ pub fn html(manifest: &Manifest, cmp: &Comparison) -> String {
         out.push_str(if failures.len() > FAILURES_SHOWN { "</ol></details>\n" } else { "</ol>\n" });
     }
 
+    let warned: Vec<_> = jobs.iter().filter(|j| !j.warnings.is_empty()).collect();
+    if !warned.is_empty() {
+        out.push_str(&format!(
+            "<h3>Method advice ({} jobs)</h3>\n<details><summary>Jobs whose method and parameters may not look right on their \
+             sample (<code>texsyn advise</code>); they ran</summary><ul class=\"warnings\">\n",
+            warned.len()
+        ));
+        for j in warned {
+            for w in &j.warnings {
+                out.push_str(&format!("<li data-job=\"{}\"><b>{}</b>: {}</li>\n", h(&j.id), h(&j.id), h(w)));
+            }
+        }
+        out.push_str("</ul></details>\n");
+    }
     let mut timed: Vec<(&str, f64, String)> = jobs
         .iter()
         .filter_map(|j| {

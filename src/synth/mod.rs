@@ -5,6 +5,7 @@
 //! the clock (except phase timings, which are recorded apart from results). Sits on `image` and
 //! `metrics` (autocorrelation), below the batch pipeline.
 
+pub mod advice;
 pub mod error;
 pub mod lattice;
 pub mod method;

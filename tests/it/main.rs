@@ -2,6 +2,7 @@
 //! lattice, methods' job-level behaviour, report in headless Chromium, tile export, shards and
 //! merge, signals, manifests written by earlier versions).
 
+mod advice;
 mod bad_input;
 mod common;
 mod compat;

@@ -1,0 +1,304 @@
+//! Which methods fit a sample, and what to set when the defaults will not look right.
+//!
+//! Each paper claims good results "for a variety of textures"; in practice the tile methods
+//! scramble structured samples, feathering ghosts strong edges and the near-regular methods need a
+//! lattice. A user who keeps the defaults should hear that before reading the picture, so the
+//! same analysis backs `texsyn advise SAMPLE` and the `warnings` of a run's jobs. It looks at three
+//! things that are cheap to measure and explain: whether the sample has a lattice (the extraction
+//! the near-regular methods use), how strongly its local orientations agree, and — failing both —
+//! calls it stochastic, where every method is fine and nothing is said.
+
+use crate::image::RgbImage;
+use crate::metrics::{MetricParams, orientation_acf};
+use crate::synth::lattice::{self, Lattice, LatticeOptions};
+use crate::synth::params::{ParamValue, Params};
+use serde::Serialize;
+
+/// Orientation coherence from which a sample without a lattice counts as oriented (see
+/// [`orientation_coherence`]). Measured on the bundled samples and material sets: cork, grass,
+/// gravel, hedge, plaster, pebbles, rock and weathered wood 0.01–0.11, where every method looks
+/// right; cobblestones, a cracked stone wall, flagstones and wood grain 0.16–0.21, where tiles
+/// cut at random places break the structure.
+pub const ORIENTED_FROM: f64 = 0.14;
+
+/// What kind of texture a sample is, for the methods' purposes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kind {
+    /// A lattice of repeated texels (bricks, tiles, tread plate).
+    NearRegular,
+    /// No lattice, but strongly oriented structure (wood grain, fibres, slates).
+    Oriented,
+    /// Neither: grass, sand, gravel, plaster.
+    Stochastic,
+    /// Too small or uniform to say anything.
+    Flat,
+}
+
+/// The description of a sample.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Analysis {
+    pub width: u32,
+    pub height: u32,
+    pub kind: Kind,
+    /// The lattice, if one was found.
+    pub lattice: Option<Lattice>,
+    /// Why no lattice was found (`None` when one was).
+    pub no_lattice: Option<String>,
+    /// Orientation coherence at 8–16 px: 0 (none) … 1 (one orientation everywhere).
+    pub orientation: f64,
+}
+
+impl Analysis {
+    /// One line: `near-regular: lattice t1 = (32, 0), t2 = (16, 24) …`.
+    pub fn describe(&self) -> String {
+        match (self.kind, &self.lattice) {
+            (Kind::Flat, _) => "nothing to analyse: the sample is too small or has no contrast".into(),
+            (_, Some(l)) => format!(
+                "near-regular: lattice t1 = ({}, {}), t2 = ({}, {}) (texel {} px², explains {} of {} autocorrelation peaks); \
+                 orientation coherence {:.3}",
+                l.t1.0,
+                l.t1.1,
+                l.t2.0,
+                l.t2.1,
+                l.determinant(),
+                l.explained,
+                l.candidates,
+                self.orientation
+            ),
+            (Kind::Oriented, None) => format!("oriented, no lattice: orientation coherence {:.3} (≥ {ORIENTED_FROM})", self.orientation),
+            _ => format!("stochastic: no lattice and orientation coherence {:.3} (< {ORIENTED_FROM})", self.orientation),
+        }
+    }
+
+    /// The longer side of the texel's bounding box (how large a block must be to hold one).
+    pub fn texel_span(&self) -> Option<u32> {
+        let l = self.lattice.as_ref()?;
+        let w = l.t1.0.unsigned_abs() + l.t2.0.unsigned_abs();
+        let h = l.t1.1.unsigned_abs() + l.t2.1.unsigned_abs();
+        Some(w.max(h) as u32)
+    }
+}
+
+/// How far local orientations agree with themselves 8 to 16 pixels away: the largest value of
+/// the orientation autocorrelation (the metrics' `A_v`) on that ring. Long edges, cracks, grain
+/// and stone outlines keep it high; grass, gravel and plaster lose it within a few pixels, and so
+/// do pebbles, whose outlines are short and point every way.
+fn orientation_coherence(img: &RgbImage) -> f64 {
+    let Some(acf) = orientation_acf(img, &MetricParams::default()) else { return 0.0 };
+    let r = acf.rx().min(acf.ry()) as i64;
+    let (inner, outer) = (8.0f64.min(r as f64 / 2.0), 16.0f64.min(r as f64));
+    let mut best = 0.0f64;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let d = ((dx * dx + dy * dy) as f64).sqrt();
+            if d >= inner && d <= outer {
+                best = best.max(acf.get(dx, dy));
+            }
+        }
+    }
+    best
+}
+
+/// Analyses a sample (8-bit view, as the methods' searches see it).
+pub fn analyse(img: &RgbImage) -> Analysis {
+    let (width, height) = img.dimensions();
+    let flat = |why: &str| Analysis { width, height, kind: Kind::Flat, lattice: None, no_lattice: Some(why.into()), orientation: 0.0 };
+    if width < 8 || height < 8 {
+        return flat("the sample is smaller than 8 × 8 pixels");
+    }
+    let first = img.get(0, 0);
+    if img.as_raw().chunks_exact(3).all(|p| p == first) {
+        return flat("the sample is one flat colour");
+    }
+    let orientation = orientation_coherence(img);
+    let (lattice, no_lattice) = match lattice::extract(img, &LatticeOptions::default()) {
+        Ok(l) => (Some(l), None),
+        Err(e) => (None, Some(e.to_string())),
+    };
+    let kind = if lattice.is_some() {
+        Kind::NearRegular
+    } else if orientation >= ORIENTED_FROM {
+        Kind::Oriented
+    } else {
+        Kind::Stochastic
+    };
+    Analysis { width, height, kind, lattice, no_lattice, orientation }
+}
+
+/// A method's fit to a sample.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(tag = "verdict", rename_all = "kebab-case")]
+pub enum Fit {
+    Fits,
+    /// Fits once these parameters are set (`("align", "lattice")`), because…
+    FitsWith {
+        set: Vec<(String, String)>,
+        because: String,
+    },
+    /// Not for this sample, because…; use this method instead.
+    NotFor {
+        because: String,
+        instead: &'static str,
+    },
+}
+
+fn int(p: &Params, name: &str) -> Option<i64> {
+    match p.get(name)? {
+        ParamValue::Int(v) => Some(*v),
+        _ => None,
+    }
+}
+
+fn word<'p>(p: &'p Params, name: &str) -> Option<&'p str> {
+    match p.get(name)? {
+        ParamValue::Str(s) => Some(s),
+        _ => None,
+    }
+}
+
+/// Whether the job gave its own lattice (`t1_x` … `t2_y`): then extraction is not needed.
+fn lattice_given(p: &Params) -> bool {
+    ["t1_x", "t1_y", "t2_x", "t2_y"].iter().any(|k| int(p, k).is_some_and(|v| v != 0))
+}
+
+/// How `method` with these (resolved) parameters fits the analysed sample.
+pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
+    if a.kind == Kind::Flat {
+        return Fit::Fits;
+    }
+    match method {
+        "quilting" | "double-seam" | "patch-sampling" => {
+            let mut set = Vec::new();
+            let mut why: Vec<String> = Vec::new();
+            // Feathering ghosts long coherent edges (bricks' mortar, grain, cracks); on studs,
+            // tiles of low coherence and stochastic samples it looks right.
+            if method == "patch-sampling" && a.orientation >= ORIENTED_FROM && word(p, "blend") == Some("feather") {
+                set.push(("blend".to_string(), "cut".to_string()));
+                why.push("feathering blends misaligned edges of a structured sample into ghosts".into());
+            }
+            if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
+        }
+        "coevolution" | "tes" => {
+            if a.lattice.is_some() || lattice_given(p) {
+                Fit::Fits
+            } else {
+                Fit::NotFor {
+                    because: format!(
+                        "it needs a lattice of repeated texels and none was found ({})",
+                        a.no_lattice.as_deref().unwrap_or("no lattice")
+                    ),
+                    instead: "quilting",
+                }
+            }
+        }
+        "wang-tiles" | "rw-tiles" => match a.kind {
+            Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
+                set: vec![("align".into(), "lattice".into())],
+                because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
+            },
+            Kind::Oriented => Fit::NotFor {
+                because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
+                instead: "quilting",
+            },
+            _ => Fit::Fits,
+        },
+        _ => Fit::Fits,
+    }
+}
+
+/// The warning sentence for a job, if its method and parameters do not fit its sample. A
+/// near-regular method on a sample without a lattice is not warned about: it refuses the job
+/// itself, with the reason, and a warning would only repeat it.
+pub fn warning(a: &Analysis, method: &str, p: &Params) -> Option<String> {
+    if matches!(method, "coevolution" | "tes") {
+        return None;
+    }
+    match fit(a, method, p) {
+        Fit::Fits => None,
+        Fit::FitsWith { set, because } => {
+            let set: Vec<String> = set.iter().map(|(k, v)| format!("{k} = {}", toml_value(v))).collect();
+            Some(format!("{method} will not look right on this {} sample: {because}; set {}.", kind_word(a.kind), set.join(", ")))
+        }
+        Fit::NotFor { because, instead } => {
+            Some(format!("{method} does not suit this {} sample: {because}; use {instead} instead.", kind_word(a.kind)))
+        }
+    }
+}
+
+fn toml_value(v: &str) -> String {
+    if v.parse::<f64>().is_ok() { v.to_string() } else { format!("\"{v}\"") }
+}
+
+pub fn kind_word(k: Kind) -> &'static str {
+    match k {
+        Kind::NearRegular => "near-regular",
+        Kind::Oriented => "oriented",
+        Kind::Stochastic => "stochastic",
+        Kind::Flat => "flat",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(pairs: &[(&str, ParamValue)]) -> Params {
+        Params(pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect())
+    }
+
+    /// A brick-like pattern with a 16 × 8 texel.
+    fn bricks() -> RgbImage {
+        RgbImage::from_fn(96, 96, |x, y| {
+            let row = y / 8;
+            let xs = (x + if row % 2 == 1 { 8 } else { 0 }) % 16;
+            if y % 8 == 0 || xs == 0 { [40, 40, 40] } else { [180, 90, 60] }
+        })
+    }
+
+    #[test]
+    fn flat_and_tiny_samples_have_nothing_to_analyse() {
+        assert_eq!(analyse(&RgbImage::from_fn(4, 4, |x, _| [x as u8; 3])).kind, Kind::Flat);
+        let flat = analyse(&RgbImage::from_fn(64, 64, |_, _| [9, 9, 9]));
+        assert_eq!(flat.kind, Kind::Flat);
+        assert!(flat.describe().contains("nothing to analyse"));
+        assert_eq!(warning(&flat, "wang-tiles", &params(&[("align", ParamValue::Str("none".into()))])), None);
+    }
+
+    #[test]
+    fn a_lattice_gets_aligned_tiles_and_blocks_that_hold_a_texel() {
+        let a = analyse(&bricks());
+        assert_eq!(a.kind, Kind::NearRegular, "{}", a.describe());
+        let w = warning(&a, "rw-tiles", &params(&[("align", ParamValue::Str("none".into()))])).expect("tiles warn");
+        assert!(w.contains("align = \"lattice\""), "{w}");
+        assert_eq!(warning(&a, "rw-tiles", &params(&[("align", ParamValue::Str("lattice".into()))])), None);
+        assert_eq!(warning(&a, "coevolution", &params(&[])), None);
+        // Quilting's search keeps texels whole with any block: no advice to change it.
+        assert_eq!(warning(&a, "quilting", &params(&[("block", ParamValue::Int(12))])), None);
+        let w = warning(&a, "patch-sampling", &params(&[("blend", ParamValue::Str("feather".into()))])).expect("feathering warns");
+        assert!(w.contains("blend = \"cut\""), "{w}");
+    }
+
+    #[test]
+    fn without_a_lattice_the_near_regular_methods_are_advised_against_unless_given_one() {
+        // Deterministic noise: no lattice, no orientation.
+        let mut s = 12345u32;
+        let noise = RgbImage::from_fn(96, 96, |_, _| {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            let v = (s >> 24) as u8;
+            [v, v, v]
+        });
+        let a = analyse(&noise);
+        assert_eq!(a.kind, Kind::Stochastic, "{}", a.describe());
+        match fit(&a, "tes", &params(&[])) {
+            Fit::NotFor { because, instead } => assert!(because.contains("needs a lattice") && instead == "quilting", "{because}"),
+            other => panic!("tes on noise: {other:?}"),
+        }
+        assert_eq!(fit(&a, "tes", &params(&[("t1_x", ParamValue::Int(20)), ("t2_y", ParamValue::Int(20))])), Fit::Fits);
+        assert_eq!(warning(&a, "tes", &params(&[])), None, "the job refuses itself; no warning repeats it");
+        for m in ["quilting", "double-seam", "wang-tiles", "rw-tiles"] {
+            assert_eq!(warning(&a, m, &params(&[("align", ParamValue::Str("none".into())), ("block", ParamValue::Int(32))])), None, "{m}");
+        }
+        assert_eq!(warning(&a, "patch-sampling", &params(&[("blend", ParamValue::Str("feather".into()))])), None);
+    }
+}

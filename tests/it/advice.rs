@@ -1,0 +1,189 @@
+//! `texsyn advise` and the `warnings` of a run, on real samples: the twelve bundled ones and five
+//! material albedos (tests/fixtures/advice), every method with its defaults, 384² from 256².
+//!
+//! The regression guard: scored on texsyn's own orientation metrics against quilting on the same
+//! sample, every output either stays within a factor [`FACTOR`] of quilting or carries a warning;
+//! the near-regular methods may instead refuse a sample without a lattice (with the reason). And
+//! no job on a sample `advise` calls stochastic carries a warning. The score is the geometric mean
+//! of `kl_orientation / max(quilting's, 0.01)` (quilting's KL is often ~0.002, too small to divide
+//! by) and `acf_orientation / quilting's`. When this test fails, open the outputs: either a method
+//! got worse, or the advice no longer matches what it produces.
+
+use super::common::*;
+use std::sync::OnceLock;
+
+const FACTOR: f64 = 6.0;
+const METHODS: [&str; 7] = ["quilting", "double-seam", "patch-sampling", "coevolution", "tes", "wang-tiles", "rw-tiles"];
+
+fn samples() -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for dir in [repo().join("jobs/samples"), repo().join("tests/fixtures/advice")] {
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "png") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem().unwrap().to_string_lossy().into_owned()
+}
+
+/// One run of every method on every sample, shared by the tests.
+fn run_all() -> &'static (PathBuf, Value) {
+    static RUN: OnceLock<(PathBuf, Value)> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let d = scratch("advice");
+        let jobs = d.join("jobs");
+        for s in samples() {
+            for m in METHODS {
+                write(
+                    &jobs.join(format!("{}__{m}.toml", stem(&s))),
+                    &format!(
+                        "sample = \"{}\"\nmethod = \"{m}\"\nseed = 1\nmetrics = [\"kl_orientation\", \"acf_orientation\"]\n\
+                         [output]\npath = \"{m}/{}.png\"\nwidth = 384\nheight = 384\n",
+                        s.display(),
+                        stem(&s)
+                    ),
+                );
+            }
+        }
+        let out = d.join("out");
+        // Exit 1: coevolution and TES refuse the samples without a lattice.
+        let o = run_expect(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("-q"), 1);
+        let printed = text(&o);
+        let m = manifest(&out);
+        // Every warning recorded is printed once by the run.
+        for j in m["jobs"].as_array().unwrap() {
+            for w in j["warnings"].as_array().into_iter().flatten() {
+                assert!(printed.contains(w.as_str().unwrap()), "{} warning not printed", j["id"]);
+            }
+        }
+        (out, m)
+    })
+}
+
+fn kind_of(sample: &Path) -> String {
+    let o = run_ok(texsyn().arg("advise").arg(sample).arg("--json"));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    v["analysis"]["kind"].as_str().unwrap().to_string()
+}
+
+#[test]
+fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warnings() {
+    let (_, m) = run_all();
+    let jobs: BTreeMap<String, &Value> = m["jobs"].as_array().unwrap().iter().map(|j| (j["id"].as_str().unwrap().to_string(), j)).collect();
+    let mut tally: BTreeMap<&str, [usize; 4]> = BTreeMap::new();
+    let mut problems = Vec::new();
+    let mut kinds = BTreeMap::new();
+    for s in samples() {
+        let kind = kind_of(&s);
+        kinds.insert(stem(&s), kind.clone());
+        let q = jobs[&format!("{}__quilting.toml", stem(&s))];
+        assert_eq!(q["status"], "ok", "quilting runs on every sample");
+        let (q_kl, q_acf) = (q["metrics"]["kl_orientation"].as_f64().unwrap(), q["metrics"]["acf_orientation"].as_f64().unwrap());
+        for method in METHODS {
+            let j = jobs[&format!("{}__{method}.toml", stem(&s))];
+            let warned = j["warnings"].as_array().is_some_and(|w| !w.is_empty());
+            let t = tally.entry(method).or_default();
+            if kind == "stochastic" && warned {
+                problems.push(format!("{} {method}: warned on a stochastic sample: {}", stem(&s), j["warnings"]));
+            }
+            if j["status"] != "ok" {
+                let err = j["error"].as_str().unwrap_or("");
+                if !(matches!(method, "coevolution" | "tes") && err.contains("no lattice found")) {
+                    problems.push(format!("{} {method}: {} ({err})", stem(&s), j["status"]));
+                }
+                t[3] += 1;
+                continue;
+            }
+            let kl = j["metrics"]["kl_orientation"].as_f64().unwrap() / q_kl.max(0.01);
+            let acf = j["metrics"]["acf_orientation"].as_f64().unwrap() / q_acf;
+            let score = (kl * acf).sqrt();
+            match (score <= FACTOR, warned) {
+                (true, false) => t[0] += 1,
+                (_, true) => t[1] += 1,
+                (false, false) => {
+                    t[2] += 1;
+                    problems.push(format!("{} {method}: scores {score:.2} × quilting without a warning", stem(&s)));
+                }
+            }
+        }
+    }
+    eprintln!("method           fits  warned  silently-off  refused   (samples: {kinds:?})");
+    for (m, [f, w, bad, r]) in &tally {
+        eprintln!("{m:<15} {f:>5} {w:>7} {bad:>13} {r:>8}");
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    // The analysis discriminates: some samples of each kind.
+    for k in ["near-regular", "oriented", "stochastic"] {
+        assert!(kinds.values().any(|v| v == k), "no {k} sample among {kinds:?}");
+    }
+    for s in ["cork", "grass_gray", "gravel_gray", "hedge_leaves", "pebbles_beige", "roughcast_plaster"] {
+        assert_eq!(kinds[s], "stochastic", "{s}");
+    }
+    for s in ["bricks_gray", "brick_a_albedo", "metal_tread_studs", "tiles_terracotta", "weave_gray"] {
+        assert_eq!(kinds[s], "near-regular", "{s}");
+    }
+}
+
+#[test]
+fn advise_says_what_fits_and_refuses_what_it_cannot_read() {
+    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/bricks_gray.png")));
+    let t = text(&o);
+    assert!(t.contains("near-regular: lattice t1 = "), "{t}");
+    let line = |m: &str| t.lines().find(|l| l.trim_start().starts_with(m)).unwrap_or_else(|| panic!("no line for {m}:\n{t}")).to_string();
+    assert!(line("rw-tiles").contains("fits with align = lattice"), "{t}");
+    assert!(line("quilting").contains("fits with its defaults"), "{t}");
+    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/grass_gray.png")));
+    let t = text(&o);
+    assert!(t.contains("stochastic"), "{t}");
+    assert!(line_of(&t, "wang-tiles").contains("fits with its defaults"), "{t}");
+    assert!(line_of(&t, "coevolution").contains("not for this sample") && line_of(&t, "coevolution").contains("use quilting"), "{t}");
+    // Nothing to analyse: a flat or 1×1 image (exit 0, said plainly).
+    let d = scratch("advise-bad");
+    for (name, w, h) in [("flat.png", 64, 64), ("dot.png", 1, 1)] {
+        let img = RgbImage::from_fn(w, h, |_, _| [90, 90, 90]);
+        let enc = imageio::encode(&img, imageio::Encoding { format: imageio::Format::Png, bit_depth: 8 }).unwrap();
+        std::fs::write(d.join(name), enc.bytes).unwrap();
+        let o = run_ok(texsyn().arg("advise").arg(d.join(name)));
+        assert!(text(&o).contains("nothing to analyse"), "{name}: {}", text(&o));
+    }
+    // Missing and corrupt files: a clear error naming the file, exit 2.
+    std::fs::write(d.join("corrupt.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    for name in ["absent.png", "corrupt.png"] {
+        let o = run_expect(texsyn().arg("advise").arg(d.join(name)), 2);
+        assert!(text(&o).contains(name), "{name}: {}", text(&o));
+    }
+}
+
+fn line_of(t: &str, m: &str) -> String {
+    t.lines().find(|l| l.trim_start().starts_with(m)).unwrap_or_else(|| panic!("no line for {m}:\n{t}")).to_string()
+}
+
+#[test]
+fn the_report_shows_the_warnings_next_to_the_image() {
+    let (out, m) = run_all();
+    let warned: Vec<&str> = m["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|j| j["warnings"].as_array().is_some_and(|w| !w.is_empty()))
+        .map(|j| j["id"].as_str().unwrap())
+        .collect();
+    assert!(!warned.is_empty());
+    let dir = scratch("advice-report").join("r");
+    run_ok(texsyn().arg("report").arg(out.join("manifest.json")).arg("-o").arg(&dir).args(["--group-by", "method"]));
+    let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    // The shown image of a warned job carries its warning in its caption, and the summary lists all.
+    let bricks_rw = "bricks_gray__rw-tiles.toml";
+    assert!(warned.contains(&bricks_rw));
+    let fig = page.find(&format!("data-job=\"{bricks_rw}\"><img")).expect("the rw-tiles output of bricks is shown");
+    let caption_end = page[fig..].find("</figure>").unwrap() + fig;
+    assert!(page[fig..caption_end].contains("data-warning=\"1\""), "warning next to the image");
+    assert!(page.contains(&format!("Method advice ({} jobs)", warned.len())));
+}
