@@ -96,8 +96,9 @@ pub fn install_panic_hook() {
     }));
 }
 
-/// Runs the method (catching panics) and encodes the result as the job asked; also returns the
-/// synthesis seconds.
+/// Runs the method (catching panics) and encodes the result as the job asked, in memory; also
+/// returns the synthesis seconds. `verify` uses it; `run` encodes straight into the output file
+/// with the same encoder ([`imageio::encode_to`]), so the bytes are the same.
 pub fn synthesize_and_encode(
     method: &dyn Method,
     sample: &RgbImage,
@@ -105,6 +106,20 @@ pub fn synthesize_and_encode(
     seed: u64,
     output: &OutputSpec,
 ) -> Result<(Synthesis, Encoded, f64), JobFailure> {
+    let (synthesis, seconds) = synthesize(method, sample, params, seed, output)?;
+    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
+    Ok((synthesis, encoded, seconds))
+}
+
+/// Runs the method, catching panics and checking the size of what it returns; also returns the
+/// synthesis seconds.
+pub fn synthesize(
+    method: &dyn Method,
+    sample: &RgbImage,
+    params: &Params,
+    seed: u64,
+    output: &OutputSpec,
+) -> Result<(Synthesis, f64), JobFailure> {
     let request = Request { sample, width: output.width, height: output.height, params, seed };
     let started = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| method.synthesize(&request)));
@@ -129,8 +144,7 @@ pub fn synthesize_and_encode(
             want: (output.width, output.height),
         });
     }
-    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
-    Ok((synthesis, encoded, seconds))
+    Ok((synthesis, seconds))
 }
 
 /// The metric values of a job (`None` for a metric undefined on this pair of images).
@@ -147,7 +161,8 @@ pub struct Executed {
 }
 
 /// Synthesises, scores and writes one job into `out`. The main output is written last: a job
-/// whose main output is in place is complete.
+/// whose main output is in place is complete. It is encoded straight into its file, so no
+/// encoded copy of a large output is held beside its pixels.
 pub fn execute(
     method: &dyn Method,
     sample: &RgbImage,
@@ -157,7 +172,7 @@ pub fn execute(
     metric_names: &[String],
     out: &OutDir,
 ) -> Result<Executed, JobFailure> {
-    let (synthesis, encoded, synthesis_seconds) = synthesize_and_encode(method, sample, params, seed, output)?;
+    let (synthesis, synthesis_seconds) = synthesize(method, sample, params, seed, output)?;
     let metrics_started = Instant::now();
     let metrics = if metric_names.is_empty() {
         None
@@ -166,21 +181,35 @@ pub fn execute(
         Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
+    let mut extras = Vec::new();
+    for extra in &synthesis.extras {
+        let (record, bytes) = encode_extra(&output.path, extra)?;
+        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
+        extras.push(record);
+    }
+    let mut encode_error = None;
+    let written = out.write_streamed(&output.path, |w| {
+        imageio::encode_to(&synthesis.image, output.encoding(), w).map_err(|e| {
+            let io = std::io::Error::other(e.to_string());
+            encode_error = Some(e);
+            io
+        })
+    });
+    let (pixel_digest, file_digest) = match (written, encode_error) {
+        (Ok(done), _) => done,
+        (Err(_), Some(e)) => return Err(JobFailure::Encode(e)),
+        (Err(e), None) => return Err(JobFailure::Write(e)),
+    };
     let mut outputs = vec![OutputRecord {
         path: output.path.clone(),
         format: output.format.name().to_string(),
         bit_depth: output.bit_depth,
         width: output.width,
         height: output.height,
-        file_digest: Digest::of_bytes(&encoded.bytes),
-        pixel_digest: encoded.pixels.pixel_digest(),
+        file_digest,
+        pixel_digest,
     }];
-    for extra in &synthesis.extras {
-        let (record, bytes) = encode_extra(&output.path, extra)?;
-        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
-        outputs.push(record);
-    }
-    out.write(&output.path, &encoded.bytes).map_err(JobFailure::Write)?;
+    outputs.extend(extras);
     Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
 }
 

@@ -77,6 +77,21 @@ pub trait Method: Send + Sync {
     fn check(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         Vec::new()
     }
+    /// The peak memory of [`Method::synthesize`] for a job of these sizes, in bytes: the method's
+    /// own working set at its largest, its output image included (not the sample, which the caller
+    /// holds). Stated from measured peak RSS, not guessed, and rather too large than too small:
+    /// the runner refuses a job whose estimate exceeds `--max-memory` and never starts jobs whose
+    /// estimates together exceed it (`tests/it/memory.rs` checks every method against real runs).
+    fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64;
     /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
     fn synthesize(&self, request: &Request) -> Result<Synthesis, SynthError>;
+}
+
+/// Bytes of `per_output_pixel` per output pixel, plus `per_sample_pixel` per sample pixel, plus
+/// `fixed`: the shape every method's [`Method::peak_memory`] takes (their tables, canvases and
+/// search buffers grow with one size or the other).
+pub fn linear_memory(sample: (u32, u32), output: (u32, u32), per_output_pixel: f64, per_sample_pixel: f64, fixed: u64) -> u64 {
+    let out = f64::from(output.0) * f64::from(output.1);
+    let smp = f64::from(sample.0) * f64::from(sample.1);
+    (per_output_pixel * out + per_sample_pixel * smp).ceil() as u64 + fixed
 }

@@ -652,6 +652,11 @@ impl Method for PatchSampling {
         errors
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // PEAK_MEMORY_patch_sampling
+        crate::synth::method::linear_memory(sample, output, 6.0, 64.0, 8 << 20)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = PatchSamplingConfig::from_params(req.params)?;
         let (block, overlap) = (cfg.block, cfg.overlap_or_derived());

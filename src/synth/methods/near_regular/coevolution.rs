@@ -630,6 +630,11 @@ impl Method for Coevolution {
         }
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // PEAK_MEMORY_coevolution
+        crate::synth::method::linear_memory(sample, output, 6.0, 64.0, 8 << 20)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = CoevolutionConfig::from_params(req.params)?;
         let sample = req.sample;

@@ -626,6 +626,11 @@ impl Method for RwTiles {
         errors
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // PEAK_MEMORY_rw_tiles
+        crate::synth::method::linear_memory(sample, output, 6.0, 64.0, 8 << 20)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = RwTilesConfig::from_params(req.params)?;
         let (tile, ov) = (cfg.tile as i32, cfg.overlap as i32);

@@ -582,6 +582,11 @@ impl Method for WangTiles {
         errors
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // PEAK_MEMORY_wang_tiles
+        crate::synth::method::linear_memory(sample, output, 6.0, 64.0, 8 << 20)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = WangTilesConfig::from_params(req.params)?;
         let (t, ov) = (cfg.tile as i32, cfg.overlap as i32);
