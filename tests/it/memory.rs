@@ -53,6 +53,7 @@ fn estimates_cover_the_measured_peak_of_every_method() {
         }
         report.push(line);
     }
+    eprintln!("{}", report.join("\n"));
     assert!(
         failures.is_empty(),
         "outside measured ≤ estimate ≤ 1.5 × measured + 48 MiB:\n{}\n\nall:\n{}",
@@ -96,7 +97,7 @@ fn a_bad_size_is_a_usage_error() {
     let d = scratch("mem-usage");
     job(&d.join("jobs"), "small", "rw-tiles", "bricks_gray.png", 256, "tile = 64\noverlap = 8");
     for bad in ["2X", "lots", "0", "-1G", ""] {
-        let r = run_expect(texsyn().arg("run").arg(d.join("jobs")).arg("-o").arg(d.join("out")).args(["--max-memory", bad]), 2);
+        let r = run_expect(texsyn().arg("run").arg(d.join("jobs")).arg("-o").arg(d.join("out")).arg(format!("--max-memory={bad}")), 2);
         assert!(text(&r).contains("--max-memory"), "{bad}: {}", text(&r));
         assert!(!d.join("out").exists(), "nothing ran");
     }
