@@ -10,9 +10,12 @@
 //! A job's estimate is [`Method::peak_memory`] (the method's own working set, output image
 //! included; stated by each method from measurements) plus what the runner holds around it: the
 //! process itself, the decoded sample, the encoder's buffers and, if the job asks for metrics,
-//! their analysis of the output. `tests/it/memory.rs` checks the estimates against the peak RSS of
-//! real runs, for every method.
+//! their analysis of the output. Large tile fills are rendered and written strip by strip
+//! ([`crate::batch::execute::renders_in_strips`]); their estimate is the method's working set
+//! without the image ([`Method::strip_peak_memory`]). `tests/it/memory.rs` checks the estimates
+//! against the peak RSS of real runs, for every method.
 
+use crate::batch::execute::renders_in_strips;
 use crate::batch::job::OutputSpec;
 use crate::image::io::Format;
 use crate::synth::method::Method;
@@ -36,6 +39,11 @@ pub const PROCESS_BYTES: u64 = 24 * MIB;
 pub fn job_estimate(method: &dyn Method, params: &Params, sample: (u32, u32), output: &OutputSpec, metrics: bool) -> u64 {
     let out_px = u64::from(output.width) * u64::from(output.height);
     let raw = out_px * 3;
+    let sample_bytes = u64::from(sample.0) * u64::from(sample.1) * 3;
+    if renders_in_strips(method, output, metrics) {
+        // One strip at a time (counted by the method) and the PNG compressor's window and buffer.
+        return PROCESS_BYTES + 2 * sample_bytes + method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
+    }
     let synthesis = method.peak_memory(params, sample, (output.width, output.height));
     // PNG keeps the whole compressed stream before writing it (at worst the raw rows plus a
     // little); 16-bit PNG first widens the samples (twice, native and big-endian); EXR holds the
@@ -48,7 +56,6 @@ pub fn job_estimate(method: &dyn Method, params: &Params, sample: (u32, u32), ou
     // The metrics' analyses of the output (gray levels, gradients, orientation histograms and
     // FFT autocorrelations in f64): measured at about 90 bytes per output pixel.
     let metrics_bytes = if metrics { raw + 96 * out_px } else { 0 };
-    let sample_bytes = u64::from(sample.0) * u64::from(sample.1) * 3;
     PROCESS_BYTES + 2 * sample_bytes + synthesis.max(encoding).max(metrics_bytes)
 }
 

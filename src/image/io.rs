@@ -390,6 +390,43 @@ pub fn encode_to(img: &RgbImage, enc: Encoding, w: &mut dyn std::io::Write) -> R
     Ok(encoded.pixels.pixel_digest())
 }
 
+/// Encodes an 8-bit RGB PNG of `width × height` from strips of `strip_rows` rows that
+/// `render(y0, rows)` fills, into `w` as it goes; returns the pixel digest. Memory: one strip and
+/// the compressor's window, whatever the size. The same pixels, filter and compression level as
+/// [`encode`] of the whole image; the file differs only in how the compressed stream is cut into
+/// IDAT chunks.
+pub fn encode_png_strips(
+    width: u32,
+    height: u32,
+    strip_rows: u32,
+    w: &mut dyn std::io::Write,
+    render: &mut dyn FnMut(u32, &mut [u8]),
+) -> Result<Digest, ImageError> {
+    let fail = |e: png::EncodingError| ImageError::Encode(format!("PNG encoding failed: {e}"));
+    let mut encoder = png::Encoder::new(w, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Balanced);
+    encoder.set_filter(png::Filter::Adaptive);
+    let mut writer = encoder.write_header().map_err(fail)?;
+    let mut stream = writer.stream_writer_with_size(1 << 20).map_err(fail)?;
+    let mut digest = pixel_hasher(width, height, 3, "u8");
+    let row = width as usize * 3;
+    let mut strip = vec![0u8; row * strip_rows.clamp(1, height.max(1)) as usize];
+    let mut y0 = 0;
+    while y0 < height {
+        let n = strip_rows.max(1).min(height - y0);
+        let rows = &mut strip[..row * n as usize];
+        render(y0, rows);
+        digest.update(rows);
+        std::io::Write::write_all(&mut stream, rows).map_err(ImageError::Io)?;
+        y0 += n;
+    }
+    stream.finish().map_err(fail)?;
+    writer.finish().map_err(fail)?;
+    Ok(digest.finish())
+}
+
 /// Encodes an 8-bit RGB image as PNG (8 or 16 bits) or EXR (32-bit float, linear light: the sRGB
 /// values are linearised, since EXR holds scene-linear data).
 pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
@@ -464,6 +501,21 @@ mod tests {
             assert_eq!(digest, whole.pixels.pixel_digest());
         }
         assert_eq!(rgb_pixel_digest(&img()), NativeImage::from_rgb8(&img()).pixel_digest());
+    }
+
+    #[test]
+    fn png_in_strips_has_the_same_pixels() {
+        let whole = img();
+        for strip in [1, 4, 9, 100] {
+            let mut bytes = Vec::new();
+            let digest = encode_png_strips(17, 9, strip, &mut bytes, &mut |y0, rows| {
+                rows.copy_from_slice(&whole.as_raw()[y0 as usize * 17 * 3..][..rows.len()]);
+            })
+            .unwrap();
+            assert_eq!(digest, rgb_pixel_digest(&whole));
+            let back = decode_native(&bytes, DecodeLimits::default()).unwrap();
+            assert_eq!(back.pixel_digest(), digest, "strips of {strip}");
+        }
     }
 
     #[test]

@@ -19,13 +19,13 @@
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
 use super::common::{EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
 use super::export::export_wang;
-use super::wang::{TileSet, TilingOrder};
+use super::wang::{TileSet, Tiling, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
-use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::method::{Method, Request, Strips, Synthesis};
 use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
 use crate::synth::primitives::shortest_path::{flood4, shortest_path};
 use crate::synth::rng::Stream;
@@ -589,7 +589,37 @@ impl Method for WangTiles {
         crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20)
     }
 
+    fn strip_peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // The tile set as above, the tiling (one byte per tile) and one strip of output rows.
+        let strip = u64::from(output.0) * u64::from(crate::synth::method::STRIP_ROWS) * 3;
+        crate::synth::method::linear_memory(sample, output, 0.01, 64.0, 4 << 20) + strip
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
+        let (mut synthesis, tiles, tiling) = self.fill(req)?;
+        let t = Instant::now();
+        synthesis.image = tiles.render(&tiling, req.width, req.height);
+        if let Some(fill) = synthesis.phases.iter_mut().find(|p| p.0 == "fill") {
+            fill.1 += t.elapsed().as_secs_f64();
+        }
+        Ok(synthesis)
+    }
+
+    fn renders_in_strips(&self) -> bool {
+        true
+    }
+
+    fn synthesize_strips(&self, req: &Request) -> Result<Strips, SynthError> {
+        let (synthesis, tiles, tiling) = self.fill(req)?;
+        let width = req.width;
+        Ok(Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)) })
+    }
+}
+
+impl WangTiles {
+    /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
+    /// synthesis record with a 0×0 image.
+    fn fill(&self, req: &Request) -> Result<(Synthesis, WangTileSet, Tiling), SynthError> {
         let cfg = WangTilesConfig::from_params(req.params)?;
         let (t, ov) = (cfg.tile as i32, cfg.overlap as i32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
@@ -612,7 +642,6 @@ impl Method for WangTiles {
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
-        let image = tiles.render(&tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -629,13 +658,14 @@ impl Method for WangTiles {
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
         }
-        Ok(Synthesis {
-            image,
+        let synthesis = Synthesis {
+            image: RgbImage::new(0, 0),
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
             extras: if cfg.export_tiles { export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
-        })
+        };
+        Ok((synthesis, tiles, tiling))
     }
 }
 
