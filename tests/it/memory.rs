@@ -66,7 +66,7 @@ fn estimates_cover_the_measured_peak_of_every_method() {
 fn a_job_over_the_limit_is_refused_and_the_others_still_run() {
     let d = scratch("mem-refuse");
     let jobs = d.join("jobs");
-    job(&jobs, "huge", "rw-tiles", "bricks_gray.png", 65536, "tile = 64\noverlap = 8");
+    job(&jobs, "huge", "quilting", "bricks_gray.png", 65536, "block = 50\noverlap = 8");
     job(&jobs, "small", "rw-tiles", "bricks_gray.png", 256, "tile = 64\noverlap = 8");
     let out = d.join("out");
     let r = run_expect(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "--max-memory", "2G"]), 1);
@@ -139,4 +139,21 @@ fn results_do_not_depend_on_the_limit() {
     let one = d.join("one");
     run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&one).args(["-q", "-j", "1", "--max-memory", &largest.to_string()]));
     assert_eq!(digests(&free), digests(&one));
+}
+
+#[test]
+fn large_tile_fills_are_written_in_strips_with_the_same_pixels() {
+    // 8192² (the strip threshold): rendered and encoded strip by strip, so the peak stays far below
+    // the 192 MiB of the image; `verify` re-runs them whole, in memory, and must find the same pixels.
+    let d = scratch("mem-strips");
+    let jobs = d.join("jobs");
+    job(&jobs, "rw", "rw-tiles", "bricks_gray.png", 8192, "tile = 64\noverlap = 8");
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", "2"]));
+    let m = manifest(&out);
+    let measured = m["run"]["peak_rss_bytes"].as_u64().unwrap() as f64;
+    let estimate = m["jobs"][0]["timing"]["estimated_peak_bytes"].as_u64().unwrap() as f64;
+    assert!(measured < 64.0 * MIB, "peak RSS {:.1} MiB", measured / MIB);
+    assert!(measured <= estimate && estimate <= 1.5 * measured + 48.0 * MIB, "estimate {estimate}, measured {measured}");
+    run_ok(texsyn().arg("verify").arg(out.join("manifest.json")));
 }
