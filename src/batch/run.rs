@@ -166,6 +166,9 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     let not_run = Mutex::new(Vec::new());
     // Jobs are handed out in order, each once its estimate fits in what the running ones leave of
     // the limit; the pool's threads bound how many run at once. Only start times depend on this.
+    // One dispatcher waits for the budget, never a job: methods use rayon inside, and a worker
+    // blocked in a nested join may steal another job, which must not then wait for memory that
+    // the job beneath it on the same stack holds.
     let budget = Budget::new(opts.max_memory);
     let run_one = |entry: &Entry| {
         if opts.interrupt.as_ref().is_some_and(|f| f.load(Ordering::SeqCst)) {
