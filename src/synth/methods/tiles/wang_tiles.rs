@@ -584,7 +584,8 @@ impl Method for WangTiles {
 
     fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256², tile 64): the rendered output (3 B per
-        // pixel) and the tile set, built from sample-sized cost planes; 4096²: 78 MB, 8192²: 285 MB
+        // pixel) and the tile set, built from sample-sized cost planes; 4096²: 78 MB, 8192² (rendered
+        // whole, before fills that large went strip by strip): 285 MB
         // in all, whose peak is while the PNG encoder holds its compressed stream.
         crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20)
     }
