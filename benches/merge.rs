@@ -59,6 +59,7 @@ fn record(k: usize) -> JobRecord {
             phases: Default::default(),
             total_seconds: 0.45,
             finished_at: 1_700_000_000 + k as u64,
+            estimated_peak_bytes: None,
         }),
     }
 }

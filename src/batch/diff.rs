@@ -215,6 +215,7 @@ mod tests {
                 phases: Default::default(),
                 total_seconds: seconds,
                 finished_at: 0,
+                estimated_peak_bytes: None,
             }),
         }
     }

@@ -12,7 +12,7 @@ use crate::image::RgbImage;
 use crate::image::io::{self as imageio, DecodeLimits, Encoded, ImageError};
 use crate::metrics::MetricError;
 use crate::synth::error::SynthError;
-use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, Synthesis};
+use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, STRIP_ROWS, Synthesis};
 use crate::synth::params::Params;
 use std::collections::BTreeMap;
 use std::fmt;
@@ -96,8 +96,9 @@ pub fn install_panic_hook() {
     }));
 }
 
-/// Runs the method (catching panics) and encodes the result as the job asked; also returns the
-/// synthesis seconds.
+/// Runs the method (catching panics) and encodes the result as the job asked, in memory; also
+/// returns the synthesis seconds. `verify` uses it; `run` encodes straight into the output file
+/// with the same encoder ([`imageio::encode_to`]), so the bytes are the same.
 pub fn synthesize_and_encode(
     method: &dyn Method,
     sample: &RgbImage,
@@ -105,23 +106,24 @@ pub fn synthesize_and_encode(
     seed: u64,
     output: &OutputSpec,
 ) -> Result<(Synthesis, Encoded, f64), JobFailure> {
+    let (synthesis, seconds) = synthesize(method, sample, params, seed, output)?;
+    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
+    Ok((synthesis, encoded, seconds))
+}
+
+/// Runs the method, catching panics and checking the size of what it returns; also returns the
+/// synthesis seconds.
+pub fn synthesize(
+    method: &dyn Method,
+    sample: &RgbImage,
+    params: &Params,
+    seed: u64,
+    output: &OutputSpec,
+) -> Result<(Synthesis, f64), JobFailure> {
     let request = Request { sample, width: output.width, height: output.height, params, seed };
     let started = Instant::now();
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| method.synthesize(&request)));
+    let synthesis = caught(method, || method.synthesize(&request))?;
     let seconds = started.elapsed().as_secs_f64();
-    let synthesis = match result {
-        Ok(Ok(s)) => s,
-        Ok(Err(source)) => return Err(JobFailure::Synthesis { method: method.name(), source }),
-        Err(panic) => {
-            let what = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_else(|| "unknown panic".into());
-            let at = PANIC_LOCATION.with(|p| p.borrow_mut().take());
-            return Err(JobFailure::Crashed { method: method.name(), what, at });
-        }
-    };
     if synthesis.image.dimensions() != (output.width, output.height) {
         return Err(JobFailure::WrongSize {
             method: method.name(),
@@ -129,8 +131,37 @@ pub fn synthesize_and_encode(
             want: (output.width, output.height),
         });
     }
-    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
-    Ok((synthesis, encoded, seconds))
+    Ok((synthesis, seconds))
+}
+
+/// Runs `f`, turning a method's error or panic into the job's failure.
+fn caught<T>(method: &dyn Method, f: impl FnOnce() -> Result<T, SynthError>) -> Result<T, JobFailure> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(Ok(value)) => Ok(value),
+        Ok(Err(source)) => Err(JobFailure::Synthesis { method: method.name(), source }),
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            let at = PANIC_LOCATION.with(|p| p.borrow_mut().take());
+            Err(JobFailure::Crashed { method: method.name(), what, at })
+        }
+    }
+}
+
+/// Outputs of at least this many pixels are rendered and written strip by strip where the method
+/// can ([`Method::renders_in_strips`]: the tile fills), so that memory stays near the working set
+/// instead of the whole image. Smaller ones are encoded whole, as before, byte for byte.
+pub const STRIP_MIN_PIXELS: u64 = 8192 * 8192;
+
+/// Whether a job's output is rendered and written in strips: a method that can, an 8-bit PNG of
+/// at least [`STRIP_MIN_PIXELS`], and no metrics (they need the whole image). A function of the
+/// job alone, never of the memory limit, so results do not depend on the limit.
+pub fn renders_in_strips(method: &dyn Method, output: &OutputSpec, metrics: bool) -> bool {
+    let pixels = u64::from(output.width) * u64::from(output.height);
+    method.renders_in_strips() && !metrics && output.format == imageio::Format::Png && output.bit_depth == 8 && pixels >= STRIP_MIN_PIXELS
 }
 
 /// The metric values of a job (`None` for a metric undefined on this pair of images).
@@ -147,7 +178,8 @@ pub struct Executed {
 }
 
 /// Synthesises, scores and writes one job into `out`. The main output is written last: a job
-/// whose main output is in place is complete.
+/// whose main output is in place is complete. It is encoded straight into its file, so no
+/// encoded copy of a large output is held beside its pixels.
 pub fn execute(
     method: &dyn Method,
     sample: &RgbImage,
@@ -157,7 +189,10 @@ pub fn execute(
     metric_names: &[String],
     out: &OutDir,
 ) -> Result<Executed, JobFailure> {
-    let (synthesis, encoded, synthesis_seconds) = synthesize_and_encode(method, sample, params, seed, output)?;
+    if renders_in_strips(method, output, !metric_names.is_empty()) {
+        return execute_in_strips(method, sample, params, seed, output, out);
+    }
+    let (synthesis, synthesis_seconds) = synthesize(method, sample, params, seed, output)?;
     let metrics_started = Instant::now();
     let metrics = if metric_names.is_empty() {
         None
@@ -166,22 +201,86 @@ pub fn execute(
         Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
+    let mut extras = Vec::new();
+    for extra in &synthesis.extras {
+        let (record, bytes) = encode_extra(&output.path, extra)?;
+        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
+        extras.push(record);
+    }
+    let mut encode_error = None;
+    let written = out.write_streamed(&output.path, |w| {
+        imageio::encode_to(&synthesis.image, output.encoding(), w).map_err(|e| {
+            let io = std::io::Error::other(e.to_string());
+            encode_error = Some(e);
+            io
+        })
+    });
+    let (pixel_digest, file_digest) = match (written, encode_error) {
+        (Ok(done), _) => done,
+        (Err(_), Some(e)) => return Err(JobFailure::Encode(e)),
+        (Err(e), None) => return Err(JobFailure::Write(e)),
+    };
     let mut outputs = vec![OutputRecord {
         path: output.path.clone(),
         format: output.format.name().to_string(),
         bit_depth: output.bit_depth,
         width: output.width,
         height: output.height,
-        file_digest: Digest::of_bytes(&encoded.bytes),
-        pixel_digest: encoded.pixels.pixel_digest(),
+        file_digest,
+        pixel_digest,
     }];
-    for extra in &synthesis.extras {
+    outputs.extend(extras);
+    Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
+}
+
+/// [`execute`] of a job whose output is rendered strip by strip into its file as it is encoded:
+/// the whole image is never held. The same pixels, diagnostics and extras; the rendering time is
+/// in the job's total, not its synthesis seconds.
+fn execute_in_strips(
+    method: &dyn Method,
+    sample: &RgbImage,
+    params: &Params,
+    seed: u64,
+    output: &OutputSpec,
+    out: &OutDir,
+) -> Result<Executed, JobFailure> {
+    let request = Request { sample, width: output.width, height: output.height, params, seed };
+    let started = Instant::now();
+    let strips = caught(method, || method.synthesize_strips(&request))?;
+    let synthesis_seconds = started.elapsed().as_secs_f64();
+    let mut extras = Vec::new();
+    for extra in &strips.synthesis.extras {
         let (record, bytes) = encode_extra(&output.path, extra)?;
         out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
-        outputs.push(record);
+        extras.push(record);
     }
-    out.write(&output.path, &encoded.bytes).map_err(JobFailure::Write)?;
-    Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
+    let render = &strips.render;
+    let mut encode_error = None;
+    let written = caught(method, || {
+        Ok(out.write_streamed(&output.path, |w| {
+            imageio::encode_png_strips(output.width, output.height, STRIP_ROWS, w, &mut |y0, rows| render(y0, rows)).map_err(|e| {
+                let io = std::io::Error::other(e.to_string());
+                encode_error = Some(e);
+                io
+            })
+        }))
+    })?;
+    let (pixel_digest, file_digest) = match (written, encode_error) {
+        (Ok(done), _) => done,
+        (Err(_), Some(e)) => return Err(JobFailure::Encode(e)),
+        (Err(e), None) => return Err(JobFailure::Write(e)),
+    };
+    let mut outputs = vec![OutputRecord {
+        path: output.path.clone(),
+        format: output.format.name().to_string(),
+        bit_depth: output.bit_depth,
+        width: output.width,
+        height: output.height,
+        file_digest,
+        pixel_digest,
+    }];
+    outputs.extend(extras);
+    Ok(Executed { outputs, synthesis: strips.synthesis, synthesis_seconds, metrics: None, metrics_seconds: 0.0 })
 }
 
 /// Where an extra output of the job whose main output is `output_path` is stored:

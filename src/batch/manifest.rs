@@ -104,6 +104,10 @@ pub struct Timing {
     pub total_seconds: f64,
     /// When it ran, seconds since the Unix epoch.
     pub finished_at: u64,
+    /// The job's estimated peak memory in bytes (`batch::memory`), which the scheduler reserved
+    /// while it ran. A model's output, so kept out of the deterministic part like the times.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimated_peak_bytes: Option<u64>,
 }
 
 /// One job's record.
@@ -175,6 +179,13 @@ pub struct RunFacts {
     /// Set by `texsyn merge`: the fragments the manifest was merged from.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub merged_from: Vec<ShardFacts>,
+    /// The memory limit the run kept to (`--max-memory`), in bytes; absent when it had none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_memory_bytes: Option<u64>,
+    /// The process's peak resident set size (VmHWM) when the manifest was written, in bytes,
+    /// where the platform reports it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_rss_bytes: Option<u64>,
 }
 
 /// Which part of a split run a fragment holds, and what the scheduler called it.
@@ -384,6 +395,7 @@ mod tests {
                 phases: Default::default(),
                 total_seconds: 2.0,
                 finished_at: 5,
+                estimated_peak_bytes: None,
             }),
         }
     }

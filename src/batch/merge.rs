@@ -184,6 +184,8 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
         shard: None,
         not_run: runs.iter().flat_map(|r| r.not_run.iter().cloned()).collect(),
         merged_from: facts,
+        max_memory_bytes: runs.iter().filter_map(|r| r.max_memory_bytes).min(),
+        peak_rss_bytes: runs.iter().filter_map(|r| r.peak_rss_bytes).max(),
     };
     let manifest = Manifest::with_tool(tool, jobs, run);
     Ok(Merged { manifest, fragments: paths, missing_shards, unfinished_shards, missing_jobs, failed })
@@ -229,6 +231,7 @@ mod tests {
                 phases: Default::default(),
                 total_seconds: 0.6,
                 finished_at: 9,
+                estimated_peak_bytes: None,
             }),
         }
     }

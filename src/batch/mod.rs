@@ -1,8 +1,9 @@
 //! The batch pipeline, in the order a run goes through it:
 //!
 //! 1. [`job`]: job files → validated jobs (sweeps expanded, every problem with file:line:key);
-//! 2. [`plan`]: samples decoded, method checks, content keys, and for each job *run (why)* or
-//!    *up to date* — data, printed by `--dry-run`;
+//! 2. [`plan`]: samples decoded, method checks, memory estimates against `--max-memory`
+//!    ([`memory`]), content keys, and for each job *run (why)* or *up to date* — data, printed by
+//!    `--dry-run`;
 //! 3. [`execute`]: one job synthesised, scored and written (shared by `run` and `verify`);
 //! 4. [`run`]: the plan executed in parallel under the output directory's lock ([`outdir`]),
 //!    the [`manifest`] rewritten as jobs finish, progress sent to an [`observer`];
@@ -13,6 +14,7 @@ pub mod execute;
 pub mod golden;
 pub mod job;
 pub mod manifest;
+pub mod memory;
 pub mod merge;
 pub mod observer;
 pub mod outdir;

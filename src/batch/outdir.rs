@@ -6,6 +6,7 @@
 //! so a killed run never leaves it stuck. Paths are checked to resolve inside the directory, so a
 //! symlink planted in it cannot redirect a write elsewhere.
 
+use crate::digest::{Digest, Hasher};
 use crate::error::Error;
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -94,6 +95,13 @@ impl OutDir {
         Ok(path)
     }
 
+    /// Writes what `produce` writes to the relative path atomically, as it is produced (nothing
+    /// is held in memory but a small buffer); returns `produce`'s result and the file's digest.
+    pub fn write_streamed<T>(&self, rel: &str, produce: impl FnOnce(&mut dyn Write) -> std::io::Result<T>) -> Result<(T, Digest), Error> {
+        let path = self.resolve(rel)?;
+        write_tagged_with(&path, &self.tag, produce)
+    }
+
     /// Writes `bytes` to the relative path atomically.
     pub fn write(&self, rel: &str, bytes: &[u8]) -> Result<PathBuf, Error> {
         let path = self.resolve(rel)?;
@@ -128,19 +136,44 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 
 /// [`write_atomic`] with the writer's tag in the temporary's name.
 fn write_tagged(path: &Path, bytes: &[u8], tag: &str) -> Result<(), Error> {
+    write_tagged_with(path, tag, |w| w.write_all(bytes)).map(|_| ())
+}
+
+/// A writer that hashes what passes through it.
+struct Hashing<W> {
+    inner: W,
+    hasher: Hasher,
+}
+
+impl<W: Write> Write for Hashing<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.hasher.update(&buf[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// [`write_tagged`] of what `produce` writes, hashed on the way.
+fn write_tagged_with<T>(path: &Path, tag: &str, produce: impl FnOnce(&mut dyn Write) -> std::io::Result<T>) -> Result<(T, Digest), Error> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{tag}{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = File::create(&tmp)?;
-        f.write_all(bytes)?;
+    let result = (|| -> std::io::Result<(T, Digest)> {
+        let mut w = Hashing { inner: std::io::BufWriter::with_capacity(1 << 16, File::create(&tmp)?), hasher: Hasher::new() };
+        let value = produce(&mut w)?;
+        w.flush()?;
+        let digest = w.hasher.finish();
+        let f = w.inner.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
         drop(f);
         std::fs::rename(&tmp, path)?;
         if let Ok(d) = File::open(dir) {
             let _ = d.sync_all();
         }
-        Ok(())
+        Ok((value, digest))
     })();
     result.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);

@@ -8,6 +8,7 @@
 use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
 use crate::batch::job::{self, InvalidJob, Job, JobError, JobSet};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
+use crate::batch::memory;
 use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
@@ -27,6 +28,8 @@ pub struct PlanOptions {
     pub force: bool,
     /// Plan only this worker's part of the job set.
     pub shard: Option<Shard>,
+    /// Jobs whose estimated peak memory exceeds this many bytes are invalid (`None`: no limit).
+    pub max_memory: Option<u64>,
 }
 
 /// Why a job runs.
@@ -69,6 +72,8 @@ pub struct Entry {
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
     pub action: Action,
+    /// Estimated peak memory of running it, in bytes ([`memory::job_estimate`]).
+    pub memory: u64,
 }
 
 /// This worker's part of a split job set.
@@ -108,8 +113,8 @@ impl Plan {
             .iter()
             .map(|e| {
                 let what = match &e.action {
-                    Action::Run(r) => format!("will run: {r}"),
-                    Action::UpToDate => "up to date".to_string(),
+                    Action::Run(r) => format!("will run: {r}; needs about {}", memory::human(e.memory)),
+                    Action::UpToDate => format!("up to date (would need about {})", memory::human(e.memory)),
                 };
                 (e.job.id.clone(), what)
             })
@@ -163,10 +168,17 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
+        let estimate = memory::job_estimate(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty());
         let (content_key, mut record) = base_record(&job, &sample, &opts.out);
         record.warnings = advice::warning(&analyses[&sample.pixel_digest.sha256], job.method.name(), &job.params).into_iter().collect();
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
-        entries.push(Entry { job, sample, content_key, record, action });
+        // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
+        if let Some(limit) = opts.max_memory.filter(|&l| estimate > l && action != Action::UpToDate) {
+            let errors = vec![job.error(Some("output"), memory::too_large(estimate, limit))];
+            invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+            continue;
+        }
+        entries.push(Entry { job, sample, content_key, record, action, memory: estimate });
     }
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
     Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous })

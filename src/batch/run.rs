@@ -1,21 +1,23 @@
 //! Running a plan: parallel deterministic execution and a manifest that is always consistent
 //! with the files on disk.
 //!
-//! Jobs run on a rayon pool (`threads`); a job's pixels depend only on its inputs, never on the
-//! pool size, the order jobs are taken in, or which thread runs them. A failing or panicking job
+//! Jobs run on a rayon pool (`threads`), started in id order as their estimated peak memory fits
+//! under `--max-memory` beside the jobs already running ([`memory::Budget`]); a job's pixels
+//! depend only on its inputs, never on the pool size, the limit, the order jobs are taken in, or
+//! which thread runs them. A failing or panicking job
 //! is recorded and the others go on. The manifest is rewritten atomically as jobs finish (at most
 //! a few times per second), so a run killed at any instant can be resumed: finished jobs are
 //! recognised as up to date by their content key and the hash of their output file.
 
 use crate::batch::execute::execute;
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
+use crate::batch::memory::{self, Budget};
 pub use crate::batch::observer::Summary;
 use crate::batch::observer::{Event, Observer};
 use crate::batch::outdir::OutDir;
-use crate::batch::plan::{self, Action, Plan, PlanOptions};
+use crate::batch::plan::{self, Action, Entry, Plan, PlanOptions};
 use crate::batch::shard::Shard;
 use crate::error::Error;
-use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -37,6 +39,9 @@ pub struct RunOptions {
     /// Run only this worker's part and record it in its own manifest fragment
     /// (`manifest.shard-I-of-N.json`), for `texsyn merge` to join.
     pub shard: Option<Shard>,
+    /// Memory limit in bytes (`--max-memory`): jobs estimated to need more are invalid, and jobs
+    /// whose estimates together exceed it never run at once. `None`: no limit.
+    pub max_memory: Option<u64>,
 }
 
 impl RunOptions {
@@ -45,7 +50,7 @@ impl RunOptions {
     }
 
     fn plan_options(&self) -> PlanOptions {
-        PlanOptions { out: self.out.clone(), force: self.force, shard: self.shard }
+        PlanOptions { out: self.out.clone(), force: self.force, shard: self.shard, max_memory: self.max_memory }
     }
 }
 
@@ -146,6 +151,8 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         shard: shard_facts.clone(),
         not_run: Vec::new(),
         merged_from: Vec::new(),
+        max_memory_bytes: opts.max_memory,
+        peak_rss_bytes: memory::peak_rss(),
     };
     let summary = Summary { invalid: plan.invalid.len(), up_to_date: plan.up_to_date(), ..Summary::default() };
     write_manifest(out, &manifest_name, &records, facts(&summary, true))?;
@@ -163,7 +170,13 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     observer.event(&Event::Planned { to_run: to_run.len() });
     let interrupted = AtomicBool::new(false);
     let not_run = Mutex::new(Vec::new());
-    to_run.par_iter().with_max_len(1).for_each(|entry| {
+    // Jobs are handed out in order, each once its estimate fits in what the running ones leave of
+    // the limit; the pool's threads bound how many run at once. Only start times depend on this.
+    // One dispatcher waits for the budget, never a job: methods use rayon inside, and a worker
+    // blocked in a nested join may steal another job, which must not then wait for memory that
+    // the job beneath it on the same stack holds.
+    let budget = Budget::new(opts.max_memory);
+    let run_one = |entry: &Entry| {
         if opts.interrupt.as_ref().is_some_and(|f| f.load(Ordering::SeqCst)) {
             interrupted.store(true, Ordering::SeqCst);
             not_run.lock().expect("not run").push(entry.job.id.clone());
@@ -185,6 +198,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
                     phases: done.synthesis.phases.into_iter().collect(),
                     total_seconds: job_started.elapsed().as_secs_f64(),
                     finished_at: now_unix(),
+                    estimated_peak_bytes: Some(entry.memory),
                 });
             }
             Err(e) => {
@@ -205,6 +219,16 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
             if let Err(e) = write_manifest(out, &manifest_name, &s.records, facts(&s.summary, true)) {
                 observer.event(&Event::Warning(format!("cannot write the manifest yet: {e}")));
             }
+        }
+    };
+    rayon::scope(|scope| {
+        for &entry in &to_run {
+            let held = budget.acquire(entry.memory);
+            let run_one = &run_one;
+            scope.spawn(move |_| {
+                run_one(entry);
+                drop(held);
+            });
         }
     });
     let mut s = state.into_inner().expect("state");

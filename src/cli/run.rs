@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use texsyn::Error;
+use texsyn::batch::memory;
 use texsyn::batch::run::{self as batch_run, RunOptions};
 use texsyn::batch::shard::Shard;
 
@@ -42,6 +43,13 @@ pub struct Args {
     /// anyway (a second signal stops at once). Below Slurm's and Kubernetes' default 30 s.
     #[arg(long, default_value_t = 20, value_name = "SECONDS")]
     grace: u64,
+    /// Memory limit: a job whose estimated peak memory exceeds it is refused (invalid, with its
+    /// estimate), and jobs whose estimates together exceed it never run at once. SIZE is bytes or
+    /// a number with K, M, G or T (powers of 1024): 2G, 512M, 1.5GiB; `unlimited` for none.
+    /// Default: the memory available when the run starts (MemAvailable), or none where unknown.
+    /// Results do not depend on it.
+    #[arg(long, value_name = "SIZE", default_value_t = MemoryLimit::available())]
+    max_memory: MemoryLimit,
     /// Take jobs in reverse order (for testing order independence).
     #[arg(long, hide = true)]
     reverse: bool,
@@ -56,8 +64,15 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok())?),
         Some(s) => Some(Shard::parse(s)?),
     };
-    let mut opts =
-        RunOptions { out: args.out.clone(), threads: args.jobs, force: args.force, reverse: args.reverse, interrupt: None, shard };
+    let mut opts = RunOptions {
+        out: args.out.clone(),
+        threads: args.jobs,
+        force: args.force,
+        reverse: args.reverse,
+        interrupt: None,
+        shard,
+        max_memory: args.max_memory.0,
+    };
     if args.dry_run {
         return dry_run(&args, &opts);
     }
@@ -114,6 +129,37 @@ fn dry_run(args: &Args, opts: &RunOptions) -> Result<Outcome, Error> {
         );
     }
     Ok(if plan.invalid.is_empty() { Outcome::Success } else { Outcome::Problems })
+}
+
+/// `--max-memory`: bytes, or no limit.
+#[derive(Clone, Copy, Debug)]
+struct MemoryLimit(Option<u64>);
+
+impl MemoryLimit {
+    /// The memory available now, the default limit (none where the platform does not say).
+    fn available() -> MemoryLimit {
+        MemoryLimit(memory::available())
+    }
+}
+
+impl std::fmt::Display for MemoryLimit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            // Whole MiB, so that the default reads back as (almost exactly) what it was.
+            Some(bytes) => write!(f, "{}M", bytes / memory::MIB),
+            None => f.write_str("unlimited"),
+        }
+    }
+}
+
+impl std::str::FromStr for MemoryLimit {
+    type Err = String;
+    fn from_str(s: &str) -> Result<MemoryLimit, String> {
+        if s.trim().eq_ignore_ascii_case("unlimited") {
+            return Ok(MemoryLimit(None));
+        }
+        memory::parse_size(s).map(|b| MemoryLimit(Some(b)))
+    }
 }
 
 /// SIGINT (Ctrl-C), SIGTERM (what Slurm, Kubernetes and systemd send before a kill at a time limit

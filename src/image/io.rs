@@ -74,13 +74,12 @@ impl NativeImage {
     /// SHA-256 over `texsyn-pixels/1 {width}x{height}x{channels} {u8|u16le|f32le}\n` followed by
     /// the raw samples (little-endian for multi-byte types). Independent of file compression.
     pub fn pixel_digest(&self) -> Digest {
-        let mut h = Hasher::new();
         let kind = match self.samples {
             Samples::U8(_) => "u8",
             Samples::U16(_) => "u16le",
             Samples::F32(_) => "f32le",
         };
-        h.update(format!("texsyn-pixels/1 {}x{}x{} {kind}\n", self.width, self.height, self.channels).as_bytes());
+        let mut h = pixel_hasher(self.width, self.height, self.channels, kind);
         match &self.samples {
             Samples::U8(v) => h.update(v),
             Samples::U16(v) => {
@@ -96,9 +95,19 @@ impl NativeImage {
     }
 }
 
-/// The pixel digest of an 8-bit RGB image (what methods see of a sample).
+/// A hasher fed with the canonical header of [`NativeImage::pixel_digest`].
+fn pixel_hasher(width: u32, height: u32, channels: u32, kind: &str) -> Hasher {
+    let mut h = Hasher::new();
+    h.update(format!("texsyn-pixels/1 {width}x{height}x{channels} {kind}\n").as_bytes());
+    h
+}
+
+/// The pixel digest of an 8-bit RGB image (what methods see of a sample): the same as
+/// `NativeImage::from_rgb8(img).pixel_digest()`, without copying the pixels.
 pub fn rgb_pixel_digest(img: &RgbImage) -> Digest {
-    NativeImage::from_rgb8(img).pixel_digest()
+    let mut h = pixel_hasher(img.width(), img.height(), 3, "u8");
+    h.update(img.as_raw());
+    h.finish()
 }
 
 /// Why an image could not be read, decoded or encoded. Messages say what is wrong with the file,
@@ -360,6 +369,64 @@ pub struct Encoded {
     pub pixels: NativeImage,
 }
 
+/// Encodes like [`encode`] straight into `w` (the same bytes) and returns the pixel digest of
+/// what was stored. For 8-bit PNG nothing but the encoder's own compressed stream is held besides
+/// the image: no copy of the pixels, no second buffer of the file.
+pub fn encode_to(img: &RgbImage, enc: Encoding, w: &mut dyn std::io::Write) -> Result<Digest, ImageError> {
+    if (enc.format, enc.bit_depth) == (Format::Png, 8) {
+        let (width, height) = img.dimensions();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(w),
+            img.as_raw(),
+            width,
+            height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
+        return Ok(rgb_pixel_digest(img));
+    }
+    let encoded = encode(img, enc)?;
+    w.write_all(&encoded.bytes).map_err(ImageError::Io)?;
+    Ok(encoded.pixels.pixel_digest())
+}
+
+/// Encodes an 8-bit RGB PNG of `width × height` from strips of `strip_rows` rows that
+/// `render(y0, rows)` fills, into `w` as it goes; returns the pixel digest. Memory: one strip and
+/// the compressor's window, whatever the size. The same pixels, filter and compression level as
+/// [`encode`] of the whole image; the file differs only in how the compressed stream is cut into
+/// IDAT chunks.
+pub fn encode_png_strips(
+    width: u32,
+    height: u32,
+    strip_rows: u32,
+    w: &mut dyn std::io::Write,
+    render: &mut dyn FnMut(u32, &mut [u8]),
+) -> Result<Digest, ImageError> {
+    let fail = |e: png::EncodingError| ImageError::Encode(format!("PNG encoding failed: {e}"));
+    let mut encoder = png::Encoder::new(w, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Balanced);
+    encoder.set_filter(png::Filter::Adaptive);
+    let mut writer = encoder.write_header().map_err(fail)?;
+    let mut stream = writer.stream_writer_with_size(1 << 20).map_err(fail)?;
+    let mut digest = pixel_hasher(width, height, 3, "u8");
+    let row = width as usize * 3;
+    let mut strip = vec![0u8; row * strip_rows.clamp(1, height.max(1)) as usize];
+    let mut y0 = 0;
+    while y0 < height {
+        let n = strip_rows.max(1).min(height - y0);
+        let rows = &mut strip[..row * n as usize];
+        render(y0, rows);
+        digest.update(rows);
+        std::io::Write::write_all(&mut stream, rows).map_err(ImageError::Io)?;
+        y0 += n;
+    }
+    stream.finish().map_err(fail)?;
+    writer.finish().map_err(fail)?;
+    Ok(digest.finish())
+}
+
 /// Encodes an 8-bit RGB image as PNG (8 or 16 bits) or EXR (32-bit float, linear light: the sRGB
 /// values are linearised, since EXR holds scene-linear data).
 pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
@@ -421,6 +488,34 @@ mod tests {
         let back = decode_native(&e.bytes, DecodeLimits::default()).unwrap();
         assert_eq!(back, e.pixels);
         assert_eq!(native_to_rgb8(&back), img());
+    }
+
+    #[test]
+    fn encoding_into_a_writer_gives_the_same_bytes_and_digest() {
+        for (format, bit_depth) in [(Format::Png, 8), (Format::Png, 16), (Format::Exr, 32)] {
+            let enc = Encoding { format, bit_depth };
+            let whole = encode(&img(), enc).unwrap();
+            let mut streamed = Vec::new();
+            let digest = encode_to(&img(), enc, &mut streamed).unwrap();
+            assert_eq!(streamed, whole.bytes, "{format:?} {bit_depth}");
+            assert_eq!(digest, whole.pixels.pixel_digest());
+        }
+        assert_eq!(rgb_pixel_digest(&img()), NativeImage::from_rgb8(&img()).pixel_digest());
+    }
+
+    #[test]
+    fn png_in_strips_has_the_same_pixels() {
+        let whole = img();
+        for strip in [1, 4, 9, 100] {
+            let mut bytes = Vec::new();
+            let digest = encode_png_strips(17, 9, strip, &mut bytes, &mut |y0, rows| {
+                rows.copy_from_slice(&whole.as_raw()[y0 as usize * 17 * 3..][..rows.len()]);
+            })
+            .unwrap();
+            assert_eq!(digest, rgb_pixel_digest(&whole));
+            let back = decode_native(&bytes, DecodeLimits::default()).unwrap();
+            assert_eq!(back.pixel_digest(), digest, "strips of {strip}");
+        }
     }
 
     #[test]

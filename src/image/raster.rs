@@ -86,6 +86,24 @@ impl RgbImage {
         &self.data[y as usize * w..(y as usize + 1) * w]
     }
 
+    /// The top-left `w × h` of the image, made in place: the same pixels as `crop(0, 0, w, h)`
+    /// without a second image in memory (how the canvas methods trim their canvas to the output).
+    pub fn into_top_left(mut self, w: u32, h: u32) -> RgbImage {
+        assert!(w <= self.width && h <= self.height, "crop outside the image");
+        if w == self.width && h == self.height {
+            return self;
+        }
+        let (src_w, dst_w) = (self.width as usize * 3, w as usize * 3);
+        // Row r moves from r·src_w to r·dst_w ≤ r·src_w: front to back never overwrites a row
+        // before it has moved.
+        for r in 0..h as usize {
+            self.data.copy_within(r * src_w..r * src_w + dst_w, r * dst_w);
+        }
+        self.data.truncate(dst_w * h as usize);
+        self.data.shrink_to_fit();
+        RgbImage { width: w, height: h, data: self.data }
+    }
+
     /// A copy of the rectangle `[x, x+w) × [y, y+h)`, which must lie inside the image.
     pub fn crop(&self, x: u32, y: u32, w: u32, h: u32) -> RgbImage {
         assert!(x + w <= self.width && y + h <= self.height, "crop outside the image");
@@ -112,6 +130,9 @@ mod tests {
     fn crop_copies_the_right_pixels() {
         let img = RgbImage::from_fn(5, 4, |x, y| [x as u8, y as u8, (x * y) as u8]);
         let c = img.crop(1, 2, 3, 2);
+        for (w, h) in [(5, 4), (3, 2), (5, 1), (1, 4), (2, 3)] {
+            assert_eq!(img.clone().into_top_left(w, h), img.crop(0, 0, w, h), "{w}x{h}");
+        }
         assert_eq!(c.dimensions(), (3, 2));
         assert_eq!(c.get(0, 0), [1, 2, 2]);
         assert_eq!(c.get(2, 1), [3, 3, 9]);

@@ -42,6 +42,22 @@ impl Synthesis {
     }
 }
 
+/// Output rows `y0..` rendered into a buffer of whole rows (`rows.len()` a multiple of `3·width`).
+pub type RenderRows = Box<dyn Fn(u32, &mut [u8]) + Send + Sync>;
+
+/// A synthesis whose pixels are rendered on demand, strip by strip ([`Method::synthesize_strips`]),
+/// so that a large output never has to be held whole.
+pub struct Strips {
+    /// Everything but the pixels (its `image` is 0×0); the same seams, diagnostics and extras as
+    /// [`Method::synthesize`] gives.
+    pub synthesis: Synthesis,
+    /// Renders any rows, the same pixels as those rows of [`Method::synthesize`]'s image.
+    pub render: RenderRows,
+}
+
+/// Rows per strip when an output is rendered in strips.
+pub const STRIP_ROWS: u32 = 64;
+
 /// A product besides the main image. The runner stores it at `{output path without its
 /// extension}.{name}`: for output `tiles/bricks.png` and name `tiles/index.json`, the file is
 /// `tiles/bricks.tiles/index.json`.
@@ -77,6 +93,36 @@ pub trait Method: Send + Sync {
     fn check(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {
         Vec::new()
     }
+    /// The peak memory of [`Method::synthesize`] for a job of these sizes, in bytes: the method's
+    /// own working set at its largest, its output image included (not the sample, which the caller
+    /// holds). Stated from measured peak RSS, not guessed, and rather too large than too small:
+    /// the runner refuses a job whose estimate exceeds `--max-memory` and never starts jobs whose
+    /// estimates together exceed it (`tests/it/memory.rs` checks every method against real runs).
+    fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64;
     /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
     fn synthesize(&self, request: &Request) -> Result<Synthesis, SynthError>;
+    /// Whether [`Method::synthesize_strips`] works: the method can render its output strip by
+    /// strip (tile fills), for outputs too large to hold.
+    fn renders_in_strips(&self) -> bool {
+        false
+    }
+    /// [`Method::peak_memory`] when the output is rendered in strips of [`STRIP_ROWS`] rows: the
+    /// working set without the whole output image.
+    fn strip_peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        self.peak_memory(params, sample, output)
+    }
+    /// Synthesises everything but the pixels, and returns a renderer of any output rows: the same
+    /// result as [`Method::synthesize`], pixel for pixel. Only where [`Method::renders_in_strips`].
+    fn synthesize_strips(&self, _request: &Request) -> Result<Strips, SynthError> {
+        Err(SynthError::Failed(format!("{} does not render in strips", self.name())))
+    }
+}
+
+/// Bytes of `per_output_pixel` per output pixel, plus `per_sample_pixel` per sample pixel, plus
+/// `fixed`: the shape every method's [`Method::peak_memory`] takes (their tables, canvases and
+/// search buffers grow with one size or the other).
+pub fn linear_memory(sample: (u32, u32), output: (u32, u32), per_output_pixel: f64, per_sample_pixel: f64, fixed: u64) -> u64 {
+    let out = f64::from(output.0) * f64::from(output.1);
+    let smp = f64::from(sample.0) * f64::from(sample.1);
+    (per_output_pixel * out + per_sample_pixel * smp).ceil() as u64 + fixed
 }

@@ -234,6 +234,13 @@ impl Method for Tes {
         }
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // Measured (VmHWM of `texsyn run`, metal_tread_studs 256²): lattice extraction on the
+        // sample (about 9 MB for 256²) and about 6.6 B per output pixel (output and its block
+        // state); 1024²: 17 MB, 2048²: 37 MB in all (8 MB of it the process).
+        crate::synth::method::linear_memory(sample, output, 7.0, 160.0, 2 << 20)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = TesConfig::from_params(req.params)?;
         let sample = req.sample;

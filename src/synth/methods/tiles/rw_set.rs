@@ -154,12 +154,19 @@ impl RwTileSet {
 
     /// Renders the output by copying runs of tile rows (§3.6); rows are filled in parallel.
     pub fn render(&self, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
+        let mut out = RgbImage::new(width, height);
+        self.render_rows(tiling, width, 0, out.as_raw_mut());
+        out
+    }
+
+    /// Renders output rows `y0..` into `rows` (whole rows of a `width`-wide output), the same
+    /// pixels as those rows of [`RwTileSet::render`]: how a large fill is written strip by strip.
+    pub fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
         let g = self.geometry;
         let (f, h2) = (g.f as usize, 2 * g.h as i64);
-        let mut out = RgbImage::new(width, height);
         let row_len = width as usize * 3;
-        out.as_raw_mut().par_chunks_mut(row_len).enumerate().for_each(|(y, row)| {
-            let y = y as i64;
+        rows.par_chunks_mut(row_len).enumerate().for_each(|(y, row)| {
+            let y = y as i64 + i64::from(y0);
             let mut x = 0i64;
             while x < width as i64 {
                 let ((i, j), (fx, fy)) = locate(&g, x, y);
@@ -172,7 +179,6 @@ impl RwTileSet {
                 x += run as i64;
             }
         });
-        out
     }
 }
 

@@ -22,12 +22,12 @@ use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_erro
 use super::common::{EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
 use super::export::export_rw;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
-use super::wang::{TileSet, TilingOrder};
+use super::wang::{TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
-use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::method::{Method, Request, Strips, Synthesis};
 use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
 use crate::synth::primitives::shortest_path::{flood4, shortest_path};
 use crate::synth::rng::Stream;
@@ -626,7 +626,45 @@ impl Method for RwTiles {
         errors
     }
 
+    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // Measured (VmHWM of `texsyn run`, bricks_gray 256², tile 64): the rendered output (3 B per
+        // pixel) and the tile set, built from sample-sized cost planes; 4096²: 76 MB, 8192² (rendered
+        // whole, before fills that large went strip by strip): 280 MB
+        // in all, whose peak is while the PNG encoder holds its compressed stream.
+        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20)
+    }
+
+    fn strip_peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        // The tile set as above, the tiling (one byte per tile) and one strip of output rows.
+        let strip = u64::from(output.0) * u64::from(crate::synth::method::STRIP_ROWS) * 3;
+        crate::synth::method::linear_memory(sample, output, 0.01, 64.0, 4 << 20) + strip
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
+        let (mut synthesis, tiles, tiling) = self.fill(req)?;
+        let t = Instant::now();
+        synthesis.image = tiles.render(&tiling, req.width, req.height);
+        if let Some(fill) = synthesis.phases.iter_mut().find(|p| p.0 == "fill") {
+            fill.1 += t.elapsed().as_secs_f64();
+        }
+        Ok(synthesis)
+    }
+
+    fn renders_in_strips(&self) -> bool {
+        true
+    }
+
+    fn synthesize_strips(&self, req: &Request) -> Result<Strips, SynthError> {
+        let (synthesis, tiles, tiling) = self.fill(req)?;
+        let width = req.width;
+        Ok(Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)) })
+    }
+}
+
+impl RwTiles {
+    /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
+    /// synthesis record with a 0×0 image.
+    fn fill(&self, req: &Request) -> Result<(Synthesis, RwTileSet, Tiling), SynthError> {
         let cfg = RwTilesConfig::from_params(req.params)?;
         let (tile, ov) = (cfg.tile as i32, cfg.overlap as i32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
@@ -640,7 +678,6 @@ impl Method for RwTiles {
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
-        let image = tiles.render(&tiling, req.width, req.height);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -658,13 +695,14 @@ impl Method for RwTiles {
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
         }
-        Ok(Synthesis {
-            image,
+        let synthesis = Synthesis {
+            image: RgbImage::new(0, 0),
             seams: Some(seam_grid(&g, req.width, req.height)),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
             extras: if cfg.export_tiles { export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
-        })
+        };
+        Ok((synthesis, tiles, tiling))
     }
 }
 
@@ -958,5 +996,27 @@ mod tests {
         let m = advice(8, 64, 16);
         assert!(m.contains("too small for overlap 16; use overlap 2 (then tile at most 12)") && !m.contains("at most -"), "{m}");
         assert!(advice(4, 64, 2).contains("too small for any RW tile"), "{}", advice(4, 64, 2));
+    }
+    #[test]
+    fn strips_render_the_same_output_as_the_whole_image() {
+        let sample = coded(128, 128);
+        let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
+        let req = Request { sample: &sample, width: 301, height: 203, params: &p, seed: 9 };
+        let whole = RwTiles.synthesize(&req).unwrap();
+        let strips = RwTiles.synthesize_strips(&req).unwrap();
+        assert_eq!(strips.synthesis.diagnostics, whole.diagnostics);
+        assert_eq!(strips.synthesis.seams, whole.seams);
+        for rows in [1u32, 7, 64, 203] {
+            let mut pixels = Vec::new();
+            let mut y0 = 0;
+            while y0 < 203 {
+                let n = rows.min(203 - y0);
+                let mut strip = vec![0u8; 301 * 3 * n as usize];
+                (strips.render)(y0, &mut strip);
+                pixels.extend(strip);
+                y0 += n;
+            }
+            assert_eq!(pixels, whole.image.as_raw(), "strips of {rows} rows");
+        }
     }
 }

@@ -114,9 +114,17 @@ impl WangTileSet {
 
     /// Renders by copying tile rows; output rows are filled in parallel.
     pub fn render(&self, tiling: &Tiling, width: u32, height: u32) -> RgbImage {
-        let t = self.geometry.t as usize;
         let mut out = RgbImage::new(width, height);
-        out.as_raw_mut().par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
+        self.render_rows(tiling, width, 0, out.as_raw_mut());
+        out
+    }
+
+    /// Renders output rows `y0..` into `rows` (whole rows of a `width`-wide output), the same
+    /// pixels as those rows of [`WangTileSet::render`]: how a large fill is written strip by strip.
+    pub fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
+        let t = self.geometry.t as usize;
+        rows.par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
+            let y = y + y0 as usize;
             let (r, ty) = (y / t, y % t);
             let mut x = 0usize;
             while x < width as usize {
@@ -127,6 +135,5 @@ impl WangTileSet {
                 x += run;
             }
         });
-        out
     }
 }
