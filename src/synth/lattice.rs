@@ -142,20 +142,21 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
             }
         }
     }
-    // 4. Region of dominance: distance to the nearest higher value.
+    // 4. Region of dominance: distance to the nearest higher value. Offsets are visited nearest
+    // first, so the first higher value found is the nearest: a noisy sample has thousands of
+    // peaks, each with a higher neighbour a few pixels away, and scanning the whole window for
+    // every one of them made extraction take most of a second.
+    let mut by_distance: Vec<(i64, i64, i64)> =
+        (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
+    by_distance.sort_unstable();
     let mut ranked: Vec<((i64, i64), f64, f64)> = peaks
         .iter()
         .map(|&(dx, dy)| {
             let v = a(dx, dy);
-            let mut best = f64::INFINITY;
-            for qy in -ry..=ry {
-                for qx in -rx..=rx {
-                    if a(qx, qy) > v {
-                        let d = (((qx - dx) * (qx - dx) + (qy - dy) * (qy - dy)) as f64).sqrt();
-                        best = best.min(d);
-                    }
-                }
-            }
+            let best = by_distance
+                .iter()
+                .find(|&&(_, ox, oy)| inside(dx + ox, dy + oy) && a(dx + ox, dy + oy) > v)
+                .map_or(f64::INFINITY, |&(d2, _, _)| (d2 as f64).sqrt());
             ((dx, dy), best, v)
         })
         .collect();
