@@ -71,6 +71,13 @@ impl Analysis {
         }
     }
 
+    /// The length of the shorter lattice vector, in pixels.
+    pub fn shortest_vector(&self) -> Option<f64> {
+        let l = self.lattice.as_ref()?;
+        let len = |v: (i64, i64)| ((v.0 * v.0 + v.1 * v.1) as f64).sqrt();
+        Some(len(l.t1).min(len(l.t2)))
+    }
+
     /// The longer side of the texel's bounding box (how large a block must be to hold one).
     pub fn texel_span(&self) -> Option<u32> {
         let l = self.lattice.as_ref()?;
@@ -124,6 +131,28 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         Kind::Stochastic
     };
     Analysis { width, height, kind, lattice, no_lattice, orientation }
+}
+
+/// Aligned tiles look right only when the tiles' translation vectors are (nearly) lattice
+/// vectors: a phase residual above this fraction of the shorter lattice vector cuts texels apart.
+pub const PHASE_TOLERANCE: f64 = 0.2;
+
+/// For a tile method with alignment on (`auto` or `lattice`) and the sample's lattice: the phase
+/// residual at the job's tile size, and the tile size (that fits the sample) with the smallest.
+fn tile_phase(a: &Analysis, method: &str, p: &Params) -> Option<(f64, i64, f64)> {
+    use crate::synth::methods::tiles::{align, rw_tiles::RwAlign, wang_tiles::WangAlign};
+    let l = a.lattice.as_ref()?;
+    let (tile, overlap) = (int(p, "tile")?, int(p, "overlap")?);
+    let al = align::Alignment::new(l.t1, l.t2, "extracted").ok()?;
+    let side = i64::from(a.width.min(a.height));
+    let (vectors, sizes): (fn(i64) -> [align::V; 2], Vec<i64>) = if method == "wang-tiles" {
+        (WangAlign::vectors, (8.max(2 * overlap)..=side - overlap).filter(|t| t % 2 == 0).collect())
+    } else {
+        (RwAlign::vectors, (8.max(2 * overlap + 4)..=2 * (side - overlap)).filter(|t| t % 2 == 0).collect())
+    };
+    let now = align::residual_px(&al, vectors(tile));
+    let (best, residual) = *align::suggest(&al, sizes.into_iter(), vectors, tile, 1).first()?;
+    Some((now, best, residual))
 }
 
 /// A method's fit to a sample.
@@ -196,6 +225,17 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
             Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
                 set: vec![("align".into(), "lattice".into())],
                 because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
+            },
+            Kind::NearRegular => match tile_phase(a, method, p) {
+                Some((now, best, best_residual)) if now > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) => Fit::FitsWith {
+                    set: vec![("tile".into(), best.to_string())],
+                    because: format!(
+                        "at tile {} the tiles' translations miss the sample's lattice by {now:.1} px, so even aligned tiles cut texels \
+                         out of phase; tile {best} misses it by {best_residual:.1} px",
+                        int(p, "tile").unwrap_or(0)
+                    ),
+                },
+                _ => Fit::Fits,
             },
             Kind::Oriented => Fit::NotFor {
                 because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
@@ -271,7 +311,12 @@ mod tests {
         assert_eq!(a.kind, Kind::NearRegular, "{}", a.describe());
         let w = warning(&a, "rw-tiles", &params(&[("align", ParamValue::Str("none".into()))])).expect("tiles warn");
         assert!(w.contains("align = \"lattice\""), "{w}");
-        assert_eq!(warning(&a, "rw-tiles", &params(&[("align", ParamValue::Str("lattice".into()))])), None);
+        // Wang tiles of 64 px translate by (64, 0), (0, 64): lattice vectors of a 16 × 8 brick bond.
+        let tile =
+            |t: i64| params(&[("align", ParamValue::Str("auto".into())), ("tile", ParamValue::Int(t)), ("overlap", ParamValue::Int(8))]);
+        assert_eq!(warning(&a, "wang-tiles", &tile(64)), None);
+        let w = warning(&a, "wang-tiles", &tile(58)).expect("a tile out of phase with the lattice warns");
+        assert!(w.contains("set tile = "), "{w}");
         assert_eq!(warning(&a, "coevolution", &params(&[])), None);
         // Quilting's search keeps texels whole with any block: no advice to change it.
         assert_eq!(warning(&a, "quilting", &params(&[("block", ParamValue::Int(12))])), None);

@@ -19,6 +19,16 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
         for k in ["timing", "job_file", "sample", "warnings"] {
             o.remove(k);
         }
+        // Since then the tile methods' `align` defaults to `auto`: the resolved parameters (so the
+        // content key) differ and the choice is recorded; on a sample without a lattice, as here,
+        // the pixels are the same.
+        if o["method"] == "rw-tiles" || o["method"] == "wang-tiles" {
+            for k in ["content_key", "params_digest"] {
+                o.remove(k);
+            }
+            o["params"].as_object_mut().unwrap().remove("align");
+            o["diagnostics"].as_object_mut().unwrap().remove("align_choice");
+        }
         j
     };
     let old_jobs: Vec<Value> = old["jobs"].as_array().unwrap().iter().map(strip).collect();

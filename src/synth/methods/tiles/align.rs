@@ -80,7 +80,21 @@ crate::choice! {
         None = "none",
         /// The first patch at random, the others at lattice translates of their in-phase positions.
         Lattice = "lattice",
+        /// `lattice` when the sample has one (or the job gives `t1_x..t2_y`), `none` otherwise.
+        Auto = "auto",
     }
+}
+
+/// What `align` resolved to for a job, for `diagnostics.align_choice`: `auto` is a decision the
+/// reader of the manifest should be able to see.
+pub fn choice_record(mode: Align, chosen: Option<&Alignment>) -> serde_json::Value {
+    let how = match (mode, chosen) {
+        (Align::Auto, Some(a)) => format!("auto: lattice ({})", a.source),
+        (Align::Auto, None) => "auto: none (no lattice found in the sample)".to_string(),
+        (_, Some(a)) => format!("lattice ({})", a.source),
+        (_, None) => "none".to_string(),
+    };
+    serde_json::Value::String(how)
 }
 
 /// The sample lattice used to align the patches.
@@ -117,13 +131,17 @@ impl Alignment {
     }
 
     /// For a job's `align` and `t1_x..t2_y`: `None` for `align = "none"`; the given `t1, t2`, or
-    /// (none given) the lattice extracted from the sample.
+    /// (none given) the lattice extracted from the sample — which `lattice` requires and `auto`
+    /// uses only when there is one.
     pub fn for_job(mode: Align, given: Option<GivenVectors>, sample: &RgbImage) -> Result<Option<Alignment>, SynthError> {
         if mode == Align::None {
             return Ok(None);
         }
         if let Some(v) = given {
             Alignment::new(v.t1, v.t2, "given").map(Some)
+        } else if mode == Align::Auto {
+            // No lattice is not an error here: the sample simply gets the paper's random cuts.
+            Ok(extract(sample, &LatticeOptions::default()).ok().and_then(|l| Alignment::new(l.t1, l.t2, "extracted").ok()))
         } else {
             let l = extract(sample, &LatticeOptions::default()).map_err(|e| {
                 let e = e.to_string();
@@ -359,8 +377,11 @@ pub fn check(mode: Align, given: Option<GivenVectors>, sample: (u32, u32)) -> Ve
     let Some(GivenVectors { t1, t2 }) = given else {
         return errors;
     };
-    if mode != Align::Lattice {
-        errors.push(ParamError::new("t1_x", "t1_x..t2_y are only used with align = \"lattice\"; set align = \"lattice\" or remove them"));
+    if mode == Align::None {
+        errors.push(ParamError::new(
+            "t1_x",
+            "t1_x..t2_y are only used with align = \"lattice\" or \"auto\"; set align = \"lattice\" or remove them",
+        ));
     }
     if cross(t1, t2) == 0 {
         errors.push(ParamError::new("t1_x", format!("t1 = {t1:?} and t2 = {t2:?} are parallel (or zero): they must span a lattice")));

@@ -70,8 +70,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "align",
         kind: ParamKind::Choice(Align::NAMES),
-        default: Default::Str("none"),
-        doc: "none: the four patches at independent random positions (paper); lattice: the first at random, the others at lattice translates of their in-phase positions, so the seams join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+        default: Default::Str("auto"),
+        doc: "auto (default): lattice when the sample has one (or t1_x..t2_y are given), none otherwise, the choice recorded as diagnostics.align_choice; none: the four patches at independent random positions (paper); lattice: the first at random, the others at lattice translates of their in-phase positions, so the seams join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
     },
     VECTOR_PARAMS[0],
     VECTOR_PARAMS[1],
@@ -117,7 +117,7 @@ impl std::default::Default for RwTilesConfig {
             tile_set: TileSet::Minimal,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
-            align: Align::None,
+            align: Align::Auto,
             lattice: None,
             tiling: TilingOrder::Keyed,
             export_tiles: false,
@@ -692,6 +692,7 @@ impl RwTiles {
             "lattice": { "i": [tiling.r0, tiling.r0 + tiling.rows as i64 - 1], "j": [tiling.c0, tiling.c0 + tiling.cols as i64 - 1] },
             "usage": tiling.usage(set),
         });
+        diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
         }
@@ -897,7 +898,13 @@ mod tests {
             }
         }
         let none = RwTiles
-            .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(64))]), seed: 1 })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 200,
+                height: 180,
+                params: &params(&[("tile", ParamValue::Int(64)), ("align", ParamValue::Str("none".into()))]),
+                seed: 1,
+            })
             .unwrap();
         assert!(none.diagnostics["patches"]["seam_cost"].as_u64().unwrap() > 0);
         assert!(none.diagnostics.get("align").is_none());

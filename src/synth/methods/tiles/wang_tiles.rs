@@ -74,8 +74,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "align",
         kind: ParamKind::Choice(Align::NAMES),
-        default: Default::Str("none"),
-        doc: "none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
+        default: Default::Str("auto"),
+        doc: "auto (default): lattice when the sample has one (or t1_x..t2_y are given), none otherwise, the choice recorded as diagnostics.align_choice; none: the four diamonds at independent random positions (Cohen); lattice: the first at random, the others at lattice translates of their in-phase positions, so the cuts join in-phase content on near-regular samples; diagnostics.align gives the tile size's phase residual and better sizes (not in the paper)",
     },
     VECTOR_PARAMS[0],
     VECTOR_PARAMS[1],
@@ -134,7 +134,7 @@ impl std::default::Default for WangTilesConfig {
             tile_set: TileSet::Minimal,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
-            align: Align::None,
+            align: Align::Auto,
             lattice: None,
             tiling: TilingOrder::Keyed,
             export_tiles: false,
@@ -656,6 +656,7 @@ impl WangTiles {
             "grid": { "rows": tiling.rows, "cols": tiling.cols },
             "usage": tiling.usage(set),
         });
+        diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
         }
@@ -854,7 +855,13 @@ mod tests {
         }
         // The faithful mode puts the diamonds out of phase.
         let none = WangTiles
-            .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &params(&[("tile", ParamValue::Int(32))]), seed: 1 })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 200,
+                height: 180,
+                params: &params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("none".into()))]),
+                seed: 1,
+            })
             .unwrap();
         assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
         assert!(none.diagnostics.get("align").is_none());
@@ -890,7 +897,7 @@ mod tests {
         let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
         let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
         assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
-        let unused = params(&[("t1_x", ParamValue::Int(16)), ("t2_y", ParamValue::Int(16))]);
+        let unused = params(&[("t1_x", ParamValue::Int(16)), ("t2_y", ParamValue::Int(16)), ("align", ParamValue::Str("none".into()))]);
         let errs = WangTiles.check(&unused, (128, 128), (64, 64));
         assert!(errs.iter().any(|e| e.message.contains("only used with align = \"lattice\"")), "{errs:?}");
     }
