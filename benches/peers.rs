@@ -1,0 +1,148 @@
+//! texsyn's methods against the peers, side by side, as whole processes (issue 13's protocol):
+//! one thread, 512² outputs from 256² samples, block 40 / overlap 10 / tolerance 0.1 where a
+//! method has them, defaults otherwise. Each program runs on the same samples in the same run,
+//! and the table prints ratios, which is what survives a noisy 2-core machine.
+//!
+//!     cargo bench --bench peers               # 3 repetitions, median
+//!     TEXSYN_PEERS_REPS=5 cargo bench --bench peers
+//!
+//! Embark's texture-synthesis CLI is the peer; install it with
+//!
+//!     cargo install --locked --version 0.8.3 texture-synthesis-cli --root <dir>
+//!
+//! and point `TEXSYN_EMBARK` at `<dir>/bin/texture-synthesis` (or put it on `PATH`). Without it
+//! the Embark column is skipped, and the bench says so. Also measured: double-seam against exact
+//! quilting at blocks 50 and 100 (paper 003's speed claim).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+const SIZE: u32 = 512;
+/// Structured and stochastic samples of 256², plus a near-regular one for the lattice methods.
+const SAMPLES: [&str; 3] = ["pebbles_beige", "bricks_gray", "grass_gray"];
+const LATTICE_SAMPLE: &str = "metal_tread_studs";
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn embark() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("TEXSYN_EMBARK") {
+        return Some(PathBuf::from(p)).filter(|p| p.is_file());
+    }
+    std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()).map(|d| d.join("texture-synthesis")).find(|p| p.is_file())
+}
+
+/// Wall seconds of one whole process (the median of `reps` runs); `None` if it failed.
+fn time(reps: usize, mut cmd: impl FnMut() -> Command) -> Option<f64> {
+    let mut times = Vec::new();
+    for _ in 0..reps {
+        let t = Instant::now();
+        let out = cmd().output().ok()?;
+        if !out.status.success() {
+            eprintln!("  failed: {}", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or(""));
+            return None;
+        }
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Some(times[times.len() / 2])
+}
+
+/// A job file for one method on one sample; texsyn runs it with `-j 1 --force` as a whole process.
+fn job(dir: &Path, name: &str, sample: &Path, method: &str, params: &str) -> PathBuf {
+    let d = dir.join(name);
+    std::fs::create_dir_all(&d).expect("bench dir");
+    let text = format!(
+        "sample = \"{}\"\nmethod = \"{method}\"\nseed = 1\n[output]\npath = \"{name}.png\"\nwidth = {SIZE}\nheight = {SIZE}\n[params]\n{params}",
+        sample.display()
+    );
+    std::fs::write(d.join("job.toml"), text).expect("job file");
+    d
+}
+
+fn texsyn_run(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_texsyn"));
+    c.arg("run").arg(dir).arg("-o").arg(dir.join("out")).args(["-j", "1", "-q", "--force"]);
+    c
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; nothing else to parse.
+    let reps: usize = std::env::var("TEXSYN_PEERS_REPS").ok().and_then(|s| s.parse().ok()).unwrap_or(3).max(1);
+    let work = std::env::temp_dir().join(format!("texsyn-peers-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&work);
+    let embark = embark();
+    match &embark {
+        Some(p) => println!("Embark texture-synthesis: {}", p.display()),
+        None => println!(
+            "Embark texture-synthesis not found: its column is skipped. Install it with\n  \
+             cargo install --locked --version 0.8.3 texture-synthesis-cli --root <dir>\n\
+             and set TEXSYN_EMBARK=<dir>/bin/texture-synthesis"
+        ),
+    }
+    println!("{SIZE}² from 256², one thread, whole processes, median of {reps}; ratios = peer time / texsyn time\n");
+    let methods: [(&str, &str); 7] = [
+        ("quilting", "block = 40\noverlap = 10\ntolerance = 0.1\n"),
+        ("double-seam", ""),
+        ("patch-sampling", ""),
+        ("coevolution", ""),
+        ("tes", ""),
+        ("wang-tiles", ""),
+        ("rw-tiles", ""),
+    ];
+    println!("{:<22} {:<24} {:>9} {:>11} {:>14}", "sample", "program", "seconds", "vs quilting", "Embark / this");
+    for s in SAMPLES.iter().chain([&LATTICE_SAMPLE]) {
+        let sample = repo().join(format!("jobs/samples/{s}.png"));
+        let lattice_only = *s == LATTICE_SAMPLE;
+        let embark_t = embark.as_ref().and_then(|e| {
+            let out = work.join(format!("embark-{s}.png"));
+            std::fs::create_dir_all(&work).ok()?;
+            time(reps, || {
+                let mut c = Command::new(e);
+                c.args(["--no-progress", "--out-size", &SIZE.to_string(), "--threads", "1", "--seed", "1", "-o"])
+                    .arg(&out)
+                    .arg("generate")
+                    .arg(&sample);
+                c
+            })
+        });
+        if let Some(t) = embark_t {
+            println!("{s:<22} {:<24} {t:>9.3} {:>11} {:>14}", "Embark 0.8.3", "", "1");
+        }
+        let mut quilting = None;
+        for (method, params) in methods {
+            let near_regular = matches!(method, "coevolution" | "tes");
+            if near_regular != lattice_only && method != "quilting" {
+                continue;
+            }
+            let dir = job(&work, &format!("{s}-{method}"), &sample, method, params);
+            let Some(t) = time(reps, || texsyn_run(&dir)) else {
+                println!("{s:<22} {:<24} {:>9}", format!("texsyn {method}"), "failed");
+                continue;
+            };
+            if method == "quilting" {
+                quilting = Some(t);
+            }
+            let vs_q = quilting.map(|q| format!("{:.2}×", t / q)).unwrap_or_default();
+            let vs_e = embark_t.map(|e| format!("{:.1}×", e / t)).unwrap_or_else(|| "—".into());
+            println!("{s:<22} {:<24} {t:>9.3} {vs_q:>11} {vs_e:>14}", format!("texsyn {method}"));
+        }
+    }
+    // Paper 003's claim: double-seam faster than quilting, more so at larger blocks.
+    println!("\ndouble-seam vs exact quilting (same block, overlap = block / 6, 512² from pebbles_beige): goal ≥ 1.5× at 50, ≥ 3× at 100");
+    let sample = repo().join("jobs/samples/pebbles_beige.png");
+    for block in [50u32, 100] {
+        let overlap = block / 6;
+        let q = job(&work, &format!("q{block}"), &sample, "quilting", &format!("block = {block}\noverlap = {overlap}\n"));
+        let d = job(&work, &format!("d{block}"), &sample, "double-seam", &format!("block = {block}\n"));
+        match (time(reps, || texsyn_run(&q)), time(reps, || texsyn_run(&d))) {
+            (Some(tq), Some(td)) => {
+                println!("block {block:>3}: quilting {tq:.3} s, double-seam {td:.3} s: double-seam is {:.2}× as fast", tq / td)
+            }
+            _ => println!("block {block:>3}: a run failed"),
+        }
+    }
+    let _ = std::fs::remove_dir_all(&work);
+}
