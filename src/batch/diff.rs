@@ -83,6 +83,24 @@ impl Diff {
     }
 }
 
+/// `params.block 24 → 40; sample.pixels 63af432be344 → fa2c33c018bd`: why a job's pixels
+/// changed, as `texsyn diff` and the report say it (digests shortened to 12 characters).
+pub fn describe_changes(changes: &[KeyChange]) -> String {
+    if changes.is_empty() {
+        return "no input changed and neither did the tool: not reproducible (a bug)".into();
+    }
+    changes.iter().map(|c| format!("{} {} → {}", c.key, short_value(&c.old), short_value(&c.new))).collect::<Vec<_>>().join("; ")
+}
+
+/// A changed value as people read it: a digest by its first 12 characters, `(none)` for absent.
+pub fn short_value(v: &Value) -> String {
+    match v {
+        Value::String(s) if s.len() == 64 && s.chars().all(|c| c.is_ascii_hexdigit()) => s[..12].to_string(),
+        Value::Null => "(none)".into(),
+        other => other.to_string(),
+    }
+}
+
 /// Compares two manifests.
 pub fn diff(old: &Manifest, new: &Manifest, t: &Thresholds) -> Diff {
     let olds: BTreeMap<&str, &JobRecord> = old.jobs.iter().map(|j| (j.id.as_str(), j)).collect();

@@ -201,15 +201,33 @@ pub fn execute(
         Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
+    let extras = write_extras(&synthesis, output, out)?;
+    let main = write_main(output, out, |w| imageio::encode_to(&synthesis.image, output.encoding(), w))?;
+    let outputs = std::iter::once(main).chain(extras).collect();
+    Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
+}
+
+/// Writes a job's extra outputs (before its main output, which marks the job complete).
+fn write_extras(synthesis: &Synthesis, output: &OutputSpec, out: &OutDir) -> Result<Vec<OutputRecord>, JobFailure> {
     let mut extras = Vec::new();
     for extra in &synthesis.extras {
         let (record, bytes) = encode_extra(&output.path, extra)?;
         out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
         extras.push(record);
     }
+    Ok(extras)
+}
+
+/// Writes the main output, `encode` streaming it straight into its (atomically renamed) file, and
+/// records it. An encoding failure is reported as such, not as the write error it causes.
+fn write_main(
+    output: &OutputSpec,
+    out: &OutDir,
+    encode: impl FnOnce(&mut dyn std::io::Write) -> Result<Digest, ImageError>,
+) -> Result<OutputRecord, JobFailure> {
     let mut encode_error = None;
     let written = out.write_streamed(&output.path, |w| {
-        imageio::encode_to(&synthesis.image, output.encoding(), w).map_err(|e| {
+        encode(w).map_err(|e| {
             let io = std::io::Error::other(e.to_string());
             encode_error = Some(e);
             io
@@ -220,7 +238,7 @@ pub fn execute(
         (Err(_), Some(e)) => return Err(JobFailure::Encode(e)),
         (Err(e), None) => return Err(JobFailure::Write(e)),
     };
-    let mut outputs = vec![OutputRecord {
+    Ok(OutputRecord {
         path: output.path.clone(),
         format: output.format.name().to_string(),
         bit_depth: output.bit_depth,
@@ -228,9 +246,7 @@ pub fn execute(
         height: output.height,
         file_digest,
         pixel_digest,
-    }];
-    outputs.extend(extras);
-    Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
+    })
 }
 
 /// [`execute`] of a job whose output is rendered strip by strip into its file as it is encoded:
@@ -248,38 +264,15 @@ fn execute_in_strips(
     let started = Instant::now();
     let strips = caught(method, || method.synthesize_strips(&request))?;
     let synthesis_seconds = started.elapsed().as_secs_f64();
-    let mut extras = Vec::new();
-    for extra in &strips.synthesis.extras {
-        let (record, bytes) = encode_extra(&output.path, extra)?;
-        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
-        extras.push(record);
-    }
+    let extras = write_extras(&strips.synthesis, output, out)?;
     let render = &strips.render;
-    let mut encode_error = None;
-    let written = caught(method, || {
-        Ok(out.write_streamed(&output.path, |w| {
-            imageio::encode_png_strips(output.width, output.height, STRIP_ROWS, w, &mut |y0, rows| render(y0, rows)).map_err(|e| {
-                let io = std::io::Error::other(e.to_string());
-                encode_error = Some(e);
-                io
-            })
+    // Rendering happens while encoding: a panic there is the method's, caught like in synthesis.
+    let main = caught(method, || {
+        Ok(write_main(output, out, |w| {
+            imageio::encode_png_strips(output.width, output.height, STRIP_ROWS, w, &mut |y0, rows| render(y0, rows))
         }))
-    })?;
-    let (pixel_digest, file_digest) = match (written, encode_error) {
-        (Ok(done), _) => done,
-        (Err(_), Some(e)) => return Err(JobFailure::Encode(e)),
-        (Err(e), None) => return Err(JobFailure::Write(e)),
-    };
-    let mut outputs = vec![OutputRecord {
-        path: output.path.clone(),
-        format: output.format.name().to_string(),
-        bit_depth: output.bit_depth,
-        width: output.width,
-        height: output.height,
-        file_digest,
-        pixel_digest,
-    }];
-    outputs.extend(extras);
+    })??;
+    let outputs = std::iter::once(main).chain(extras).collect();
     Ok(Executed { outputs, synthesis: strips.synthesis, synthesis_seconds, metrics: None, metrics_seconds: 0.0 })
 }
 

@@ -3,7 +3,7 @@
 use super::{Outcome, say};
 use std::path::PathBuf;
 use texsyn::Error;
-use texsyn::batch::diff::{self, Thresholds};
+use texsyn::batch::diff::{self, Thresholds, describe_changes, short_value};
 use texsyn::batch::manifest::Manifest;
 
 pub const HELP: &str = "\
@@ -32,14 +32,6 @@ pub struct Args {
     metric_relative: f64,
 }
 
-fn short(v: &serde_json::Value) -> String {
-    match v {
-        serde_json::Value::String(s) if s.len() == 64 && s.chars().all(|c| c.is_ascii_hexdigit()) => s[..12].to_string(),
-        serde_json::Value::Null => "(none)".into(),
-        other => other.to_string(),
-    }
-}
-
 pub fn run(args: Args) -> Result<Outcome, Error> {
     let t = Thresholds { time_relative: args.time_relative, time_seconds: args.time_seconds, metric_relative: args.metric_relative };
     if !(t.time_relative >= 0.0 && t.time_seconds >= 0.0 && t.metric_relative >= 0.0) {
@@ -51,18 +43,13 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         say(serde_json::json!({"old": args.old.display().to_string(), "new": args.new.display().to_string(), "thresholds": t, "diff": d}));
     } else {
         for c in &d.tool {
-            say(format!("TOOL      {}: {} → {}", c.key, short(&c.old), short(&c.new)));
+            say(format!("TOOL      {}: {} → {}", c.key, short_value(&c.old), short_value(&c.new)));
         }
         for (id, error) in &d.failed_now {
             say(format!("FAILS NOW {id}: {}", error.lines().next().unwrap_or("")));
         }
         for p in &d.pixels_changed {
-            let why: Vec<String> = p.because.iter().map(|c| format!("{} {} → {}", c.key, short(&c.old), short(&c.new))).collect();
-            let why = if why.is_empty() {
-                "no input changed and neither did the tool: not reproducible (a bug)".to_string()
-            } else {
-                why.join("; ")
-            };
+            let why = describe_changes(&p.because);
             say(format!("PIXELS    {}: {} ({why})", p.id, p.outputs.join(", ")));
         }
         for id in &d.fixed_now {

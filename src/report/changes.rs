@@ -8,7 +8,7 @@
 
 use super::fmt::html as h;
 use super::html::ImageRef;
-use crate::batch::diff::KeyChange;
+use crate::batch::diff::{KeyChange, describe_changes};
 use crate::image::RgbImage;
 
 /// At most this many changed jobs get picture panels; the rest are listed (a changed algorithm
@@ -64,22 +64,6 @@ pub struct Changed {
     pub panels: Vec<Panel>,
 }
 
-/// `params.block 24 → 40`, one per changed input.
-pub fn because_text(because: &[KeyChange]) -> String {
-    if because.is_empty() {
-        return "no input changed: the run is not reproducible (a bug; please report it)".into();
-    }
-    because.iter().map(|c| format!("{} {} → {}", c.key, short(&c.old), short(&c.new))).collect::<Vec<_>>().join("; ")
-}
-
-fn short(v: &serde_json::Value) -> String {
-    let s = match v {
-        serde_json::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    };
-    if s.chars().count() > 24 { format!("{}…", s.chars().take(16).collect::<String>()) } else { s }
-}
-
 fn figure(r: &ImageRef, role: &str, caption: &str) -> String {
     let body = match r {
         Ok((src, w, hgt)) => format!("<img src=\"{}\" width=\"{w}\" height=\"{hgt}\" alt=\"{role}\">", h(src)),
@@ -103,7 +87,7 @@ pub fn html(changed: &[Changed], beyond: &[(String, String)], since: Option<&str
             h(&c.id),
             c.source,
             h(&c.id),
-            h(&because_text(&c.because))
+            h(&describe_changes(&c.because))
         ));
         for p in &c.panels {
             out.push_str(&format!("<div class=\"row\" data-output=\"{}\">", h(&p.output)));

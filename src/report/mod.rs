@@ -596,7 +596,7 @@ pub fn report(opts: &ReportOptions) -> Result<ReportSummary, Error> {
     let mut beyond = Vec::new();
     for (n, (id, outputs, because, source)) in to_show.into_iter().enumerate() {
         if n >= changes::MAX_PANELS {
-            let why = if source == "golden" { "differs from golden".into() } else { changes::because_text(&because) };
+            let why = if source == "golden" { "differs from golden".into() } else { diff::describe_changes(&because) };
             beyond.push((id, why));
             continue;
         }

@@ -2,9 +2,9 @@
 //! failed (with the error text), how long it took, the slowest jobs and, when compared with an
 //! earlier run or the golden digests, what regressed. The tables and pictures come after.
 
-use super::changes::because_text;
 use super::fmt::{self, html as h};
 use crate::batch::diff::Diff;
+use crate::batch::diff::describe_changes;
 use crate::batch::golden::CheckReport;
 use crate::batch::manifest::{Manifest, Status};
 
@@ -179,7 +179,7 @@ fn regressions(source: &str, d: &Diff) -> String {
         parts.push(format!("{} added, {} removed", d.added.len(), d.removed.len()));
     }
     if !d.tool.is_empty() {
-        parts.push(format!("tool changed: {}", h(&because_text(&d.tool))));
+        parts.push(format!("tool changed: {}", h(&describe_changes(&d.tool))));
     }
     out.push_str(&parts.join(" · "));
     out.push_str("</p>\n");
@@ -193,7 +193,7 @@ fn regressions(source: &str, d: &Diff) -> String {
         "pixels-changed",
         d.pixels_changed
             .iter()
-            .map(|p| format!("<span data-job=\"{}\">PIXELS <b>{}</b>: {}</span>", h(&p.id), h(&p.id), h(&because_text(&p.because)))),
+            .map(|p| format!("<span data-job=\"{}\">PIXELS <b>{}</b>: {}</span>", h(&p.id), h(&p.id), h(&describe_changes(&p.because)))),
     );
     list(
         &mut out,

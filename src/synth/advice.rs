@@ -77,14 +77,6 @@ impl Analysis {
         let len = |v: (i64, i64)| ((v.0 * v.0 + v.1 * v.1) as f64).sqrt();
         Some(len(l.t1).min(len(l.t2)))
     }
-
-    /// The longer side of the texel's bounding box (how large a block must be to hold one).
-    pub fn texel_span(&self) -> Option<u32> {
-        let l = self.lattice.as_ref()?;
-        let w = l.t1.0.unsigned_abs() + l.t2.0.unsigned_abs();
-        let h = l.t1.1.unsigned_abs() + l.t2.1.unsigned_abs();
-        Some(w.max(h) as u32)
-    }
 }
 
 /// How far local orientations agree with themselves 8 to 16 pixels away: the largest value of
@@ -306,7 +298,7 @@ mod tests {
     }
 
     #[test]
-    fn a_lattice_gets_aligned_tiles_and_blocks_that_hold_a_texel() {
+    fn a_lattice_gets_aligned_tiles_in_phase_and_cut_blending() {
         let a = analyse(&bricks());
         assert_eq!(a.kind, Kind::NearRegular, "{}", a.describe());
         let w = warning(&a, "rw-tiles", &params(&[("align", ParamValue::Str("none".into()))])).expect("tiles warn");

@@ -1,13 +1,51 @@
 //! What the two tile methods share beyond the Wang-tile colouring ([`super::wang`]) and the
 //! lattice alignment ([`super::align`]): the per-pixel cut cost, the `patch_candidates` choice
-//! among random patch draws, the `export_tiles` parameter, and reading their typed configs.
+//! among random patch draws, the `export_tiles` parameter, reading their typed configs, and
+//! rendering a filled tiling whole or strip by strip.
 //!
 //! It sits below both methods and below the tile-set modules, so that `wang-tiles` does not have to
 //! borrow these from `rw-tiles` (or the reverse) and the family's imports only go one way.
 
+use super::wang::Tiling;
 use crate::image::RgbImage;
+use crate::synth::method::{Request, STRIP_ROWS, Strips, Synthesis, linear_memory};
 use crate::synth::params::{Default, ParamKind, ParamSpec};
 use crate::synth::primitives::overlap::pixel_error;
+use std::time::Instant;
+
+/// A tile set that renders a tiling's output rows: what both tile methods fill with.
+pub trait TileRenderer: Send + Sync + 'static {
+    /// Renders output rows `y0..` into `rows` (whole rows of a `width`-wide output).
+    fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]);
+}
+
+/// [`crate::synth::method::Method::synthesize`] of a tile method from its fill: the output
+/// rendered whole, the rendering time added to the `fill` phase.
+pub fn render_whole(filled: (Synthesis, impl TileRenderer, Tiling), req: &Request) -> Synthesis {
+    let (mut synthesis, tiles, tiling) = filled;
+    let t = Instant::now();
+    let mut image = RgbImage::new(req.width, req.height);
+    tiles.render_rows(&tiling, req.width, 0, image.as_raw_mut());
+    synthesis.image = image;
+    if let Some(fill) = synthesis.phases.iter_mut().find(|p| p.0 == "fill") {
+        fill.1 += t.elapsed().as_secs_f64();
+    }
+    synthesis
+}
+
+/// [`crate::synth::method::Method::synthesize_strips`] of a tile method from its fill.
+pub fn render_in_strips(filled: (Synthesis, impl TileRenderer, Tiling), req: &Request) -> Strips {
+    let (synthesis, tiles, tiling) = filled;
+    let width = req.width;
+    Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)) }
+}
+
+/// Peak memory of a tile fill rendered in strips: the tile set (built from sample-sized cost
+/// planes), the tiling (one byte per tile) and one strip of output rows.
+pub fn strip_peak_memory(sample: (u32, u32), output: (u32, u32)) -> u64 {
+    let strip = u64::from(output.0) * u64::from(STRIP_ROWS) * 3;
+    linear_memory(sample, output, 0.01, 64.0, 4 << 20) + strip
+}
 
 /// The `export_tiles` parameter of both tile methods.
 pub const EXPORT_TILES_PARAM: ParamSpec = ParamSpec {

@@ -200,6 +200,12 @@ pub fn lattice_range(g: &Geometry, width: u32, height: u32) -> ((i64, i64), (i64
     (i, j)
 }
 
+impl super::common::TileRenderer for RwTileSet {
+    fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
+        RwTileSet::render_rows(self, tiling, width, y0, rows)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,7 +19,7 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
 use super::export::export_rw;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
 use super::wang::{TileSet, Tiling, TilingOrder};
@@ -635,19 +635,11 @@ impl Method for RwTiles {
     }
 
     fn strip_peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        // The tile set as above, the tiling (one byte per tile) and one strip of output rows.
-        let strip = u64::from(output.0) * u64::from(crate::synth::method::STRIP_ROWS) * 3;
-        crate::synth::method::linear_memory(sample, output, 0.01, 64.0, 4 << 20) + strip
+        common::strip_peak_memory(sample, output)
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
-        let (mut synthesis, tiles, tiling) = self.fill(req)?;
-        let t = Instant::now();
-        synthesis.image = tiles.render(&tiling, req.width, req.height);
-        if let Some(fill) = synthesis.phases.iter_mut().find(|p| p.0 == "fill") {
-            fill.1 += t.elapsed().as_secs_f64();
-        }
-        Ok(synthesis)
+        Ok(common::render_whole(self.fill(req)?, req))
     }
 
     fn renders_in_strips(&self) -> bool {
@@ -655,9 +647,7 @@ impl Method for RwTiles {
     }
 
     fn synthesize_strips(&self, req: &Request) -> Result<Strips, SynthError> {
-        let (synthesis, tiles, tiling) = self.fill(req)?;
-        let width = req.width;
-        Ok(Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)) })
+        Ok(common::render_in_strips(self.fill(req)?, req))
     }
 }
 

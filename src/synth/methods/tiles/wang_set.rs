@@ -137,3 +137,9 @@ impl WangTileSet {
         });
     }
 }
+
+impl super::common::TileRenderer for WangTileSet {
+    fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
+        WangTileSet::render_rows(self, tiling, width, y0, rows)
+    }
+}
