@@ -120,7 +120,7 @@ pub fn synthesize(
     seed: u64,
     output: &OutputSpec,
 ) -> Result<(Synthesis, f64), JobFailure> {
-    let request = Request { sample, width: output.width, height: output.height, params, seed };
+    let request = Request { sample, width: output.width, height: output.height, params, seed, placement: false, tileable: false };
     let started = Instant::now();
     let synthesis = caught(method, || method.synthesize(&request))?;
     let seconds = started.elapsed().as_secs_f64();
@@ -260,7 +260,7 @@ fn execute_in_strips(
     output: &OutputSpec,
     out: &OutDir,
 ) -> Result<Executed, JobFailure> {
-    let request = Request { sample, width: output.width, height: output.height, params, seed };
+    let request = Request { sample, width: output.width, height: output.height, params, seed, placement: false, tileable: false };
     let started = Instant::now();
     let strips = caught(method, || method.synthesize_strips(&request))?;
     let synthesis_seconds = started.elapsed().as_secs_f64();

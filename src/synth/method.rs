@@ -8,6 +8,7 @@ use crate::image::RgbImage;
 use crate::image::seam_grid::SeamGrid;
 use crate::synth::error::SynthError;
 use crate::synth::params::{ParamError, ParamSpec, Params};
+pub use crate::synth::placement::Placement;
 
 /// What a method is asked to do.
 pub struct Request<'a> {
@@ -16,6 +17,13 @@ pub struct Request<'a> {
     pub height: u32,
     pub params: &'a Params,
     pub seed: u64,
+    /// Also return the [`Placement`] ([`Synthesis::placement`]; [`Strips::sources`] in strips):
+    /// asked for when the job renders its output from more than the 8-bit sample (a 16-bit or
+    /// float sample, companions, a source map). Never changes the pixels.
+    pub placement: bool,
+    /// Make the output wrap seamlessly left↔right and top↔bottom. Only asked of a method whose
+    /// [`Method::tileable`] says it can.
+    pub tileable: bool,
 }
 
 /// What a method produces.
@@ -34,11 +42,14 @@ pub struct Synthesis {
     /// Further products a job asked for (e.g. an exported tile set), written next to the main
     /// output and recorded, hashed and verified like it. Must be deterministic.
     pub extras: Vec<ExtraOutput>,
+    /// Where each output pixel comes from, when [`Request::placement`] asked for it: rendered
+    /// over the 8-bit sample it is `image`, pixel for pixel.
+    pub placement: Option<Placement>,
 }
 
 impl Synthesis {
     pub fn new(image: RgbImage) -> Synthesis {
-        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new(), extras: Vec::new() }
+        Synthesis { image, seams: None, diagnostics: serde_json::Value::Null, phases: Vec::new(), extras: Vec::new(), placement: None }
     }
 }
 
@@ -53,7 +64,13 @@ pub struct Strips {
     pub synthesis: Synthesis,
     /// Renders any rows, the same pixels as those rows of [`Method::synthesize`]'s image.
     pub render: RenderRows,
+    /// When [`Request::placement`] asked for it: the sample index every pixel of any rows copies
+    /// (the strip-rendering methods only copy), row-major, as [`Placement::sources`] would hold.
+    pub sources: Option<SourceRows>,
 }
+
+/// Output rows `y0..` as sample indices (`sources.len()` a multiple of `width`).
+pub type SourceRows = Box<dyn Fn(u32, &mut [u32]) + Send + Sync>;
 
 /// Rows per strip when an output is rendered in strips.
 pub const STRIP_ROWS: u32 = 64;
@@ -101,6 +118,11 @@ pub trait Method: Send + Sync {
     fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64;
     /// Synthesises. Errors are reported as the job's failure; panics are caught by the runner.
     fn synthesize(&self, request: &Request) -> Result<Synthesis, SynthError>;
+    /// Whether the method can honour [`Request::tileable`] with these parameters and sizes:
+    /// `Err` says why not (shown to the user when a job asks for it, with the methods that can).
+    fn tileable(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Result<(), String> {
+        Err(format!("{} cannot make its output wrap", self.name()))
+    }
     /// Whether [`Method::synthesize_strips`] works: the method can render its output strip by
     /// strip (tile fills), for outputs too large to hold.
     fn renders_in_strips(&self) -> bool {

@@ -11,6 +11,7 @@ pub mod lattice;
 pub mod method;
 pub mod methods;
 pub mod params;
+pub mod placement;
 #[doc(hidden)]
 pub mod primitives;
 pub mod rng;

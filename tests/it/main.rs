@@ -11,6 +11,7 @@ mod lattice;
 mod memory;
 mod patch_sampling;
 mod pipeline;
+mod placement;
 mod report;
 mod shards;
 mod signals;

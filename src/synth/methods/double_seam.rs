@@ -8,6 +8,7 @@
 //! Comparing two lines instead of a whole overlap is the paper's speed argument.
 
 use crate::image::RgbImage;
+use crate::synth::primitives::canvas::Canvas as PixelCanvas;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
@@ -343,7 +344,7 @@ impl Method for DoubleSeam {
         let grid = BlockGrid::new(block, g, req.width, req.height);
         let (stride, cols, rows) = (grid.stride(), grid.cols, grid.rows);
         let (cw, ch) = grid.canvas();
-        let mut out = Canvas::new(cw, ch);
+        let mut out = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let mut stats: Vec<(Case, [LineStats; 2])> = Vec::new();
         let mut set_sizes = Vec::new();
         let mut f_max_sum = 0.0;
@@ -386,7 +387,7 @@ impl Method for DoubleSeam {
                 out.paste(&prep, (x as u32, y as u32), (ox, oy), c0, r0, block);
             }
         }
-        let image = out.rgb.into_top_left(req.width, req.height);
+        let (image, placement) = out.rgb.into_top_left(req.width, req.height).finish();
         let band = |count: u32, limit: u32| -> Vec<SeamBand> {
             (1..count).map(|k| k * stride + g).filter(|&b| b < limit).map(|start| SeamBand { start, len: 1 }).collect()
         };
@@ -397,14 +398,14 @@ impl Method for DoubleSeam {
             "mean_candidates": set_sizes.iter().sum::<usize>() as f64 / n,
             "mean_f_max": f_max_sum / n,
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }
 
 /// The output being built: RGB plus the HSI values and edge bits of the pasted sample pixels
 /// (the output's edge map is never recomputed, §5.2).
 struct Canvas {
-    rgb: RgbImage,
+    rgb: PixelCanvas,
     w: usize,
     h: Vec<f64>,
     s: Vec<f64>,
@@ -413,9 +414,9 @@ struct Canvas {
 }
 
 impl Canvas {
-    fn new(w: u32, h: u32) -> Canvas {
+    fn new(w: u32, h: u32, sample: (u32, u32), record: bool) -> Canvas {
         let n = w as usize * h as usize;
-        Canvas { rgb: RgbImage::new(w, h), w: w as usize, h: vec![0.0; n], s: vec![0.0; n], i: vec![0.0; n], e: vec![0; n] }
+        Canvas { rgb: PixelCanvas::new(w, h, sample, record), w: w as usize, h: vec![0.0; n], s: vec![0.0; n], i: vec![0.0; n], e: vec![0; n] }
     }
 
     fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), c0: u32, r0: u32, block: u32) {
@@ -423,7 +424,7 @@ impl Canvas {
             for c in c0..block {
                 let (sx, sy) = (src.0 + c, src.1 + r);
                 let (dx, dy) = (dst.0 + c, dst.1 + r);
-                self.rgb.put(dx, dy, prep.rgb.get(sx, sy));
+                self.rgb.copy(dx, dy, prep.rgb, sx, sy);
                 let si = sy as usize * prep.w + sx as usize;
                 let di = dy as usize * self.w + dx as usize;
                 self.h[di] = prep.planes.h[si];
@@ -653,7 +654,7 @@ mod tests {
     fn output_size_determinism_and_verbatim_pixels() {
         let s = structured();
         let p = params(&[("block", ParamValue::Int(24))]);
-        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 2 };
+        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 2, placement: false, tileable: false };
         let a = DoubleSeam.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (100, 70));
         assert_eq!(a.image, DoubleSeam.synthesize(&req).unwrap().image);
@@ -686,7 +687,7 @@ mod tests {
         let planes = HsiPlanes::of(&sample);
         let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
         let prep = Prepared { rgb: &sample, w: 96, planes, edges };
-        let mut out = Canvas::new(60, 60);
+        let mut out = Canvas::new(60, 60, (96, 96), false);
         out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
         out.paste(&prep, (40, 30), (20, 0), 4, 0, 24);
         out.paste(&prep, (3, 50), (0, 20), 0, 4, 24);
@@ -717,7 +718,7 @@ mod tests {
             assert!((f - scores[k]).abs() < 1e-12, "candidate {k}: {f} vs {}", scores[k]);
         }
         // The natural continuation of a block scores F = 2 when its lines vary and edges agree.
-        let mut out2 = Canvas::new(60, 60);
+        let mut out2 = Canvas::new(60, 60, (96, 96), false);
         out2.paste(&prep, (10, 10), (0, 0), 0, 0, 24);
         let hz = Case::Horizontal;
         let lh = lines(hz, 24, 4, -1);
@@ -783,7 +784,7 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "hue_mode");
         let s = structured();
-        let e = DoubleSeam.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1 }).unwrap_err();
+        let e = DoubleSeam.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "hue_mode"), "{e}");
     }
 }

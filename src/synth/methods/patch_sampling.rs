@@ -45,6 +45,7 @@ use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
+use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::{Rect, rect_ssd};
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
 use crate::synth::primitives::pso::{self, ChaosParams, Outcome, SwarmParams};
@@ -672,7 +673,7 @@ impl Method for PatchSampling {
         let settings = Settings::of(&cfg);
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
-        let mut canvas = RgbImage::new(cw, ch);
+        let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
         let first = match settings.first {
             Some((x, y)) => {
@@ -707,9 +708,9 @@ impl Method for PatchSampling {
                 }]
             } else if settings.search == Search::Exhaustive {
                 let s = search.as_mut().expect("exhaustive search prepared");
-                wave.iter().map(|&(bi, bj)| exhaustive_block(s, sample, &canvas, &layout, bi, bj, &settings, req.seed)).collect()
+                wave.iter().map(|&(bi, bj)| exhaustive_block(s, sample, &canvas.image, &layout, bi, bj, &settings, req.seed)).collect()
             } else {
-                let canvas = &canvas;
+                let canvas = &canvas.image;
                 let layout = &layout;
                 let settings = &settings;
                 wave.par_iter().with_max_len(1).map(|&(bi, bj)| swarm_block(sample, canvas, layout, bi, bj, settings, req.seed)).collect()
@@ -721,7 +722,7 @@ impl Method for PatchSampling {
                     // success criterion, Table 2): how hard the block problem is for a swarm.
                     let regions = layout.overlap_regions(r.bi, r.bj);
                     let origin = (r.bj * layout.stride(), r.bi * layout.stride());
-                    let c = s.candidates(&canvas, origin, &regions, NEAR_OPTIMUM);
+                    let c = s.candidates(&canvas.image, origin, &regions, NEAR_OPTIMUM);
                     r.optimum = Some(c.min_ssd);
                     r.near_optimum = Some(c.members.len());
                 }
@@ -733,10 +734,10 @@ impl Method for PatchSampling {
             results.extend(found);
         }
         results.sort_by_key(|r| (r.bi, r.bj));
-        let image = canvas.into_top_left(req.width, req.height);
+        let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
         let seams = layout.seam_grid(req.width, req.height);
         let diagnostics = diagnostics(&layout, &settings, &results);
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }
 
@@ -1003,7 +1004,7 @@ mod tests {
     }
 
     fn run(sample: &RgbImage, w: u32, h: u32, p: &Params, seed: u64) -> Synthesis {
-        PatchSampling.synthesize(&Request { sample, width: w, height: h, params: p, seed }).unwrap()
+        PatchSampling.synthesize(&Request { sample, width: w, height: h, params: p, seed, placement: false, tileable: false }).unwrap()
     }
 
     #[test]
@@ -1088,7 +1089,7 @@ mod tests {
             params(&[("block", ParamValue::Int(20)), ("search", ParamValue::Str("pso".into())), ("diagnostics", ParamValue::Bool(true))]);
         let out = run(&s, 130, 110, &p, 2);
         let l = BlockGrid::new(20, 3, 130, 110);
-        let mut canvas = RgbImage::new(l.canvas().0, l.canvas().1);
+        let mut canvas = Canvas::new(l.canvas().0, l.canvas().1, s.dimensions(), false);
         let d = &out.diagnostics;
         let first = (d["first"]["x"].as_u64().unwrap() as u32, d["first"]["y"].as_u64().unwrap() as u32);
         paste_block(&mut canvas, &s, first, (0, 0), 20, 3, false, false, OverlapRule::Feather);
@@ -1097,10 +1098,10 @@ mod tests {
             let (bi, bj) = (g("bi"), g("bj"));
             let dst = (bj * l.stride(), bi * l.stride());
             // The recorded error is the zone error against the raster-order canvas.
-            assert_eq!(zone_error(&s, &canvas, (g("x"), g("y")), dst, &l.overlap_regions(bi, bj)), b["error"].as_u64().unwrap());
+            assert_eq!(zone_error(&s, &canvas.image, (g("x"), g("y")), dst, &l.overlap_regions(bi, bj)), b["error"].as_u64().unwrap());
             paste_block(&mut canvas, &s, (g("x"), g("y")), dst, 20, 3, bj > 0, bi > 0, OverlapRule::Feather);
         }
-        assert_eq!(canvas.crop(0, 0, 130, 110), out.image);
+        assert_eq!(canvas.image.crop(0, 0, 130, 110), out.image);
     }
 
     #[test]
@@ -1341,7 +1342,7 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "search");
         let s = texture(64, 64);
-        let e = PatchSampling.synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1 }).unwrap_err();
+        let e = PatchSampling.synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "search"), "{e}");
     }
 }

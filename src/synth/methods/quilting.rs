@@ -8,11 +8,11 @@
 //! last row and column of blocks are cropped.
 
 use super::Engine;
-use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
+use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap_search::OverlapSearch;
 use crate::synth::rng::Stream;
 
@@ -190,7 +190,7 @@ impl Method for Quilting {
         }
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
-        let mut canvas = RgbImage::new(cw, ch);
+        let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let mut search = OverlapSearch::new(sample, block, block);
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
@@ -204,7 +204,7 @@ impl Method for Quilting {
                     (x, y)
                 } else {
                     let regions = layout.overlap_regions(bi, bj);
-                    let c = cfg.search.candidates(&mut search, &canvas, (ox, oy), &regions, tolerance);
+                    let c = cfg.search.candidates(&mut search, &canvas.image, (ox, oy), &regions, tolerance);
                     candidate_counts.push(c.members.len());
                     let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
                     let pick = c.members[s.below_usize(c.members.len())];
@@ -213,7 +213,7 @@ impl Method for Quilting {
                 paste_block(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, rule);
             }
         }
-        let image = canvas.into_top_left(req.width, req.height);
+        let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
         let seams = layout.seam_grid(req.width, req.height);
         let diagnostics = serde_json::json!({
             "blocks": { "cols": layout.cols, "rows": layout.rows },
@@ -221,7 +221,7 @@ impl Method for Quilting {
                 candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
             },
         });
-        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new() })
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }
 
@@ -246,7 +246,7 @@ mod tests {
     fn output_has_the_requested_size_and_is_deterministic() {
         let s = sample();
         let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4))]);
-        let req = Request { sample: &s, width: 70, height: 45, params: &p, seed: 3 };
+        let req = Request { sample: &s, width: 70, height: 45, params: &p, seed: 3, placement: false, tileable: false };
         let a = Quilting.synthesize(&req).unwrap();
         let b = Quilting.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (70, 45));
@@ -261,8 +261,8 @@ mod tests {
         let fft = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3))]);
         let direct =
             params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
-        let a = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9 }).unwrap();
-        let b = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9 }).unwrap();
+        let a = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9, placement: false, tileable: false }).unwrap();
+        let b = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9, placement: false, tileable: false }).unwrap();
         assert_eq!(a.image, b.image);
     }
 
@@ -272,7 +272,7 @@ mod tests {
         let colours: std::collections::HashSet<[u8; 3]> =
             (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
         let p = params(&[("block", ParamValue::Int(20))]);
-        let out = Quilting.synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1 }).unwrap();
+        let out = Quilting.synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1, placement: false, tileable: false }).unwrap();
         for y in 0..90 {
             for x in 0..90 {
                 assert!(colours.contains(&out.image.get(x, y)), "pixel ({x},{y}) is not a sample colour");
@@ -286,7 +286,7 @@ mod tests {
         // the pattern exactly, so the output is itself periodic.
         let s = RgbImage::from_fn(48, 48, |x, y| [(x % 8 * 30) as u8, (y % 8 * 30) as u8, ((x + y) % 8 * 20) as u8]);
         let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4)), ("tolerance", ParamValue::Float(0.0))]);
-        let out = Quilting.synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5 }).unwrap().image;
+        let out = Quilting.synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5, placement: false, tileable: false }).unwrap().image;
         for y in 0..52 {
             for x in 0..52 {
                 assert_eq!(out.get(x, y), out.get(x + 8, y + 8), "({x},{y})");
@@ -349,6 +349,6 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "cut");
         let s = sample();
-        assert!(Quilting.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1 }).is_err());
+        assert!(Quilting.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false }).is_err());
     }
 }

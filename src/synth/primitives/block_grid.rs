@@ -4,8 +4,8 @@
 //! seams can be for the seam-visibility metric.
 
 use super::boundary_cut::{horizontal_cut, vertical_cut};
-use super::feather;
 use super::overlap::{Rect, error_surface};
+use super::canvas::Canvas;
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 
@@ -83,7 +83,7 @@ pub enum OverlapRule {
 /// which overlaps exist.
 #[allow(clippy::too_many_arguments)]
 pub fn paste_block(
-    canvas: &mut RgbImage,
+    canvas: &mut Canvas,
     sample: &RgbImage,
     src: (u32, u32),
     dst: (u32, u32),
@@ -98,28 +98,30 @@ pub fn paste_block(
     let mut first_col = vec![0usize; b];
     let mut first_row = vec![0usize; b];
     if rule == OverlapRule::Cut && left {
-        first_col = vertical_cut(&error_surface(sample, src, canvas, dst, overlap, block), b, ov);
+        first_col = vertical_cut(&error_surface(sample, src, &canvas.image, dst, overlap, block), b, ov);
     }
     if rule == OverlapRule::Cut && top {
-        first_row = horizontal_cut(&error_surface(sample, src, canvas, dst, block, overlap), ov, b);
+        first_row = horizontal_cut(&error_surface(sample, src, &canvas.image, dst, block, overlap), ov, b);
     }
     for y in 0..block {
         for x in 0..block {
-            let new = sample.get(src.0 + x, src.1 + y);
+            let (sx, sy) = (src.0 + x, src.1 + y);
             let (cx, cy) = (dst.0 + x, dst.1 + y);
             let in_left = left && x < overlap;
             let in_top = top && y < overlap;
             if rule == OverlapRule::Feather && (in_left || in_top) {
-                let mut alpha: f64 = 1.0;
+                // The weight of the new block is the smaller of the two ramps (B5): both are
+                // `(k + 1) / (overlap + 1)`, so the smaller k decides.
+                let mut k = u32::MAX;
                 if in_left {
-                    alpha = alpha.min(feather::new_weight(x, overlap));
+                    k = k.min(x);
                 }
                 if in_top {
-                    alpha = alpha.min(feather::new_weight(y, overlap));
+                    k = k.min(y);
                 }
-                canvas.put(cx, cy, feather::blend(canvas.get(cx, cy), new, alpha));
+                canvas.blend(cx, cy, sample, sx, sy, k + 1, overlap + 1);
             } else if x as usize >= first_col[y as usize] && y as usize >= first_row[x as usize] {
-                canvas.put(cx, cy, new);
+                canvas.copy(cx, cy, sample, sx, sy);
             }
         }
     }
@@ -128,6 +130,7 @@ pub fn paste_block(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::synth::primitives::feather;
 
     #[test]
     fn grid_covers_the_output_with_the_fewest_blocks() {
@@ -161,12 +164,12 @@ mod tests {
     #[test]
     fn overwrite_copies_and_feather_blends_only_the_overlap() {
         let sample = RgbImage::from_fn(10, 10, |_, _| [200, 200, 200]);
-        let mut canvas = RgbImage::new(10, 10);
+        let mut canvas = Canvas::new(10, 10, (10, 10), true);
         paste_block(&mut canvas, &sample, (0, 0), (0, 0), 6, 2, true, false, OverlapRule::Feather);
-        assert_eq!(canvas.get(0, 0), feather::blend([0, 0, 0], [200, 200, 200], feather::new_weight(0, 2)));
-        assert_eq!(canvas.get(2, 0), [200, 200, 200]);
-        let mut c2 = RgbImage::new(10, 10);
+        assert_eq!(canvas.image.get(0, 0), feather::blend([0, 0, 0], [200, 200, 200], feather::new_weight(0, 2)));
+        assert_eq!(canvas.image.get(2, 0), [200, 200, 200]);
+        let mut c2 = Canvas::new(10, 10, (10, 10), false);
         paste_block(&mut c2, &sample, (0, 0), (0, 0), 6, 2, true, true, OverlapRule::Overwrite);
-        assert_eq!(c2.get(0, 0), [200, 200, 200]);
+        assert_eq!(c2.image.get(0, 0), [200, 200, 200]);
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod block_grid;
 pub mod boundary_cut;
+pub mod canvas;
 pub mod color;
 pub mod correlation;
 pub mod edges;

@@ -48,7 +48,7 @@ use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
-use crate::synth::primitives::feather;
+use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::pixel_error;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -360,8 +360,9 @@ pub(crate) fn render(
     width: u32,
     height: u32,
     fill_black: bool,
-) -> Result<RgbImage, SynthError> {
-    let mut out = RgbImage::new(width, height);
+    record: bool,
+) -> Result<Canvas, SynthError> {
+    let mut out = Canvas::new(width, height, sample.dimensions(), record);
     let mut uncovered = 0u64;
     if shape.exact {
         for y in 0..height as i64 {
@@ -375,7 +376,7 @@ pub(crate) fn render(
                 let o = origins[n as usize * cols + m as usize];
                 let c = g.point(m, n);
                 let q = (rel.0 - c.0, rel.1 - c.1);
-                out.put(x as u32, y as u32, sample.get((o.0 + q.0) as u32, (o.1 + q.1) as u32));
+                out.copy(x as u32, y as u32, sample, (o.0 + q.0) as u32, (o.1 + q.1) as u32);
             }
         }
     } else {
@@ -390,7 +391,7 @@ pub(crate) fn render(
                     if x < 0 || y < 0 || x >= w || y >= h {
                         continue;
                     }
-                    out.put(x as u32, y as u32, sample.get((o.0 + q.0) as u32, (o.1 + q.1) as u32));
+                    out.copy(x as u32, y as u32, sample, (o.0 + q.0) as u32, (o.1 + q.1) as u32);
                     covered[(y * w + x) as usize] = true;
                 }
             }
@@ -443,7 +444,7 @@ pub(crate) fn pair_shifts(
 /// `pairs` holds, per direction, the shifts of [`pair_shifts`] and the strips.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn feather_strips(
-    out: &mut RgbImage,
+    out: &mut Canvas,
     sample: &RgbImage,
     g: &Geometry,
     origins: &[(i64, i64)],
@@ -468,13 +469,15 @@ pub(crate) fn feather_strips(
                     if x < 0 || y < 0 || x >= out.width() as i64 || y >= out.height() as i64 {
                         continue;
                     }
-                    let va = sample.get((oa.0 + step.0 + q.0) as u32, (oa.1 + step.1 + q.1) as u32);
-                    let vb = sample.get((ob.0 + q.0) as u32, (ob.1 + q.1) as u32);
+                    let va = ((oa.0 + step.0 + q.0) as u32, (oa.1 + step.1 + q.1) as u32);
+                    let vb = ((ob.0 + q.0) as u32, (ob.1 + q.1) as u32);
                     let (al, be) = g.coords(q);
                     let along = if strips.horizontal { al } else { be };
                     let tau = ((along - sigma + strips.rho) / strips.rho).clamp(0.0, 1.0 - 1e-12);
                     let kk = ((tau * n_steps as f64).floor() as u32).min(n_steps - 1);
-                    out.put(x as u32, y as u32, feather::blend(va, vb, feather::new_weight(kk, n_steps)));
+                    // feather::blend(va, vb, new_weight(kk, n_steps)), recorded as a copy and a blend.
+                    out.copy(x as u32, y as u32, sample, va.0, va.1);
+                    out.blend(x as u32, y as u32, sample, vb.0, vb.1, kk + 1, n_steps + 1);
                 }
             }
         }
@@ -766,10 +769,12 @@ impl Method for Coevolution {
             }));
         }
 
-        let mut image = render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, cfg.grid.fill == Fill::Black)?;
+        let mut canvas =
+            render(sample, &g, &shape, &origins, rows, cols, p0, req.width, req.height, cfg.grid.fill == Fill::Black, req.placement)?;
         let ph = pair_shifts(sample, &g, &th, &sh, &assign, &origins, &moved, rows, cols);
         let pv = pair_shifts(sample, &g, &tv, &sv, &assign, &origins, &moved, rows, cols);
-        feather_strips(&mut image, sample, &g, &origins, rows, cols, p0, [(&ph, &sh), (&pv, &sv)]);
+        feather_strips(&mut canvas, sample, &g, &origins, rows, cols, p0, [(&ph, &sh), (&pv, &sv)]);
+        let (image, placement) = canvas.finish();
         let mut diagnostics = serde_json::json!({
             "lattice": { "t1": [g.t1.0, g.t1.1], "t2": [g.t2.0, g.t2.1], "source": source },
             "texels": s,
@@ -791,6 +796,7 @@ impl Method for Coevolution {
             diagnostics,
             phases: vec![("lattice".into(), lattice_seconds), ("tables".into(), tables_seconds), ("iterations".into(), iter_seconds)],
             extras: Vec::new(),
+            placement,
         })
     }
 }
@@ -884,7 +890,7 @@ mod tests {
             ("t2_y", ParamValue::Int(16)),
             ("c_tol", ParamValue::Float(0.0)),
         ]);
-        let out = Coevolution.synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4 }).unwrap();
+        let out = Coevolution.synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4, placement: false, tileable: false }).unwrap();
         assert_eq!(out.image.dimensions(), (90, 70));
         let hist = out.diagnostics["mean_fitness"].as_array().unwrap();
         assert_eq!(hist.last().unwrap().as_f64(), Some(0.0), "{hist:?}");
@@ -900,7 +906,7 @@ mod tests {
     fn deterministic_across_thread_counts_and_extracts_the_lattice() {
         let img = periodic();
         let p = params(&[]);
-        let req = Request { sample: &img, width: 64, height: 64, params: &p, seed: 9 };
+        let req = Request { sample: &img, width: 64, height: 64, params: &p, seed: 9, placement: false, tileable: false };
         let a = Coevolution.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let b = one.install(|| Coevolution.synthesize(&req).unwrap());
@@ -918,7 +924,7 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(64, 64, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let e = Coevolution
-            .synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1 })
+            .synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1, placement: false, tileable: false })
             .unwrap_err()
             .to_string();
         assert!(e.contains("no lattice found; give t1/t2"), "{e}");
@@ -930,7 +936,7 @@ mod tests {
             ("cols", ParamValue::Int(2)),
         ]);
         let e = Coevolution
-            .synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1 })
+            .synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1, placement: false, tileable: false })
             .unwrap_err()
             .to_string();
         assert!(e.contains("uncovered"), "{e}");
@@ -950,7 +956,7 @@ mod tests {
             let want =
                 golden[format!("coevolution/{name}.toml")][format!("coevolution/{name}.png")]["sha256"].as_str().unwrap().to_string();
             for p in [params(&[]), params(&[("r_mut", ParamValue::Int(0)), ("mask", ParamValue::Str("exact".into()))])] {
-                let out = Coevolution.synthesize(&Request { sample: &sample, width: 384, height: 384, params: &p, seed: 7 }).unwrap();
+                let out = Coevolution.synthesize(&Request { sample: &sample, width: 384, height: 384, params: &p, seed: 7, placement: false, tileable: false }).unwrap();
                 assert_eq!(crate::image::io::rgb_pixel_digest(&out.image).sha256, want, "{name}");
                 assert!(out.diagnostics.get("mask").is_none() && out.diagnostics.get("mutation").is_none());
             }
@@ -1029,8 +1035,8 @@ mod tests {
                 corners.iter().map(|c| c.0 + p0.0).max().unwrap() as u32 + 3,
                 corners.iter().map(|c| c.1 + p0.1).max().unwrap() as u32 + 3,
             );
-            let a = render(&sample, &g, &exact, &origins, rows, cols, p0, w, h, true).unwrap();
-            let b = render(&sample, &g, &bres, &origins, rows, cols, p0, w, h, true).unwrap();
+            let a = render(&sample, &g, &exact, &origins, rows, cols, p0, w, h, true, false).unwrap().image;
+            let b = render(&sample, &g, &bres, &origins, rows, cols, p0, w, h, true, false).unwrap().image;
             let mut differing = 0;
             for y in 0..h as i64 {
                 for x in 0..w as i64 {
@@ -1058,7 +1064,7 @@ mod tests {
             let exact = params(&given);
             given.push(("mask", ParamValue::Str("bresenham".into())));
             let p = params(&given);
-            let req = Request { sample: &img, width: 80, height: 70, params: &p, seed: 3 };
+            let req = Request { sample: &img, width: 80, height: 70, params: &p, seed: 3, placement: false, tileable: false };
             let a = Coevolution.synthesize(&req).unwrap();
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
             assert_eq!(a.image, one.install(|| Coevolution.synthesize(&req).unwrap()).image);
@@ -1155,7 +1161,7 @@ mod tests {
         let mut given = lattice.to_vec();
         given.push(("r_mut", ParamValue::Int(3)));
         let on = params(&given);
-        let req = Request { sample: &img, width: 90, height: 80, params: &on, seed: 6 };
+        let req = Request { sample: &img, width: 90, height: 80, params: &on, seed: 6, placement: false, tileable: false };
         let a = Coevolution.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         assert_eq!(a.image, one.install(|| Coevolution.synthesize(&req).unwrap()).image);

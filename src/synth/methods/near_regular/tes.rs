@@ -9,6 +9,7 @@
 
 use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, converged, texels};
 use crate::image::RgbImage;
+use crate::synth::primitives::canvas::Canvas;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
@@ -317,7 +318,7 @@ impl Method for Tes {
             }
         }
         let iter_seconds = started.elapsed().as_secs_f64();
-        let image = render(&blocks, &grid, req.width, req.height);
+        let (image, placement) = render(&blocks, &grid, req.width, req.height, req.placement).finish();
         let diagnostics = serde_json::json!({
             "lattice": { "t1": [g.t1.0, g.t1.1], "t2": [g.t2.0, g.t2.1], "source": source },
             "block": { "width": bw, "height": bh },
@@ -332,22 +333,26 @@ impl Method for Tes {
             diagnostics,
             phases: vec![("lattice".into(), lattice_seconds), ("iterations".into(), iter_seconds)],
             extras: Vec::new(),
+            placement,
         })
     }
 }
 
 /// Blocks on the grid, with minimum-error cuts (B3) where a block's extension overlaps its east
 /// and south neighbours (extensions outside the sample leave a hard edge).
-fn render(b: &Blocks, grid: &Grid, width: u32, height: u32) -> RgbImage {
+fn render(b: &Blocks, grid: &Grid, width: u32, height: u32, record: bool) -> Canvas {
     let (cw, ch) = (grid.cols as i64 * b.bw, grid.rows as i64 * b.bh);
-    let mut canvas = RgbImage::new(cw as u32, ch as u32);
+    // At least the output's size: pixels beyond the blocks stay black (uncovered).
+    let mut canvas = Canvas::new((cw as u32).max(width), (ch as u32).max(height), b.sample.dimensions(), record);
     let px = |o: (i64, i64), dx: i64, dy: i64| b.sample.get((o.0 + dx) as u32, (o.1 + dy) as u32);
+    let at = |o: (i64, i64), dx: i64, dy: i64| ((o.0 + dx) as u32, (o.1 + dy) as u32);
     for r in 0..grid.rows {
         for c in 0..grid.cols {
             let o = b.origin[grid.cell[r * grid.cols + c]];
             for dy in 0..b.bh {
                 for dx in 0..b.bw {
-                    canvas.put((c as i64 * b.bw + dx) as u32, (r as i64 * b.bh + dy) as u32, px(o, dx, dy));
+                    let (sx, sy) = at(o, dx, dy);
+                    canvas.copy((c as i64 * b.bw + dx) as u32, (r as i64 * b.bh + dy) as u32, b.sample, sx, sy);
                 }
             }
         }
@@ -365,7 +370,8 @@ fn render(b: &Blocks, grid: &Grid, width: u32, height: u32) -> RgbImage {
             let cut = vertical_cut(&e, b.bh as usize, b.ovw as usize);
             for y in 0..b.bh {
                 for x in 0..cut[y as usize] as i64 {
-                    canvas.put(((c as i64 + 1) * b.bw + x) as u32, (r as i64 * b.bh + y) as u32, px(ext, x, y));
+                    let (sx, sy) = at(ext, x, y);
+                    canvas.copy(((c as i64 + 1) * b.bw + x) as u32, (r as i64 * b.bh + y) as u32, b.sample, sx, sy);
                 }
             }
         }
@@ -383,19 +389,13 @@ fn render(b: &Blocks, grid: &Grid, width: u32, height: u32) -> RgbImage {
             let cut = horizontal_cut(&e, b.ovh as usize, b.bw as usize);
             for x in 0..b.bw {
                 for y in 0..cut[x as usize] as i64 {
-                    canvas.put((c as i64 * b.bw + x) as u32, ((r as i64 + 1) * b.bh + y) as u32, px(ext, x, y));
+                    let (sx, sy) = at(ext, x, y);
+                    canvas.copy((c as i64 * b.bw + x) as u32, ((r as i64 + 1) * b.bh + y) as u32, b.sample, sx, sy);
                 }
             }
         }
     }
-    let (w, h) = (width.min(cw as u32), height.min(ch as u32));
-    let mut out = RgbImage::new(width, height);
-    for y in 0..h {
-        for x in 0..w {
-            out.put(x, y, canvas.get(x, y));
-        }
-    }
-    out
+    canvas.into_top_left(width, height)
 }
 
 #[cfg(test)]
@@ -416,7 +416,7 @@ mod tests {
         let s = sample();
         let g: Vec<(String, ParamValue)> = vec![("t1_x".into(), ParamValue::Int(20)), ("t2_y".into(), ParamValue::Int(16))];
         let p = resolve(PARAMS, &g).unwrap();
-        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 3 };
+        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 3, placement: false, tileable: false };
         let a = Tes.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (100, 70));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();

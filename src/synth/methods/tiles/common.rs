@@ -37,7 +37,7 @@ pub fn render_whole(filled: (Synthesis, impl TileRenderer, Tiling), req: &Reques
 pub fn render_in_strips(filled: (Synthesis, impl TileRenderer, Tiling), req: &Request) -> Strips {
     let (synthesis, tiles, tiling) = filled;
     let width = req.width;
-    Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)) }
+    Strips { synthesis, render: Box::new(move |y0, rows| tiles.render_rows(&tiling, width, y0, rows)), sources: None }
 }
 
 /// Peak memory of a tile fill rendered in strips: the tile set (built from sample-sized cost

@@ -656,6 +656,7 @@ impl WangTiles {
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
             extras: if cfg.export_tiles { export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
+            placement: None,
         };
         Ok((synthesis, tiles, tiling))
     }
@@ -747,7 +748,7 @@ mod tests {
         // (the coded sample makes the colour tell the position), except at tile corners.
         let sample = coded(100, 90);
         let p = params(&[("tile", ParamValue::Int(32))]);
-        let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4 }).unwrap().image;
+        let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4, placement: false, tileable: false }).unwrap().image;
         for y in 0..160u32 {
             for x in 0..200u32 {
                 let corner = |v: u32| v.is_multiple_of(32) || v % 32 == 31;
@@ -771,13 +772,13 @@ mod tests {
         let sample = coded(128, 128);
         for cut in ["dp", "shortest_path"] {
             let p = params(&[("tile", ParamValue::Int(40)), ("cut", ParamValue::Str(cut.into()))]);
-            let small = WangTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9 }).unwrap();
-            let big = WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap();
+            let small = WangTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
+            let big = WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
             assert_eq!(small.image.dimensions(), (300, 200));
             assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
             let single =
-                one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9 }).unwrap());
+                one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap());
             assert_eq!(single.image, big.image);
             assert_eq!(single.diagnostics, big.diagnostics);
         }
@@ -828,7 +829,7 @@ mod tests {
             for candidates in [1, 5] {
                 let p = aligned(&[("cut", ParamValue::Str(cut.into())), ("patch_candidates", ParamValue::Int(candidates))]);
                 for seed in 0..6 {
-                    let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed }).unwrap();
+                    let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false }).unwrap();
                     assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
                     assert_eq!(out.diagnostics["diamond_centres"]["seam_cost"], 0, "{cut} {candidates} seed {seed}");
                     let img = out.image;
@@ -851,6 +852,8 @@ mod tests {
                 height: 180,
                 params: &params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("none".into()))]),
                 seed: 1,
+                placement: false,
+                tileable: false,
             })
             .unwrap();
         assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
@@ -861,7 +864,7 @@ mod tests {
     fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
         let sample = periodic(128, 112);
         let p = aligned(&[("tile", ParamValue::Int(40)), ("patch_candidates", ParamValue::Int(6))]);
-        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3 };
+        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3, placement: false, tileable: false };
         let many = WangTiles.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let single = one.install(|| WangTiles.synthesize(&req).unwrap());
@@ -882,7 +885,7 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1 }).unwrap_err().to_string();
+        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err().to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
         let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
@@ -964,7 +967,7 @@ mod tests {
     fn strips_render_the_same_output_as_the_whole_image() {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32))]);
-        let req = Request { sample: &sample, width: 301, height: 203, params: &p, seed: 9 };
+        let req = Request { sample: &sample, width: 301, height: 203, params: &p, seed: 9, placement: false, tileable: false };
         let whole = WangTiles.synthesize(&req).unwrap();
         let strips = WangTiles.synthesize_strips(&req).unwrap();
         assert_eq!(strips.synthesis.diagnostics, whole.diagnostics);
