@@ -34,7 +34,7 @@ use crate::image::seam_grid::SeamGrid;
 pub use acf::{Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance};
 pub use histogram::{KL_EPSILON, gray_counts, gray_level, kl_divergence, kl_divergence_eps, normalise};
 pub use orientation::{StructureTensor, orientation_bin, orientation_counts, structure_tensor};
-pub use seams::seam_visibility;
+pub use seams::{seam_visibility, wrap_visibility};
 pub use verbatim::{verbatim, verbatim_fraction};
 
 /// Every metric name [`evaluate`] accepts, in report order.

@@ -76,9 +76,48 @@ pub fn seam_visibility(output: &RgbImage, grid: &SeamGrid) -> Option<f64> {
     Some((ss as f64 / sn as f64) / (os as f64 / on as f64))
 }
 
+/// How visible the wrap of a tileable output is: the mean jump across the wrap boundaries (last
+/// column to first, last row to first: the seams of a 2×2 tiling) divided by the mean jump at all
+/// boundaries inside the image (1 = the wrap looks like any other neighbour pair). Compare it
+/// with [`seam_visibility`] of the method's interior seams. `None` for an image under 2×2 or
+/// without any jump inside.
+pub fn wrap_visibility(output: &RgbImage) -> Option<f64> {
+    let (w, h) = (output.width() as usize, output.height() as usize);
+    if w < 2 || h < 2 {
+        return None;
+    }
+    let (mut ws, mut wn) = (0u64, 0u64);
+    for y in 0..h {
+        let row = output.row(y as u32);
+        ws += jump(&row[(w - 1) * 3..w * 3], &row[0..3]);
+        wn += 1;
+    }
+    let (first, last) = (output.row(0), output.row(h as u32 - 1));
+    for x in 0..w {
+        ws += jump(&last[x * 3..x * 3 + 3], &first[x * 3..x * 3 + 3]);
+        wn += 1;
+    }
+    let (ss, sn, os, on) = seam_jump_totals(output, &SeamGrid { columns: Vec::new(), rows: Vec::new() });
+    let (all_sum, all_pairs) = (ss + os, sn + on);
+    if all_pairs == 0 || all_sum == 0 {
+        return None;
+    }
+    Some((ws as f64 / wn as f64) / (all_sum as f64 / all_pairs as f64))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wrap_visibility_sees_a_broken_wrap() {
+        // A horizontal ramp wraps with a jump of the whole range; a periodic pattern does not.
+        let ramp = RgbImage::from_fn(16, 8, |x, _| [(x * 16) as u8; 3]);
+        assert!(wrap_visibility(&ramp).unwrap() > 5.0);
+        // A triangle wave of period 8: every horizontal step, the wrap included, is 30 levels.
+        let periodic = RgbImage::from_fn(16, 8, |x, _| [((x % 8) as i32 - 4).unsigned_abs() as u8 * 30; 3]);
+        assert!(wrap_visibility(&periodic).unwrap() <= 1.0);
+    }
 
     fn grid(cols: &[(u32, u32)], rows: &[(u32, u32)]) -> SeamGrid {
         SeamGrid {
