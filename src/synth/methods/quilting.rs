@@ -228,6 +228,7 @@ impl Method for Quilting {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::image::RgbImage;
     use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {
