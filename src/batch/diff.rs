@@ -225,6 +225,7 @@ mod tests {
             }],
             seams: None,
             warnings: Vec::new(),
+            companions: Vec::new(),
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

@@ -3,17 +3,18 @@
 //! `run` and `verify` both come through here, so a re-run from a manifest is the same code path
 //! as the run that wrote it, and they cannot drift apart.
 
-use crate::batch::job::OutputSpec;
+use crate::batch::job::{Companion, OutputSpec};
 use crate::batch::manifest::{JobRecord, OutputRecord};
 use crate::batch::outdir::OutDir;
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::RgbImage;
-use crate::image::io::{self as imageio, DecodeLimits, Encoded, ImageError};
+use crate::image::io::{self as imageio, DecodeLimits, ImageError, NativeImage, Samples};
 use crate::metrics::MetricError;
 use crate::synth::error::SynthError;
 use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, STRIP_ROWS, Synthesis};
 use crate::synth::params::Params;
+use crate::synth::placement::MapKind;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
@@ -21,16 +22,89 @@ use std::time::Instant;
 
 /// A decoded sample and its digests.
 pub struct LoadedSample {
+    /// The 8-bit RGB pixels the methods search (the guide).
     pub image: RgbImage,
+    /// The sample in its stored precision and channels, when that is not 8-bit RGB (else
+    /// `image` is the sample): what the output is rendered from.
+    pub native: Option<NativeImage>,
     pub file_digest: Digest,
+    /// Digest of the stored pixels ([`NativeImage::pixel_digest`]; for an 8-bit RGB sample the
+    /// same as of `image`).
     pub pixel_digest: Digest,
+}
+
+impl LoadedSample {
+    /// The sample in its own precision (a copy of the 8-bit guide when it is 8-bit RGB).
+    pub fn native_or_guide(&self) -> std::borrow::Cow<'_, NativeImage> {
+        match &self.native {
+            Some(n) => std::borrow::Cow::Borrowed(n),
+            None => std::borrow::Cow::Owned(NativeImage::from_rgb8(&self.image)),
+        }
+    }
+    /// Its precision in words, for messages (`8-bit RGB`, `16-bit gray`, `float RGBA`…).
+    pub fn describe(&self) -> String {
+        match &self.native {
+            None => "8-bit RGB".into(),
+            Some(n) => {
+                let depth = match n.samples {
+                    Samples::U8(_) => "8-bit",
+                    Samples::U16(_) => "16-bit",
+                    Samples::F32(_) => "float",
+                };
+                let channels = ["gray", "gray + alpha", "RGB", "RGBA"].get(n.channels as usize - 1).copied().unwrap_or("?");
+                format!("{depth} {channels}")
+            }
+        }
+    }
+    /// The PNG bit depth that keeps its precision: 16 for 16-bit and float samples, else 8.
+    pub fn native_png_depth(&self) -> u8 {
+        match self.native.as_ref().map(|n| &n.samples) {
+            Some(Samples::U16(_)) | Some(Samples::F32(_)) => 16,
+            _ => 8,
+        }
+    }
 }
 
 /// Reads and decodes a sample; the error names the file and the reason.
 pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
-    let (image, bytes) =
-        imageio::read_rgb8(path, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
-    Ok(LoadedSample { pixel_digest: imageio::rgb_pixel_digest(&image), file_digest: Digest::of_bytes(&bytes), image })
+    let bytes = std::fs::read(path).map_err(|e| Error::Image { path: path.to_path_buf(), source: ImageError::Io(e) })?;
+    let native =
+        imageio::decode_native(&bytes, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
+    let image = imageio::native_to_rgb8(&native);
+    let plain = native.channels == 3 && matches!(native.samples, Samples::U8(_));
+    let pixel_digest = native.pixel_digest();
+    Ok(LoadedSample { image, native: (!plain).then_some(native), file_digest: Digest::of_bytes(&bytes), pixel_digest })
+}
+
+/// Everything a job's execution reads: the method and its inputs, resolved.
+pub struct JobInputs<'a> {
+    pub method: &'a dyn Method,
+    pub sample: &'a LoadedSample,
+    pub params: &'a Params,
+    pub seed: u64,
+    pub output: &'a OutputSpec,
+    /// Each companion with its decoded sample (the sample's size, checked by the plan).
+    pub companions: Vec<(&'a Companion, &'a LoadedSample)>,
+}
+
+impl JobInputs<'_> {
+    /// Whether the output is more than the method's own 8-bit image: rendered from a sample
+    /// that is not 8-bit RGB, with companions, or with a source map. Then the placement is asked for.
+    pub fn needs_placement(&self) -> bool {
+        self.sample.native.is_some() || !self.companions.is_empty() || self.output.source_map.is_some()
+    }
+
+    fn request(&self) -> Request<'_> {
+        Request {
+            sample: &self.sample.image,
+            width: self.output.width,
+            height: self.output.height,
+            params: self.params,
+            seed: self.seed,
+            placement: self.needs_placement(),
+            tileable: self.output.tileable,
+        }
+    }
 }
 
 /// Why a job failed. Its text is recorded in the manifest's `error` field.
@@ -96,43 +170,112 @@ pub fn install_panic_hook() {
     }));
 }
 
-/// Runs the method (catching panics) and encodes the result as the job asked, in memory; also
-/// returns the synthesis seconds. `verify` uses it; `run` encodes straight into the output file
-/// with the same encoder ([`imageio::encode_to`]), so the bytes are the same.
-pub fn synthesize_and_encode(
-    method: &dyn Method,
-    sample: &RgbImage,
-    params: &Params,
-    seed: u64,
-    output: &OutputSpec,
-) -> Result<(Synthesis, Encoded, f64), JobFailure> {
-    let (synthesis, seconds) = synthesize(method, sample, params, seed, output)?;
-    let encoded = imageio::encode(&synthesis.image, output.encoding()).map_err(JobFailure::Encode)?;
-    Ok((synthesis, encoded, seconds))
+/// Runs the method (catching panics) and encodes every output the job names in memory, as `run`
+/// writes them (the same encoders, so the same pixels): the main output first, then companions
+/// and the source map, then the method's extras. Also returns the synthesis seconds. `verify`
+/// uses it.
+pub fn synthesize_and_encode(inputs: &JobInputs) -> Result<(Synthesis, Vec<(OutputRecord, Vec<u8>)>, f64), JobFailure> {
+    let (synthesis, seconds) = synthesize(inputs)?;
+    let mut files = Vec::new();
+    let mut bytes = Vec::new();
+    let pixel_digest = encode_main(&synthesis, inputs, &mut bytes)?;
+    files.push((output_record(inputs.output, &bytes, pixel_digest), bytes));
+    files.extend(material_outputs(&synthesis, inputs)?);
+    for extra in &synthesis.extras {
+        files.push(encode_extra(&inputs.output.path, extra)?);
+    }
+    Ok((synthesis, files, seconds))
+}
+
+fn output_record(output: &OutputSpec, bytes: &[u8], pixel_digest: Digest) -> OutputRecord {
+    OutputRecord {
+        path: output.path.clone(),
+        format: output.format.name().to_string(),
+        bit_depth: output.bit_depth,
+        width: output.width,
+        height: output.height,
+        file_digest: Digest::of_bytes(bytes),
+        pixel_digest,
+    }
 }
 
 /// Runs the method, catching panics and checking the size of what it returns; also returns the
 /// synthesis seconds.
-pub fn synthesize(
-    method: &dyn Method,
-    sample: &RgbImage,
-    params: &Params,
-    seed: u64,
-    output: &OutputSpec,
-) -> Result<(Synthesis, f64), JobFailure> {
-    let request = Request { sample, width: output.width, height: output.height, params, seed, placement: false, tileable: false };
+pub fn synthesize(inputs: &JobInputs) -> Result<(Synthesis, f64), JobFailure> {
+    let method = inputs.method;
+    let request = inputs.request();
     let started = Instant::now();
     let synthesis = caught(method, || method.synthesize(&request))?;
     let seconds = started.elapsed().as_secs_f64();
-    if synthesis.image.dimensions() != (output.width, output.height) {
-        return Err(JobFailure::WrongSize {
-            method: method.name(),
-            got: synthesis.image.dimensions(),
-            want: (output.width, output.height),
-        });
+    let want = (inputs.output.width, inputs.output.height);
+    if synthesis.image.dimensions() != want {
+        return Err(JobFailure::WrongSize { method: method.name(), got: synthesis.image.dimensions(), want });
+    }
+    if request.placement {
+        match &synthesis.placement {
+            Some(p) if p.dimensions() == want => {}
+            Some(p) => return Err(JobFailure::WrongSize { method: method.name(), got: p.dimensions(), want }),
+            None => {
+                return Err(JobFailure::Synthesis {
+                    method: method.name(),
+                    source: SynthError::Failed("the method did not return the placement it was asked for (a bug in the method)".into()),
+                });
+            }
+        }
     }
     Ok((synthesis, seconds))
 }
+
+/// Encodes the main output into `w`: the method's own 8-bit image, or, for a sample that is not
+/// 8-bit RGB, the placement rendered from the sample in its own precision and channels.
+fn encode_main(synthesis: &Synthesis, inputs: &JobInputs, w: &mut dyn std::io::Write) -> Result<Digest, JobFailure> {
+    match (&inputs.sample.native, &synthesis.placement) {
+        (Some(native), Some(placement)) => {
+            let rendered = placement.render(native, MapKind::Color);
+            imageio::encode_native_to(&rendered, inputs.output.encoding(), w).map_err(JobFailure::Encode)
+        }
+        _ => imageio::encode_to(&synthesis.image, inputs.output.encoding(), w).map_err(JobFailure::Encode),
+    }
+}
+
+/// The companions rendered with the placement, and the source map, encoded with their records.
+fn material_outputs(synthesis: &Synthesis, inputs: &JobInputs) -> Result<Vec<(OutputRecord, Vec<u8>)>, JobFailure> {
+    let mut files = Vec::new();
+    let Some(placement) = &synthesis.placement else { return Ok(files) };
+    for (c, loaded) in &inputs.companions {
+        let rendered = placement.render(&loaded.native_or_guide(), c.kind);
+        let encoded = imageio::encode_native(&rendered, c.encoding()).map_err(JobFailure::Encode)?;
+        let record = OutputRecord {
+            path: c.path.clone(),
+            format: c.format.name().to_string(),
+            bit_depth: c.bit_depth,
+            width: placement.width(),
+            height: placement.height(),
+            file_digest: Digest::of_bytes(&encoded.bytes),
+            pixel_digest: encoded.pixels.pixel_digest(),
+        };
+        files.push((record, encoded.bytes));
+    }
+    if let Some(path) = &inputs.output.source_map {
+        let bytes = crate::batch::source_map::encode(placement).map_err(|e| JobFailure::Encode(ImageError::Encode(e)))?;
+        let digest = Digest::of_bytes(&bytes);
+        let record = OutputRecord {
+            path: path.clone(),
+            format: SOURCE_MAP_FORMAT.to_string(),
+            bit_depth: 32,
+            width: placement.width(),
+            height: placement.height(),
+            file_digest: digest.clone(),
+            pixel_digest: digest,
+        };
+        files.push((record, bytes));
+    }
+    Ok(files)
+}
+
+/// The `format` of a source map's output record. Like a JSON extra, its "pixel digest" is the
+/// digest of its bytes (the encoding is texsyn's own and deterministic).
+pub const SOURCE_MAP_FORMAT: &str = "source-map";
 
 /// Runs `f`, turning a method's error or panic into the job's failure.
 fn caught<T>(method: &dyn Method, f: impl FnOnce() -> Result<T, SynthError>) -> Result<T, JobFailure> {
@@ -180,30 +323,34 @@ pub struct Executed {
 /// Synthesises, scores and writes one job into `out`. The main output is written last: a job
 /// whose main output is in place is complete. It is encoded straight into its file, so no
 /// encoded copy of a large output is held beside its pixels.
-pub fn execute(
-    method: &dyn Method,
-    sample: &RgbImage,
-    params: &Params,
-    seed: u64,
-    output: &OutputSpec,
-    metric_names: &[String],
-    out: &OutDir,
-) -> Result<Executed, JobFailure> {
-    if renders_in_strips(method, output, !metric_names.is_empty()) {
-        return execute_in_strips(method, sample, params, seed, output, out);
+pub fn execute(inputs: &JobInputs, metric_names: &[String], out: &OutDir) -> Result<Executed, JobFailure> {
+    let (method, output) = (inputs.method, inputs.output);
+    if !inputs.needs_placement() && renders_in_strips(method, output, !metric_names.is_empty()) {
+        return execute_in_strips(inputs, out);
     }
-    let (synthesis, synthesis_seconds) = synthesize(method, sample, params, seed, output)?;
+    let (synthesis, synthesis_seconds) = synthesize(inputs)?;
     let metrics_started = Instant::now();
     let metrics = if metric_names.is_empty() {
         None
     } else {
         let names: Vec<&str> = metric_names.iter().map(String::as_str).collect();
+        let sample = &inputs.sample.image;
         Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
-    let extras = write_extras(&synthesis, output, out)?;
-    let main = write_main(output, out, |w| imageio::encode_to(&synthesis.image, output.encoding(), w))?;
-    let outputs = std::iter::once(main).chain(extras).collect();
+    let mut written = Vec::new();
+    for (record, bytes) in material_outputs(&synthesis, inputs)? {
+        out.write(&record.path, &bytes).map_err(JobFailure::Write)?;
+        written.push(record);
+    }
+    written.extend(write_extras(&synthesis, output, out)?);
+    let main = write_main(output, out, |w| {
+        encode_main(&synthesis, inputs, w).map_err(|e| match e {
+            JobFailure::Encode(e) => e,
+            other => ImageError::Encode(other.to_string()),
+        })
+    })?;
+    let outputs = std::iter::once(main).chain(written).collect();
     Ok(Executed { outputs, synthesis, synthesis_seconds, metrics, metrics_seconds })
 }
 
@@ -252,15 +399,9 @@ fn write_main(
 /// [`execute`] of a job whose output is rendered strip by strip into its file as it is encoded:
 /// the whole image is never held. The same pixels, diagnostics and extras; the rendering time is
 /// in the job's total, not its synthesis seconds.
-fn execute_in_strips(
-    method: &dyn Method,
-    sample: &RgbImage,
-    params: &Params,
-    seed: u64,
-    output: &OutputSpec,
-    out: &OutDir,
-) -> Result<Executed, JobFailure> {
-    let request = Request { sample, width: output.width, height: output.height, params, seed, placement: false, tileable: false };
+fn execute_in_strips(inputs: &JobInputs, out: &OutDir) -> Result<Executed, JobFailure> {
+    let (method, output) = (inputs.method, inputs.output);
+    let request = inputs.request();
     let started = Instant::now();
     let strips = caught(method, || method.synthesize_strips(&request))?;
     let synthesis_seconds = started.elapsed().as_secs_f64();

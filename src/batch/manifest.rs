@@ -70,7 +70,8 @@ pub struct SampleRecord {
     /// Relative to the manifest's directory when possible, else absolute.
     pub path: String,
     pub file_digest: Digest,
-    /// Digest of the 8-bit RGB pixels the method saw.
+    /// Digest of the stored pixels (`imageio::NativeImage::pixel_digest`): for an 8-bit RGB
+    /// sample, the pixels the method saw.
     pub pixel_digest: Digest,
     pub width: u32,
     pub height: u32,
@@ -131,6 +132,10 @@ pub struct JobRecord {
     pub seed: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample: Option<SampleRecord>,
+    /// The samples of the job's `[[companion]]` maps, in order (their pixels are in the content
+    /// key through `output_spec.companions`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub companions: Vec<SampleRecord>,
     /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_spec: Option<Value>,
@@ -387,6 +392,7 @@ mod tests {
             outputs: vec![],
             seams: None,
             warnings: Vec::new(),
+            companions: Vec::new(),
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

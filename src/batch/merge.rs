@@ -223,6 +223,7 @@ mod tests {
             outputs: Vec::new(),
             seams: None,
             warnings: Vec::new(),
+            companions: Vec::new(),
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

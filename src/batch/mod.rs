@@ -21,4 +21,5 @@ pub mod outdir;
 pub mod plan;
 pub mod run;
 pub mod shard;
+pub mod source_map;
 pub mod verify;

@@ -68,6 +68,8 @@ pub enum Action {
 pub struct Entry {
     pub job: Job,
     pub sample: Arc<LoadedSample>,
+    /// The decoded sample of each of `job.companions`, in order.
+    pub companions: Vec<Arc<LoadedSample>>,
     pub content_key: Digest,
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
@@ -138,7 +140,8 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let previous = previous_records(&opts.out);
 
     // Decode every distinct sample once.
-    let mut sample_paths: Vec<PathBuf> = set.jobs.iter().map(|j| j.sample.clone()).collect();
+    let mut sample_paths: Vec<PathBuf> =
+        set.jobs.iter().flat_map(|j| std::iter::once(j.sample.clone()).chain(j.companions.iter().map(|c| c.sample.clone()))).collect();
     sample_paths.sort();
     sample_paths.dedup();
     let loaded: BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>> =
@@ -153,7 +156,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         digests.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
 
     let mut entries = Vec::new();
-    for job in set.jobs {
+    for mut job in set.jobs {
         let sample = match &loaded[&job.sample] {
             Ok(s) => s.clone(),
             Err(e) => {
@@ -168,8 +171,15 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
+        let companions = match materials(&mut job, &sample, &loaded) {
+            Ok(c) => c,
+            Err(errors) => {
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
         let estimate = memory::job_estimate(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty());
-        let (content_key, mut record) = base_record(&job, &sample, &opts.out);
+        let (content_key, mut record) = base_record(&job, &sample, &companions, &opts.out);
         record.warnings = advice::warning(&analyses[&sample.pixel_digest.sha256], job.method.name(), &job.params).into_iter().collect();
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
@@ -178,10 +188,72 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        entries.push(Entry { job, sample, content_key, record, action, memory: estimate });
+        entries.push(Entry { job, sample, companions, content_key, record, action, memory: estimate });
     }
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
     Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous })
+}
+
+/// Checks what a job renders besides its method's 8-bit image and decides what the job file left
+/// open: each companion decoded and of the sample's size, `tileable` honoured by the method, the
+/// bit depth of PNGs without one (the sample's precision). Returns the companions' samples.
+fn materials(
+    job: &mut Job,
+    sample: &Arc<LoadedSample>,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+) -> Result<Vec<Arc<LoadedSample>>, Vec<JobError>> {
+    let mut errors = Vec::new();
+    let mut companions = Vec::new();
+    let size = sample.image.dimensions();
+    for (k, c) in job.companions.iter().enumerate() {
+        let key = format!("companion[{}].sample", k + 1);
+        match &loaded[&c.sample] {
+            Err(e) => errors.push(job.error(Some(&key), format!("companion sample {e}"))),
+            Ok(l) if l.image.dimensions() != size => errors.push(job.error(
+                Some(&key),
+                format!(
+                    "companion `{}` is {}x{} but the sample `{}` is {}x{}; a companion must have the sample's size, pixel for pixel",
+                    c.sample.display(),
+                    l.image.width(),
+                    l.image.height(),
+                    job.sample.display(),
+                    size.0,
+                    size.1
+                ),
+            )),
+            Ok(l) => companions.push(l.clone()),
+        }
+    }
+    if job.output.tileable
+        && let Err(why) = job.method.tileable(&job.params, size, (job.output.width, job.output.height))
+    {
+        let can: Vec<&str> = crate::synth::methods::registry()
+            .iter()
+            .filter(|m| {
+                let defaults = crate::synth::params::resolve(m.params(), &[]);
+                defaults.is_ok_and(|p| m.tileable(&p, size, (job.output.width, job.output.height)).is_ok())
+            })
+            .map(|m| m.name())
+            .collect();
+        let others = if can.is_empty() {
+            "no method can wrap this size with its defaults".to_string()
+        } else {
+            format!("methods that can wrap a {}x{} output: {}", job.output.width, job.output.height, can.join(", "))
+        };
+        errors.push(job.error(Some("output.tileable"), format!("{why}; {others}")));
+    }
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    if job.output.native_depth && job.output.format == crate::image::io::Format::Png {
+        job.output.bit_depth = sample.native_png_depth();
+    }
+    for (c, l) in job.companions.iter_mut().zip(&companions) {
+        if c.native_depth && c.format == crate::image::io::Format::Png {
+            c.bit_depth = l.native_png_depth();
+        }
+    }
+    Ok(companions)
 }
 
 /// Keeps the jobs [`shard::assign`] gives to `s`, from the whole set's ids and costs.
@@ -236,9 +308,23 @@ pub fn is_fragment(path: &Path) -> bool {
 }
 
 /// The record of a job's inputs, and its content key.
-fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest, JobRecord) {
+fn base_record(job: &Job, sample: &LoadedSample, companions: &[Arc<LoadedSample>], manifest_dir: &Path) -> (Digest, JobRecord) {
     let params_json = job.params.to_json();
-    let output_json = job.output.to_json();
+    let mut output_json = job.output.to_json();
+    if !job.companions.is_empty() {
+        // The companions' pixels are inputs of the job's outputs: part of the content key.
+        output_json["companions"] = job
+            .companions
+            .iter()
+            .zip(companions)
+            .map(|(c, l)| {
+                serde_json::json!({
+                    "path": c.path, "format": c.format.name(), "bit_depth": c.bit_depth, "kind": c.kind_name(),
+                    "sample_pixels": l.pixel_digest,
+                })
+            })
+            .collect();
+    }
     let content_key = manifest::content_key(
         job.method.name(),
         job.method.algorithm_version(),
@@ -247,6 +333,13 @@ fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest
         &sample.pixel_digest,
         &output_json,
     );
+    let sample_record = |path: &Path, l: &LoadedSample| SampleRecord {
+        path: manifest::relative_path(path, manifest_dir),
+        file_digest: l.file_digest.clone(),
+        pixel_digest: l.pixel_digest.clone(),
+        width: l.image.width(),
+        height: l.image.height(),
+    };
     let record = JobRecord {
         id: job.id.clone(),
         job_file: FileRef { path: manifest::relative_path(&job.file, manifest_dir), digest: job.file_digest.clone() },
@@ -257,13 +350,7 @@ fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest
         params_digest: Some(Digest::of_json(&params_json)),
         params: Some(params_json),
         seed: Some(job.seed),
-        sample: Some(SampleRecord {
-            path: manifest::relative_path(&job.sample, manifest_dir),
-            file_digest: sample.file_digest.clone(),
-            pixel_digest: sample.pixel_digest.clone(),
-            width: sample.image.width(),
-            height: sample.image.height(),
-        }),
+        sample: Some(sample_record(&job.sample, sample)),
         output_spec: Some(output_json),
         content_key: Some(content_key.clone()),
         outputs: Vec::new(),
@@ -272,6 +359,7 @@ fn base_record(job: &Job, sample: &LoadedSample, manifest_dir: &Path) -> (Digest
         metrics: None,
         timing: None,
         warnings: Vec::new(),
+        companions: job.companions.iter().zip(companions).map(|(c, l)| sample_record(&c.sample, l)).collect(),
     };
     (content_key, record)
 }
@@ -321,5 +409,6 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         metrics: None,
         timing: None,
         warnings: Vec::new(),
+        companions: Vec::new(),
     }
 }

@@ -9,7 +9,7 @@
 //! a few times per second), so a run killed at any instant can be resumed: finished jobs are
 //! recognised as up to date by their content key and the hash of their output file.
 
-use crate::batch::execute::execute;
+use crate::batch::execute::{JobInputs, execute};
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
 use crate::batch::memory::{self, Budget};
 pub use crate::batch::observer::Summary;
@@ -186,7 +186,15 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         observer.event(&Event::Started { id: &job.id });
         let job_started = Instant::now();
         let mut rec = entry.record.clone();
-        match execute(job.method, &entry.sample.image, &job.params, job.seed, &job.output, &job.metrics, out) {
+        let inputs = JobInputs {
+            method: job.method,
+            sample: &entry.sample,
+            params: &job.params,
+            seed: job.seed,
+            output: &job.output,
+            companions: job.companions.iter().zip(entry.companions.iter().map(|c| &**c)).collect(),
+        };
+        match execute(&inputs, &job.metrics, out) {
             Ok(done) => {
                 rec.outputs = done.outputs;
                 rec.seams = done.synthesis.seams;

@@ -6,7 +6,8 @@
 //! directory still has the recorded bytes and pixels. The manifest's deterministic digest is
 //! recomputed too, so an edited manifest is caught even when its jobs still reproduce.
 
-use crate::batch::execute::{encode_extra, extra_path, load_sample, synthesize_and_encode};
+use crate::batch::execute::{JobInputs, SOURCE_MAP_FORMAT, load_sample, synthesize_and_encode};
+use crate::batch::job::Companion;
 use crate::batch::job::OutputSpec;
 use crate::batch::manifest::{JobRecord, Manifest, Status};
 use crate::digest::Digest;
@@ -64,7 +65,7 @@ pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, Er
     Ok(report)
 }
 
-fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
+fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     if !rec.status.is_success() {
         return Outcome::Skipped(format!("recorded as {}", rec.status.name()));
     }
@@ -114,42 +115,53 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
     if rec.content_key.as_ref() != Some(&key) {
         problems.push("content_key does not match the recorded inputs".into());
     }
-    match synthesize_and_encode(method, &loaded.image, &params, seed, &output) {
+    // Companions: their samples must still have the recorded pixels.
+    let wanted: Vec<serde_json::Value> = spec.get("companions").and_then(|c| c.as_array()).cloned().unwrap_or_default();
+    if wanted.len() != rec.companions.len() {
+        return Outcome::Mismatch(vec!["the record's companions do not match its output spec".into()]);
+    }
+    let mut companions = Vec::new();
+    for (w, c) in wanted.iter().zip(&rec.companions) {
+        let loaded = match load_sample(&dir.join(&c.path)) {
+            Ok(s) => s,
+            Err(e) => return Outcome::Mismatch(vec![format!("companion sample {e}")]),
+        };
+        if loaded.pixel_digest != c.pixel_digest {
+            return Outcome::Mismatch(vec![format!("companion sample `{}` no longer has the recorded pixels", c.path)]);
+        }
+        let spec = match companion_spec(w, &dir.join(&c.path)) {
+            Ok(s) => s,
+            Err(e) => return Outcome::Mismatch(vec![e]),
+        };
+        companions.push((spec, loaded));
+    }
+    let inputs = JobInputs {
+        method,
+        sample: &loaded,
+        params: &params,
+        seed,
+        output: &output,
+        companions: companions.iter().map(|(c, l)| (c, l)).collect(),
+    };
+    match synthesize_and_encode(&inputs) {
         Err(e) => problems.push(format!("re-run failed: {e}")),
-        Ok((synthesis, encoded, _)) => {
-            for extra in &synthesis.extras {
-                match encode_extra(&output.path, extra) {
-                    Err(e) => problems.push(format!("re-run extra output `{}`: {e}", extra.name)),
-                    Ok((fresh, _)) => match rec.outputs.iter().find(|o| o.path == fresh.path) {
-                        None => problems.push(format!("the re-run also writes `{}`, which the record lacks", fresh.path)),
-                        Some(o) if o.pixel_digest != fresh.pixel_digest => problems.push(format!(
-                            "re-run differs from the record for `{}` (recorded {}, re-run {})",
-                            o.path,
-                            o.pixel_digest.short(),
-                            fresh.pixel_digest.short()
-                        )),
-                        Some(_) => {}
-                    },
+        Ok((_, files, _)) => {
+            for (fresh, _) in &files {
+                match rec.outputs.iter().find(|o| o.path == fresh.path) {
+                    None => problems.push(format!("the re-run also writes `{}`, which the record lacks", fresh.path)),
+                    Some(o) if o.pixel_digest != fresh.pixel_digest => problems.push(format!(
+                        "re-run pixels differ from the record for `{}` (recorded {}, re-run {})",
+                        o.path,
+                        o.pixel_digest.short(),
+                        fresh.pixel_digest.short()
+                    )),
+                    Some(_) => {}
                 }
             }
-            let produced: Vec<String> = synthesis.extras.iter().filter_map(|e| extra_path(&output.path, &e.name).ok()).collect();
             for o in &rec.outputs {
-                if o.path != output.path && !produced.contains(&o.path) {
+                if !files.iter().any(|(f, _)| f.path == o.path) {
                     problems.push(format!("the record lists `{}`, which a re-run does not produce", o.path));
                 }
-            }
-            let fresh = encoded.pixels.pixel_digest();
-            let scratch_file = scratch.join(Digest::of_bytes(rec.id.as_bytes()).short()).with_extension(output.format.name());
-            let _ = std::fs::write(&scratch_file, &encoded.bytes);
-            match rec.outputs.iter().find(|o| o.path == output.path) {
-                None => problems.push(format!("no output record for `{}`", output.path)),
-                Some(o) if o.pixel_digest != fresh => problems.push(format!(
-                    "re-run pixels differ from the record for `{}` (recorded {}, re-run {})",
-                    o.path,
-                    o.pixel_digest.short(),
-                    fresh.short()
-                )),
-                Some(_) => {}
             }
         }
     }
@@ -160,7 +172,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
                 if Digest::of_bytes(&bytes) != o.file_digest {
                     problems.push(format!("output file `{}` differs from the recorded bytes", o.path));
                 }
-                if o.format == "json" {
+                if o.format == "json" || o.format == SOURCE_MAP_FORMAT {
                     if Digest::of_bytes(&bytes) != o.pixel_digest {
                         problems.push(format!("output file `{}` does not have the recorded content", o.path));
                     }
@@ -179,6 +191,22 @@ fn verify_job(rec: &JobRecord, dir: &Path, scratch: &Path) -> Outcome {
     if problems.is_empty() { Outcome::Verified } else { Outcome::Mismatch(problems) }
 }
 
+/// A companion as its output spec records it.
+fn companion_spec(v: &serde_json::Value, sample: &Path) -> Result<Companion, String> {
+    let text = |k: &str| v.get(k).and_then(|x| x.as_str()).ok_or_else(|| format!("output_spec.companions[].{k} is missing"));
+    let format = match text("format")? {
+        "png" => crate::image::io::Format::Png,
+        "exr" => crate::image::io::Format::Exr,
+        other => return Err(format!("companion format {other:?} is not png or exr")),
+    };
+    let kind = match text("kind")? {
+        "normal" => crate::synth::placement::MapKind::Normal,
+        _ => crate::synth::placement::MapKind::Color,
+    };
+    let bit_depth = v.get("bit_depth").and_then(|x| x.as_u64()).ok_or("output_spec.companions[].bit_depth is missing")? as u8;
+    Ok(Companion { sample: sample.to_path_buf(), path: text("path")?.to_string(), format, bit_depth, native_depth: false, kind })
+}
+
 fn output_spec(v: &serde_json::Value) -> Result<OutputSpec, String> {
     let get_u = |k: &str| v.get(k).and_then(|x| x.as_u64()).ok_or_else(|| format!("output_spec.{k} is missing"));
     let path = v.get("path").and_then(|x| x.as_str()).ok_or("output_spec.path is missing")?.to_string();
@@ -187,7 +215,16 @@ fn output_spec(v: &serde_json::Value) -> Result<OutputSpec, String> {
         Some("exr") => imageio::Format::Exr,
         other => return Err(format!("output_spec.format {other:?} is not png or exr")),
     };
-    Ok(OutputSpec { path, width: get_u("width")? as u32, height: get_u("height")? as u32, format, bit_depth: get_u("bit_depth")? as u8 })
+    Ok(OutputSpec {
+        path,
+        width: get_u("width")? as u32,
+        height: get_u("height")? as u32,
+        format,
+        bit_depth: get_u("bit_depth")? as u8,
+        native_depth: false,
+        tileable: v.get("tileable").and_then(|x| x.as_bool()).unwrap_or(false),
+        source_map: v.get("source_map").and_then(|x| x.as_str()).map(str::to_string),
+    })
 }
 
 /// Used by `golden`: the pixel digests of each successful job's outputs.

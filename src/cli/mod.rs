@@ -9,6 +9,7 @@
 //! exit 0 instead of the panic `println!` would give, because the reader has what it wanted.
 
 mod advise;
+mod apply;
 mod diff;
 mod eval;
 mod golden;
@@ -77,6 +78,10 @@ enum Command {
     /// Score any image against a sample with the metrics texsyn records (paper 003's four
     /// measures, the verbatim-copy fraction; seam visibility needs a method's grid and is undefined here).
     Eval(eval::Args),
+    /// Render a job's source map (its placement) over any image of the sample's size: a map the
+    /// job did not list as a companion, a repainted albedo; over the sample it gives the output.
+    #[command(after_help = apply::HELP)]
+    Apply(apply::Args),
     /// Use a tile set exported by a wang-tiles or rw-tiles job (`export_tiles = true`).
     #[command(subcommand)]
     Tiles(tiles::Command),
@@ -122,6 +127,7 @@ pub fn main() -> ExitCode {
         Command::Lattice(args) => lattice::run(args),
         Command::Advise(args) => advise::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Apply(args) => apply::run(args),
         Command::Tiles(cmd) => tiles::run(cmd),
         Command::Report(args) => report::run(args),
     };

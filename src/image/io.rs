@@ -167,7 +167,8 @@ fn check_size(w: u32, h: u32, limits: DecodeLimits) -> Result<(), ImageError> {
     Ok(())
 }
 
-/// Decodes PNG, JPEG or EXR into its stored precision (RGB or gray expanded to RGB; alpha dropped).
+/// Decodes PNG, JPEG or EXR into its stored precision and channels (gray, gray + alpha, RGB,
+/// RGBA; EXR as RGB, or RGBA when it has an alpha channel).
 pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageError> {
     if bytes.is_empty() {
         return Err(ImageError::Decode("file is empty".into()));
@@ -200,41 +201,24 @@ pub fn decode_native(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, 
     let img = reader.decode().map_err(describe_image_error)?;
     use image::DynamicImage as D;
     let (w, h) = (img.width(), img.height());
+    let native = |channels: u32, samples: Samples| NativeImage { width: w, height: h, channels, samples };
     Ok(match img {
-        D::ImageLuma16(_) | D::ImageLumaA16(_) | D::ImageRgb16(_) | D::ImageRgba16(_) => {
-            NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(img.to_rgb16().into_raw()) }
-        }
-        D::ImageRgb32F(_) | D::ImageRgba32F(_) => {
-            NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(img.to_rgb32f().into_raw()) }
-        }
-        _ => NativeImage { width: w, height: h, channels: 3, samples: Samples::U8(img.to_rgb8().into_raw()) },
+        D::ImageLuma8(i) => native(1, Samples::U8(i.into_raw())),
+        D::ImageLumaA8(i) => native(2, Samples::U8(i.into_raw())),
+        D::ImageRgb8(i) => native(3, Samples::U8(i.into_raw())),
+        D::ImageRgba8(i) => native(4, Samples::U8(i.into_raw())),
+        D::ImageLuma16(i) => native(1, Samples::U16(i.into_raw())),
+        D::ImageLumaA16(i) => native(2, Samples::U16(i.into_raw())),
+        D::ImageRgb16(i) => native(3, Samples::U16(i.into_raw())),
+        D::ImageRgba16(i) => native(4, Samples::U16(i.into_raw())),
+        D::ImageRgb32F(i) => native(3, Samples::F32(i.into_raw())),
+        D::ImageRgba32F(i) => native(4, Samples::F32(i.into_raw())),
+        other => native(3, Samples::U8(other.to_rgb8().into_raw())),
     })
 }
 
-/// Decodes an output file as stored, keeping an alpha channel (RGBA outputs such as exported
-/// tiles are recorded with 4 channels); everything else decodes as [`decode_native`] does.
+/// Decodes an output file as stored: [`decode_native`] (kept as the name verification uses).
 pub fn decode_output(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageError> {
-    if bytes.starts_with(b"\x89PNG") {
-        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
-        let mut l = image::Limits::default();
-        l.max_image_width = Some(limits.max_side);
-        l.max_image_height = Some(limits.max_side);
-        l.max_alloc = Some(limits.max_alloc_bytes);
-        reader.limits(l);
-        if let Ok(img) = reader.decode() {
-            let (w, h) = (img.width(), img.height());
-            check_size(w, h, limits)?;
-            match img {
-                image::DynamicImage::ImageRgba8(rgba) => {
-                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U8(rgba.into_raw()) });
-                }
-                image::DynamicImage::ImageRgba16(rgba) => {
-                    return Ok(NativeImage { width: w, height: h, channels: 4, samples: Samples::U16(rgba.into_raw()) });
-                }
-                _ => {}
-            }
-        }
-    }
     decode_native(bytes, limits)
 }
 
@@ -302,6 +286,8 @@ fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageEr
         return Err(ImageError::Decode("EXR layer is impossibly large".into()));
     }
     check_size(size.width() as u32, size.height() as u32, limits)?;
+    let has_alpha = header.channels.list.iter().any(|c| c.name == exr::prelude::Text::from("A"));
+    let c = if has_alpha { 4 } else { 3 };
     // The exr crate validates chunk tables against the header; a panic inside it is still turned
     // into an error rather than taking the process down.
     let result = std::panic::catch_unwind(|| {
@@ -309,12 +295,15 @@ fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageEr
             .no_deep_data()
             .largest_resolution_level()
             .rgba_channels(
-                |resolution, _| (resolution.width(), vec![0f32; resolution.width() * resolution.height() * 3]),
-                |(w, px): &mut (usize, Vec<f32>), pos: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
-                    let i = (pos.y() * *w + pos.x()) * 3;
+                move |resolution, _| (resolution.width(), vec![0f32; resolution.width() * resolution.height() * c]),
+                move |(w, px): &mut (usize, Vec<f32>), pos: Vec2<usize>, (r, g, b, a): (f32, f32, f32, f32)| {
+                    let i = (pos.y() * *w + pos.x()) * c;
                     px[i] = r;
                     px[i + 1] = g;
                     px[i + 2] = b;
+                    if c == 4 {
+                        px[i + 3] = a;
+                    }
                 },
             )
             .first_valid_layer()
@@ -329,16 +318,24 @@ fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageEr
     };
     let (w, h) = (image.layer_data.size.width() as u32, image.layer_data.size.height() as u32);
     let (_, px) = image.layer_data.channel_data.pixels;
-    Ok(NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(px) })
+    Ok(NativeImage { width: w, height: h, channels: c as u32, samples: Samples::F32(px) })
 }
 
-/// Quantises any stored precision to the 8-bit RGB methods work on.
+/// Quantises any stored precision and channel count to the 8-bit RGB methods work on (what the
+/// search sees): gray is repeated in R, G and B, alpha is dropped, 16 bits are rounded to 8, float
+/// (linear light) is encoded as sRGB.
 pub fn native_to_rgb8(img: &NativeImage) -> RgbImage {
-    let data: Vec<u8> = match &img.samples {
+    let c = img.channels as usize;
+    let rgb_of = |px: &[u8]| -> [u8; 3] { if c < 3 { [px[0]; 3] } else { [px[0], px[1], px[2]] } };
+    let eight: Vec<u8> = match &img.samples {
         Samples::U8(v) => v.clone(),
         Samples::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
         Samples::F32(v) => v.iter().map(|&s| unit_to_u8(linear_to_srgb(s as f64))).collect(),
     };
+    if c == 3 {
+        return RgbImage::from_raw(img.width, img.height, eight).expect("decoded size matches");
+    }
+    let data: Vec<u8> = eight.chunks_exact(c).flat_map(rgb_of).collect();
     RgbImage::from_raw(img.width, img.height, data).expect("decoded size matches")
 }
 
@@ -472,6 +469,132 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
         }
         (Format::Png, d) => Err(ImageError::Encode(format!("PNG bit depth {d} is not supported (use 8 or 16)"))),
     }
+}
+
+/// The samples an image is stored as under `enc`: the same channels (EXR: gray becomes RGB, gray +
+/// alpha RGBA), converted to the encoding's precision. Integer to integer widens by `× 257` or
+/// rounds `(v·255 + 32767) / 65535`; integer to EXR decodes sRGB to linear light; EXR to integer
+/// encodes sRGB. Alpha is never transfer-encoded. Float to float is untouched: values above 1 and
+/// below 0 stay.
+pub fn stored_samples(img: &NativeImage, enc: Encoding) -> Result<NativeImage, ImageError> {
+    let c = img.channels as usize;
+    if !(1..=4).contains(&c) {
+        return Err(ImageError::Encode(format!("{c} channels cannot be stored")));
+    }
+    let has_alpha = c == 2 || c == 4;
+    let is_alpha = |k: usize| has_alpha && k % c == c - 1;
+    if enc.format == Format::Png && matches!((&img.samples, enc.bit_depth), (Samples::U8(_), 8) | (Samples::U16(_), 16)) {
+        return Ok(img.clone());
+    }
+    let unit: Vec<f64> = match &img.samples {
+        Samples::U8(v) => v.iter().map(|&x| f64::from(x) / 255.0).collect(),
+        Samples::U16(v) => v.iter().map(|&x| f64::from(x) / 65535.0).collect(),
+        Samples::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
+    };
+    let float_in = matches!(img.samples, Samples::F32(_));
+    let samples = match (enc.format, enc.bit_depth, &img.samples) {
+        (Format::Png, 16, Samples::U8(v)) => Samples::U16(v.iter().map(|&x| u16::from(x) * 257).collect()),
+        (Format::Png, 8, Samples::U16(v)) => Samples::U8(v.iter().map(|&x| ((u32::from(x) * 255 + 32767) / 65535) as u8).collect()),
+        (Format::Png, 8, Samples::F32(_)) => Samples::U8(
+            unit.iter().enumerate().map(|(k, &v)| if is_alpha(k) { unit_to_u8(v) } else { unit_to_u8(linear_to_srgb(v)) }).collect(),
+        ),
+        (Format::Png, 16, Samples::F32(_)) => Samples::U16(
+            unit.iter()
+                .enumerate()
+                .map(|(k, &v)| {
+                    let v = if is_alpha(k) { v } else { linear_to_srgb(v) };
+                    if v.is_nan() { 0 } else { (v * 65535.0 + 0.5).floor().clamp(0.0, 65535.0) as u16 }
+                })
+                .collect(),
+        ),
+        (Format::Png, d, _) => return Err(ImageError::Encode(format!("PNG bit depth {d} is not supported (use 8 or 16)"))),
+        (Format::Exr, _, _) => {
+            let lin: Vec<f32> = if float_in {
+                unit.iter().map(|&v| v as f32).collect()
+            } else {
+                unit.iter().enumerate().map(|(k, &v)| if is_alpha(k) { v as f32 } else { srgb_to_linear(v) as f32 }).collect()
+            };
+            // EXR holds colour: gray is stored as R = G = B.
+            let lin = if c <= 2 {
+                lin.chunks_exact(c).flat_map(|p| if c == 1 { vec![p[0]; 3] } else { vec![p[0], p[0], p[0], p[1]] }).collect()
+            } else {
+                lin
+            };
+            let channels = if has_alpha { 4 } else { 3 };
+            return Ok(NativeImage { width: img.width, height: img.height, channels, samples: Samples::F32(lin) });
+        }
+    };
+    Ok(NativeImage { width: img.width, height: img.height, channels: img.channels, samples })
+}
+
+/// Encodes an image in any precision and channel count ([`stored_samples`] says what is stored)
+/// into `w`; returns the pixel digest of what was stored.
+pub fn encode_native_to(img: &NativeImage, enc: Encoding, w: &mut dyn std::io::Write) -> Result<Digest, ImageError> {
+    let stored = stored_samples(img, enc)?;
+    let (width, height) = (stored.width, stored.height);
+    match &stored.samples {
+        Samples::U8(v) => {
+            let color = match stored.channels {
+                1 => image::ExtendedColorType::L8,
+                2 => image::ExtendedColorType::La8,
+                3 => image::ExtendedColorType::Rgb8,
+                _ => image::ExtendedColorType::Rgba8,
+            };
+            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(w), v, width, height, color)
+                .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
+        }
+        Samples::U16(v) => {
+            let color = match stored.channels {
+                1 => image::ExtendedColorType::L16,
+                2 => image::ExtendedColorType::La16,
+                3 => image::ExtendedColorType::Rgb16,
+                _ => image::ExtendedColorType::Rgba16,
+            };
+            let be: Vec<u8> = v.iter().flat_map(|s| s.to_be_bytes()).collect();
+            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(w), &be, width, height, color)
+                .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
+        }
+        Samples::F32(v) => {
+            use exr::prelude::*;
+            let wu = width as usize;
+            let c = stored.channels as usize;
+            let size = (wu, height as usize);
+            let attrs = LayerAttributes::named("texsyn");
+            let mut cursor = std::io::Cursor::new(Vec::new());
+            let fail = |e: exr::error::Error| ImageError::Encode(format!("EXR encoding failed: {e}"));
+            if c == 4 {
+                let channels = SpecificChannels::rgba(|pos: Vec2<usize>| {
+                    let i = (pos.y() * wu + pos.x()) * 4;
+                    (v[i], v[i + 1], v[i + 2], v[i + 3])
+                });
+                Image::from_layer(Layer::new(size, attrs, exr::prelude::Encoding::FAST_LOSSLESS, channels))
+                    .write()
+                    .non_parallel()
+                    .to_buffered(&mut cursor)
+                    .map_err(fail)?;
+            } else {
+                let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+                    let i = (pos.y() * wu + pos.x()) * 3;
+                    (v[i], v[i + 1], v[i + 2])
+                });
+                Image::from_layer(Layer::new(size, attrs, exr::prelude::Encoding::FAST_LOSSLESS, channels))
+                    .write()
+                    .non_parallel()
+                    .to_buffered(&mut cursor)
+                    .map_err(fail)?;
+            }
+            w.write_all(&cursor.into_inner()).map_err(ImageError::Io)?;
+        }
+    }
+    Ok(stored.pixel_digest())
+}
+
+/// [`encode_native_to`] into memory.
+pub fn encode_native(img: &NativeImage, enc: Encoding) -> Result<Encoded, ImageError> {
+    let mut bytes = Vec::new();
+    encode_native_to(img, enc, &mut bytes)?;
+    let pixels = stored_samples(img, enc)?;
+    Ok(Encoded { bytes, pixels })
 }
 
 #[cfg(test)]

@@ -26,9 +26,11 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics"];
+pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion"];
 /// The keys of the `[output]` table.
-pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth"];
+pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth", "tileable", "source_map"];
+/// The keys of a `[[companion]]` table.
+pub const COMPANION_KEYS: &[&str] = &["sample", "path", "kind", "bit_depth"];
 /// Largest output side accepted.
 pub const MAX_OUTPUT_SIDE: i64 = 65_536;
 /// Largest number of jobs one file may expand to (a guard against a typo like `to = 1e9`).
@@ -70,6 +72,40 @@ pub struct OutputSpec {
     pub format: Format,
     /// 8 or 16 for PNG, 32 for EXR.
     pub bit_depth: u8,
+    /// The job file gave no `bit_depth` for a PNG: the sample's precision decides (16 for a
+    /// 16-bit or float sample), once the sample is read.
+    pub native_depth: bool,
+    /// `tileable = true`: the output wraps seamlessly.
+    pub tileable: bool,
+    /// `source_map`: where the placement is written (an EXR), relative to the output directory.
+    pub source_map: Option<String>,
+}
+
+/// A `[[companion]]`: another map of the sample (a normal map, gloss, height…) rendered with the
+/// main output's placement.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Companion {
+    /// The companion's sample, resolved against the job file's directory.
+    pub sample: PathBuf,
+    /// Relative to the output directory, normalised.
+    pub path: String,
+    pub format: Format,
+    pub bit_depth: u8,
+    /// As [`OutputSpec::native_depth`], for the companion's own sample.
+    pub native_depth: bool,
+    pub kind: crate::synth::placement::MapKind,
+}
+
+impl Companion {
+    pub fn encoding(&self) -> crate::image::io::Encoding {
+        crate::image::io::Encoding { format: self.format, bit_depth: self.bit_depth }
+    }
+    pub fn kind_name(&self) -> &'static str {
+        match self.kind {
+            crate::synth::placement::MapKind::Color => "color",
+            crate::synth::placement::MapKind::Normal => "normal",
+        }
+    }
 }
 
 impl OutputSpec {
@@ -77,10 +113,18 @@ impl OutputSpec {
         crate::image::io::Encoding { format: self.format, bit_depth: self.bit_depth }
     }
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({
+        let mut v = serde_json::json!({
             "path": self.path, "width": self.width, "height": self.height,
             "format": self.format.name(), "bit_depth": self.bit_depth,
-        })
+        });
+        // Only when asked for, so the content keys of jobs without them stay as they were.
+        if self.tileable {
+            v["tileable"] = serde_json::Value::Bool(true);
+        }
+        if let Some(m) = &self.source_map {
+            v["source_map"] = serde_json::Value::String(m.clone());
+        }
+        v
     }
 }
 
@@ -102,6 +146,8 @@ pub struct Job {
     pub output: OutputSpec,
     /// Metrics to compute after synthesis (`metrics = true` or a list); empty for none.
     pub metrics: Vec<String>,
+    /// Further maps rendered with the output's placement (`[[companion]]`).
+    pub companions: Vec<Companion>,
     /// Line and column of each key, to point errors found later (e.g. by `Method::check`) at it.
     pub positions: BTreeMap<String, (usize, usize)>,
 }
@@ -113,6 +159,14 @@ impl fmt::Debug for Job {
 }
 
 impl Job {
+    /// Every file the job asks for by name: the output, its companions and its source map.
+    pub fn written_paths(&self) -> Vec<&str> {
+        let mut v = vec![self.output.path.as_str()];
+        v.extend(self.companions.iter().map(|c| c.path.as_str()));
+        v.extend(self.output.source_map.as_deref());
+        v
+    }
+
     /// An error about this job's key `key` (e.g. `params.block`), placed at the key's line.
     pub fn error(&self, key: Option<&str>, message: impl Into<String>) -> JobError {
         JobError {
@@ -239,7 +293,9 @@ pub fn read_all(files: &[JobFile]) -> JobSet {
 fn reject_shared_outputs(plan: &mut JobSet) {
     let mut by_output: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for (i, j) in plan.jobs.iter().enumerate() {
-        by_output.entry(j.output.path.clone()).or_default().push(i);
+        for p in j.written_paths() {
+            by_output.entry(p.to_string()).or_default().push(i);
+        }
     }
     let mut bad: BTreeMap<usize, String> = BTreeMap::new();
     for (path, idx) in &by_output {

@@ -1,9 +1,10 @@
 //! Reading one job file: TOML with positions, every top-level and `[output]` key checked, each
 //! problem recorded with its line, column and key; the values handed to `sweep`.
 
-use super::source::{Ctx, Raw, Ready, de_int, de_param, type_name};
+use super::source::{Ctx, Raw, RawCompanion, Ready, de_int, de_param, type_name};
 use super::sweep;
-use super::{Job, JobError, JobFile, MAX_OUTPUT_SIDE, OUTPUT_KEYS, TOP_KEYS, normalise_output_path};
+use super::{COMPANION_KEYS, Companion, Job, JobError, JobFile, MAX_OUTPUT_SIDE, OUTPUT_KEYS, TOP_KEYS, normalise_output_path};
+use crate::synth::placement::MapKind;
 use crate::digest::Digest;
 use crate::image::io::Format;
 use crate::synth::methods;
@@ -59,6 +60,9 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
         width: None,
         height: None,
         bit_depth: None,
+        tileable: false,
+        source_map: None,
+        companions: Vec::new(),
         params: Vec::new(),
         metrics: Vec::new(),
         sweep: Vec::new(),
@@ -107,6 +111,7 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
                 other => ctx.err(Some(v.span()), Some("sweep"), format!("expected a table ([sweep]), found {}", type_name(other))),
             },
             "metrics" => read_metrics(ctx, v, &mut raw),
+            "companion" => read_companions(ctx, v, &mut raw),
             other => ctx.err(Some(k.span()), Some(other), params::unknown_key_message(other, TOP_KEYS)),
         }
     }
@@ -170,6 +175,23 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }
     }
     let format_and_depth = check_output_format(ctx, &raw);
+    let mut companions = Vec::new();
+    for c in std::mem::take(&mut raw.companions) {
+        let prefix = format!("companion[{}]", c.index + 1);
+        let Some((path, span)) = &c.path else { continue };
+        let Some((format, bit_depth, native_depth)) = check_format(ctx, &prefix, path, span, c.bit_depth.as_ref()) else { continue };
+        if let Err(e) = normalise_output_path(path) {
+            ctx.err(Some(span.clone()), Some(&format!("{prefix}.path")), e);
+        }
+        let Some(sample) = c.sample else { continue };
+        // The path stays a template until the sweep point is known.
+        companions.push(Companion { sample, path: path.clone(), format, bit_depth, native_depth, kind: c.kind });
+    }
+    if let Some((template, span)) = &raw.source_map
+        && let Err(e) = normalise_output_path(template)
+    {
+        ctx.err(Some(span.clone()), Some("output.source_map"), e);
+    }
     if let Some((template, span)) = &raw.output_path
         && let Err(e) = normalise_output_path(template)
     {
@@ -191,13 +213,24 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     if !ctx.errors.is_empty() {
         return Vec::new();
     }
-    let (Some(method), Some(sample), Some((path_template, path_span)), Some(width), Some(height), Some((format, bit_depth))) =
+    let (Some(method), Some(sample), Some((path_template, path_span)), Some(width), Some(height), Some((format, bit_depth, native_depth))) =
         (method, sample_path, raw.output_path.clone(), raw.width, raw.height, format_and_depth)
     else {
         return Vec::new();
     };
-    let ready =
-        Ready { method, sample, path_template, path_span, width, height, format, bit_depth, file_digest: Digest::of_bytes(file_bytes) };
+    let ready = Ready {
+        method,
+        sample,
+        path_template,
+        path_span,
+        width,
+        height,
+        format,
+        bit_depth,
+        native_depth,
+        file_digest: Digest::of_bytes(file_bytes),
+        companions,
+    };
     sweep::expand(ctx, &raw, &ready)
 }
 
@@ -256,31 +289,115 @@ fn read_output(ctx: &mut Ctx, t: &DeTable, raw: &mut Raw) {
                 Some(Err(e)) => ctx.err(Some(v.span()), Some(&key), e),
                 None => ctx.err(Some(v.span()), Some(&key), format!("expected an integer (8 or 16), found {}", type_name(v.get_ref()))),
             },
+            "tileable" => match v.get_ref() {
+                DeValue::Boolean(b) => raw.tileable = *b,
+                other => ctx.err(Some(v.span()), Some(&key), format!("expected true or false, found {}", type_name(other))),
+            },
+            "source_map" => match v.get_ref() {
+                DeValue::String(s) if s.to_ascii_lowercase().ends_with(".exr") => raw.source_map = Some((s.to_string(), v.span())),
+                DeValue::String(s) => ctx.err(
+                    Some(v.span()),
+                    Some(&key),
+                    format!("source map `{s}` must end in .exr (the placement is stored as an EXR with integer channels)"),
+                ),
+                other => ctx.err(Some(v.span()), Some(&key), format!("expected a string (a path ending in .exr), found {}", type_name(other))),
+            },
             other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, OUTPUT_KEYS)),
         }
     }
 }
 
-fn check_output_format(ctx: &mut Ctx, raw: &Raw) -> Option<(Format, u8)> {
+/// `[[companion]]` tables: each needs `sample` and `path`; `kind` and `bit_depth` are optional.
+fn read_companions(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
+    let DeValue::Array(items) = v.get_ref() else {
+        let found = type_name(v.get_ref());
+        ctx.err(Some(v.span()), Some("companion"), format!("expected [[companion]] tables, found {found}"));
+        return;
+    };
+    let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
+    for (index, item) in items.iter().enumerate() {
+        let prefix = format!("companion[{}]", index + 1);
+        let DeValue::Table(t) = item.get_ref() else {
+            ctx.err(Some(item.span()), Some(&prefix), format!("expected a table, found {}", type_name(item.get_ref())));
+            continue;
+        };
+        ctx.at(&prefix, item.span());
+        let mut c = RawCompanion { index, sample: None, path: None, kind: MapKind::Color, bit_depth: None };
+        for (k, v) in t.iter() {
+            let key = format!("{prefix}.{}", k.get_ref());
+            ctx.at(&key, k.span());
+            match k.get_ref().as_ref() {
+                "sample" => match v.get_ref() {
+                    DeValue::String(s) if !s.is_empty() => {
+                        let p = base.join(s.as_ref() as &str);
+                        if p.is_file() {
+                            c.sample = Some(p);
+                        } else {
+                            let why = missing_file_reason(&p);
+                            ctx.err(Some(v.span()), Some(&key), format!("companion sample `{}` {why} (paths are relative to the job file)", p.display()));
+                        }
+                    }
+                    other => ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string (the map's path), found {}", type_name(other))),
+                },
+                "path" => match v.get_ref() {
+                    DeValue::String(s) if !s.is_empty() => c.path = Some((s.to_string(), v.span())),
+                    other => ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string (where to write it), found {}", type_name(other))),
+                },
+                "kind" => match v.get_ref() {
+                    DeValue::String(s) if s.as_ref() as &str == "color" => c.kind = MapKind::Color,
+                    DeValue::String(s) if s.as_ref() as &str == "normal" => c.kind = MapKind::Normal,
+                    DeValue::String(s) => ctx.err(Some(v.span()), Some(&key), format!("unknown kind `{s}`; use \"color\" (blended as is) or \"normal\" (blended normals are renormalised)")),
+                    other => ctx.err(Some(v.span()), Some(&key), format!("expected \"color\" or \"normal\", found {}", type_name(other))),
+                },
+                "bit_depth" => match de_int(v.get_ref()) {
+                    Some(Ok(n)) => c.bit_depth = Some((n, v.span())),
+                    Some(Err(e)) => ctx.err(Some(v.span()), Some(&key), e),
+                    None => ctx.err(Some(v.span()), Some(&key), format!("expected an integer (8 or 16), found {}", type_name(v.get_ref()))),
+                },
+                other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, COMPANION_KEYS)),
+            }
+        }
+        for (k, present) in [("sample", t.get("sample").is_some()), ("path", t.get("path").is_some())] {
+            if !present {
+                ctx.err(Some(item.span()), Some(&format!("{prefix}.{k}")), format!("missing required key `{prefix}.{k}`"));
+            }
+        }
+        raw.companions.push(c);
+    }
+}
+
+fn check_output_format(ctx: &mut Ctx, raw: &Raw) -> Option<(Format, u8, bool)> {
     let (path, span) = raw.output_path.as_ref()?;
+    check_format(ctx, "output", path, span, raw.bit_depth.as_ref())
+}
+
+/// The format a path asks for and the bit depth: given, or (`true`) the sample's precision.
+fn check_format(
+    ctx: &mut Ctx,
+    table: &str,
+    path: &str,
+    span: &std::ops::Range<usize>,
+    bit_depth: Option<&(i64, std::ops::Range<usize>)>,
+) -> Option<(Format, u8, bool)> {
     let format = match Format::from_path(Path::new(path)) {
         Some(f) => f,
         None => {
-            ctx.err(Some(span.clone()), Some("output.path"), format!("output `{path}` must end in .png or .exr"));
+            ctx.err(Some(span.clone()), Some(&format!("{table}.path")), format!("output `{path}` must end in .png or .exr"));
             return None;
         }
     };
-    match (format, &raw.bit_depth) {
-        (Format::Png, None) => Some((format, 8)),
-        (Format::Png, Some((8, _))) => Some((format, 8)),
-        (Format::Png, Some((16, _))) => Some((format, 16)),
+    let key = format!("{table}.bit_depth");
+    match (format, bit_depth) {
+        (Format::Png, None) => Some((format, 8, true)),
+        (Format::Png, Some((8, _))) => Some((format, 8, false)),
+        (Format::Png, Some((16, _))) => Some((format, 16, false)),
         (Format::Png, Some((d, s))) => {
-            ctx.err(Some(s.clone()), Some("output.bit_depth"), format!("bit depth {d} is not supported for PNG: use 8 or 16"));
+            ctx.err(Some(s.clone()), Some(&key), format!("bit depth {d} is not supported for PNG: use 8 or 16"));
             None
         }
-        (Format::Exr, None) => Some((format, 32)),
+        (Format::Exr, None) => Some((format, 32, false)),
         (Format::Exr, Some((_, s))) => {
-            ctx.err(Some(s.clone()), Some("output.bit_depth"), "bit_depth applies to PNG only (EXR outputs are 32-bit float); remove it");
+            ctx.err(Some(s.clone()), Some(&key), "bit_depth applies to PNG only (EXR outputs are 32-bit float); remove it");
             None
         }
     }

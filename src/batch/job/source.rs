@@ -85,10 +85,22 @@ pub(super) struct Raw<'a> {
     pub(super) width: Option<u32>,
     pub(super) height: Option<u32>,
     pub(super) bit_depth: Option<(i64, std::ops::Range<usize>)>,
+    pub(super) tileable: bool,
+    pub(super) source_map: Option<(String, std::ops::Range<usize>)>,
+    pub(super) companions: Vec<RawCompanion>,
     pub(super) params: Vec<(String, ParamValue)>,
     pub(super) metrics: Vec<String>,
     pub(super) sweep: Vec<(String, Vec<(ParamValue, std::ops::Range<usize>)>)>,
     pub(super) _src: std::marker::PhantomData<&'a ()>,
+}
+
+/// A `[[companion]]` as read, checked key by key; `index` is its place (0-based) in the file.
+pub(super) struct RawCompanion {
+    pub(super) index: usize,
+    pub(super) sample: Option<PathBuf>,
+    pub(super) path: Option<(String, std::ops::Range<usize>)>,
+    pub(super) kind: crate::synth::placement::MapKind,
+    pub(super) bit_depth: Option<(i64, std::ops::Range<usize>)>,
 }
 
 /// What a job needs before its sweep points can be made into jobs: every required key present
@@ -102,5 +114,8 @@ pub(super) struct Ready {
     pub height: u32,
     pub format: Format,
     pub bit_depth: u8,
+    pub native_depth: bool,
     pub file_digest: Digest,
+    /// Companions with their format and bit depth decided; paths still templates.
+    pub companions: Vec<super::Companion>,
 }

@@ -112,7 +112,19 @@ fn read_range(t: &DeTable) -> Result<Vec<i64>, String> {
 
 /// Every point of the sweep as a job (one job for a file without `[sweep]`).
 pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
-    let &Ready { method, ref sample, ref path_template, ref path_span, width, height, format, bit_depth, ref file_digest } = ready;
+    let &Ready {
+        method,
+        ref sample,
+        ref path_template,
+        ref path_span,
+        width,
+        height,
+        format,
+        bit_depth,
+        native_depth,
+        ref file_digest,
+        ref companions,
+    } = ready;
 
     // Counted before it is expanded: a typo like `to = 1e9` times another list is refused at once.
     let total = raw.sweep.iter().try_fold(1usize, |acc, (_, values)| acc.checked_mul(values.len()).filter(|n| *n <= MAX_SWEEP_POINTS));
@@ -183,6 +195,57 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
                 continue;
             }
         };
+        // Companion and source-map paths take the same placeholders as the output path.
+        let mut named = Vec::new();
+        let mut broken = false;
+        for (k, c) in companions.iter().enumerate() {
+            let key = format!("companion[{}].path", k + 1);
+            match expand_template(&c.path, method.name(), seed, &params).and_then(|p| normalise_output_path(&p)) {
+                Ok(p) => named.push(super::Companion { path: p, ..c.clone() }),
+                Err(e) => {
+                    let pos = ctx.positions.get(&key).copied();
+                    let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e };
+                    if !ctx.errors.contains(&err) {
+                        ctx.errors.push(err);
+                    }
+                    broken = true;
+                }
+            }
+        }
+        let source_map = match &raw.source_map {
+            None => None,
+            Some((t, span)) => match expand_template(t, method.name(), seed, &params).and_then(|p| normalise_output_path(&p)) {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    ctx.err(Some(span.clone()), Some("output.source_map"), e);
+                    broken = true;
+                    None
+                }
+            },
+        };
+        // One file per name: the output, each companion and the source map must all differ.
+        let mut seen: Vec<(&str, String)> = vec![(path.as_str(), "output.path".to_string())];
+        for (k, c) in named.iter().enumerate() {
+            seen.push((c.path.as_str(), format!("companion[{}].path", k + 1)));
+        }
+        if let Some(m) = &source_map {
+            seen.push((m.as_str(), "output.source_map".to_string()));
+        }
+        for i in 1..seen.len() {
+            if let Some(first) = seen[..i].iter().find(|s| s.0 == seen[i].0) {
+                let key = seen[i].1.clone();
+                let pos = ctx.positions.get(&key).or_else(|| ctx.positions.get(key.trim_end_matches(".path"))).copied();
+                let message = format!("`{}` is also written by `{}` of this job; give each its own file", seen[i].0, first.1);
+                let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message };
+                if !ctx.errors.contains(&err) {
+                    ctx.errors.push(err);
+                }
+                broken = true;
+            }
+        }
+        if broken {
+            continue;
+        }
         let id = if point.is_empty() {
             ctx.file.rel.clone()
         } else {
@@ -204,8 +267,9 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
             method,
             seed,
             params,
-            output: OutputSpec { path, width, height, format, bit_depth },
+            output: OutputSpec { path, width, height, format, bit_depth, native_depth, tileable: raw.tileable, source_map },
             metrics: raw.metrics.clone(),
+            companions: named,
             positions,
         });
     }

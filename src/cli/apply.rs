@@ -1,0 +1,83 @@
+//! `texsyn apply`: replays a recorded placement (a job's `source_map`) over another image of the
+//! sample's size — a map the job did not list as a companion, a repainted albedo, a mask.
+
+use super::{Outcome, say};
+use std::path::PathBuf;
+use texsyn::Error;
+use texsyn::batch::execute::load_sample;
+use texsyn::image::io::{self as imageio, Encoding, Format, ImageError};
+use texsyn::synth::placement::MapKind;
+
+pub const HELP: &str = "\
+The output has the image's channels; its precision is the image's (8 or 16-bit PNG, float EXR)
+unless --bit-depth asks for another PNG depth. Applying a job's source map over its own sample
+gives the job's output, pixel for pixel.";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The source map a job wrote (`[output] source_map = \"….exr\"`).
+    map: PathBuf,
+    /// Any image of the job's sample size.
+    image: PathBuf,
+    /// Where to write the result (.png or .exr).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// PNG bit depth, 8 or 16 (default: the image's own, 16 for a float image).
+    #[arg(long)]
+    bit_depth: Option<u8>,
+    /// `normal`: blended pixels are renormalised as normals; `color` (default): blended as they are.
+    #[arg(long, default_value = "color")]
+    kind: String,
+}
+
+pub fn run(args: Args) -> Result<Outcome, Error> {
+    let kind = match args.kind.as_str() {
+        "color" => MapKind::Color,
+        "normal" => MapKind::Normal,
+        other => return Err(Error::Usage(format!("--kind {other:?}: use color or normal"))),
+    };
+    let format = Format::from_path(&args.output)
+        .ok_or_else(|| Error::Usage(format!("{}: the output must end in .png or .exr", args.output.display())))?;
+    let bytes = std::fs::read(&args.map).map_err(|e| Error::io(&args.map, "read", e))?;
+    let placement = texsyn::batch::source_map::decode(&bytes)
+        .map_err(|reason| Error::Image { path: args.map.clone(), source: ImageError::Decode(reason) })?;
+    let image = load_sample(&args.image)?;
+    let native = image.native_or_guide();
+    if (native.width, native.height) != placement.sample_size() {
+        let (w, h) = placement.sample_size();
+        return Err(Error::Usage(format!(
+            "{} is {}x{}, but the source map {} renders from images of its sample's size, {w}x{h}",
+            args.image.display(),
+            native.width,
+            native.height,
+            args.map.display()
+        )));
+    }
+    let bit_depth = match (format, args.bit_depth) {
+        (Format::Exr, None) => 32,
+        (Format::Exr, Some(_)) => return Err(Error::Usage("--bit-depth applies to PNG outputs only".into())),
+        (Format::Png, None) => image.native_png_depth(),
+        (Format::Png, Some(d @ (8 | 16))) => d,
+        (Format::Png, Some(d)) => return Err(Error::Usage(format!("--bit-depth {d}: use 8 or 16"))),
+    };
+    let rendered = placement.render(&native, kind);
+    let encoded = imageio::encode_native(&rendered, Encoding { format, bit_depth })
+        .map_err(|source| Error::Image { path: args.output.clone(), source })?;
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create", e))?;
+    }
+    // Written beside and renamed, so a reader never sees half a file.
+    let tmp = args.output.with_extension("texsyn-tmp");
+    std::fs::write(&tmp, &encoded.bytes).map_err(|e| Error::io(&tmp, "write", e))?;
+    std::fs::rename(&tmp, &args.output).map_err(|e| Error::io(&args.output, "write", e))?;
+    say(format!(
+        "{}: {}x{} from {} ({}), pixel digest {}",
+        args.output.display(),
+        placement.width(),
+        placement.height(),
+        args.image.display(),
+        image.describe(),
+        encoded.pixels.pixel_digest().short()
+    ));
+    Ok(Outcome::Success)
+}
