@@ -443,9 +443,9 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
         }
         (Format::Png, 16) => {
             let wide: Vec<u16> = img.as_raw().iter().map(|&v| v as u16 * 257).collect();
-            let be: Vec<u8> = wide.iter().flat_map(|s| s.to_be_bytes()).collect();
+            let ne: Vec<u8> = wide.iter().flat_map(|s| s.to_ne_bytes()).collect();
             let mut bytes = Vec::new();
-            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), &be, w, h, image::ExtendedColorType::Rgb16)
+            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), &ne, w, h, image::ExtendedColorType::Rgb16)
                 .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
             Ok(Encoded { bytes, pixels: NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(wide) } })
         }
@@ -550,8 +550,9 @@ pub fn encode_native_to(img: &NativeImage, enc: Encoding, w: &mut dyn std::io::W
                 3 => image::ExtendedColorType::Rgb16,
                 _ => image::ExtendedColorType::Rgba16,
             };
-            let be: Vec<u8> = v.iter().flat_map(|s| s.to_be_bytes()).collect();
-            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(w), &be, width, height, color)
+            // The encoder takes native-endian samples (and writes PNG's big-endian itself).
+            let ne: Vec<u8> = v.iter().flat_map(|s| s.to_ne_bytes()).collect();
+            image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(w), &ne, width, height, color)
                 .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
         }
         Samples::F32(v) => {
@@ -638,6 +639,27 @@ mod tests {
             assert_eq!(digest, rgb_pixel_digest(&whole));
             let back = decode_native(&bytes, DecodeLimits::default()).unwrap();
             assert_eq!(back.pixel_digest(), digest, "strips of {strip}");
+        }
+    }
+
+    #[test]
+    fn native_encodings_round_trip_with_their_digest() {
+        let u16s: Vec<u16> = (0..17 * 9 * 3).map(|i| (i * 911 % 65536) as u16).collect();
+        let f32s: Vec<f32> = (0..17 * 9 * 4).map(|i| i as f32 / 50.0 - 1.0).collect();
+        let cases = [
+            (NativeImage { width: 17, height: 9, channels: 3, samples: Samples::U16(u16s.clone()) }, Format::Png, 16),
+            (NativeImage { width: 17, height: 9, channels: 1, samples: Samples::U16(u16s[..153].to_vec()) }, Format::Png, 16),
+            (NativeImage { width: 17, height: 9, channels: 2, samples: Samples::U8(vec![7; 17 * 9 * 2]) }, Format::Png, 8),
+            (NativeImage { width: 17, height: 9, channels: 4, samples: Samples::F32(f32s) }, Format::Exr, 32),
+            (NativeImage { width: 17, height: 9, channels: 3, samples: Samples::U16(u16s) }, Format::Png, 8),
+        ];
+        for (img, format, bit_depth) in cases {
+            let enc = Encoding { format, bit_depth };
+            let e = encode_native(&img, enc).unwrap();
+            let back = decode_native(&e.bytes, DecodeLimits::default()).unwrap();
+            assert_eq!(back, e.pixels, "{format:?} {bit_depth} {} channels", img.channels);
+            let mut w = Vec::new();
+            assert_eq!(encode_native_to(&img, enc, &mut w).unwrap(), back.pixel_digest());
         }
     }
 

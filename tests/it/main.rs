@@ -8,6 +8,7 @@ mod common;
 mod compat;
 mod diff;
 mod lattice;
+mod materials;
 mod memory;
 mod patch_sampling;
 mod pipeline;
