@@ -19,6 +19,8 @@ pub struct Shown {
     /// The entry (job) whose output is shown.
     pub entry: usize,
     pub image: ImageRef,
+    /// The job's companion maps (label, image), shown beside its output.
+    pub companions: Vec<(String, ImageRef)>,
 }
 
 /// Everything the page links to, already written or about to be.
@@ -232,6 +234,15 @@ fn images_html(model: &Model, assets: &Assets) -> String {
                 size,
                 e.warnings.iter().map(|w| format!("<br><span class=\"warning\" data-warning=\"1\">⚠ {}</span>", h(w))).collect::<String>()
             ));
+            for (label, image) in &shown.companions {
+                out.push_str(&format!(
+                    "<figure data-role=\"companion\" data-job=\"{}\">{}<figcaption>companion of {}<br><code>{}</code></figcaption></figure>",
+                    h(&e.job_id),
+                    img(image, &format!("{label} of {}", e.job_id)),
+                    h(&g.label),
+                    h(label)
+                ));
+            }
         }
         out.push_str("</div>\n");
         if let Some(sheet) = assets.sheets.get(s) {

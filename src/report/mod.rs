@@ -104,9 +104,10 @@ fn load(path: &Path, expected_sha256: &str, as_sample: bool) -> Result<RgbImage,
     let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let native = imageio::decode_native(&bytes, DecodeLimits::default()).map_err(|e| format!("{}: {e}", path.display()))?;
     let rgb = imageio::native_to_rgb8(&native);
-    // Samples are recorded by the 8-bit pixels the method saw; outputs by their stored samples.
-    let digest = if as_sample { imageio::rgb_pixel_digest(&rgb) } else { native.pixel_digest() };
-    if digest.sha256 != expected_sha256 {
+    // Outputs and samples are recorded by their stored samples; manifests before native-precision
+    // samples recorded a sample by the 8-bit pixels the method saw (the same for 8-bit RGB).
+    let matches = native.pixel_digest().sha256 == expected_sha256 || (as_sample && imageio::rgb_pixel_digest(&rgb).sha256 == expected_sha256);
+    if !matches {
         return Err(format!("{}: pixels differ from the manifest's record (changed since the run? see `texsyn verify`)", path.display()));
     }
     Ok(rgb)
@@ -308,7 +309,23 @@ fn sample_images(m: &model::Model, s: usize, stem: &str, prefix: &str) -> Result
             }
             caption.push(seed_line);
             cells.push(Cell { picture: pic, caption });
-            shown.push(Shown { group: g, entry: ei, image });
+            // Companions (normal, gloss… maps) beside the output they share a placement with.
+            let mut companions = Vec::new();
+            for (k, (label, c)) in e.companions.iter().enumerate() {
+                let shown_c = match load(&c.path, &c.pixel_digest, false) {
+                    Ok(img) => {
+                        let rel = format!("{prefix}images/outputs/{stem}/{:02}-{}-companion-{}.png", g + 1, fmt::file_stem(&group.label), k + 1);
+                        files.push((rel.clone(), png(&img, &rel)?));
+                        Ok((rel, img.width(), img.height()))
+                    }
+                    Err(err) => {
+                        problems.push(err.clone());
+                        Err(err)
+                    }
+                };
+                companions.push((label.clone(), shown_c));
+            }
+            shown.push(Shown { group: g, entry: ei, image, companions });
         }
     }
     let title = format!("{}: the sample, then one output per column, all at 1:1 pixels. Columns: {}", info.key, m.grouping);

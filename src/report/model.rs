@@ -189,6 +189,28 @@ pub struct Entry {
     pub output: Option<OutputInfo>,
     /// Why the method may not look right on this sample (`texsyn advise`).
     pub warnings: Vec<String>,
+    /// The job's companion maps (their recorded path, and the output), in the job file's order.
+    pub companions: Vec<(String, OutputInfo)>,
+}
+
+/// The outputs of a job that are its `[[companion]]` maps.
+fn companion_outputs(job: &JobRecord, base: &Path) -> Vec<(String, OutputInfo)> {
+    let wanted = job.output_spec.as_ref().and_then(|s| s.get("companions")).and_then(|c| c.as_array()).cloned().unwrap_or_default();
+    wanted
+        .iter()
+        .filter_map(|c| c.get("path").and_then(|p| p.as_str()))
+        .filter_map(|p| job.outputs.iter().find(|o| o.path == p))
+        .map(|o| {
+            let info = OutputInfo {
+                recorded_path: o.path.clone(),
+                path: resolve(base, &o.path),
+                width: o.width,
+                height: o.height,
+                pixel_digest: o.pixel_digest.sha256.clone(),
+            };
+            (o.path.clone(), info)
+        })
+        .collect()
 }
 
 /// A job that did not count, with why.
@@ -383,6 +405,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
             synthesis_seconds: job.timing.as_ref().map(|t| t.synthesis_seconds),
             output,
             warnings: job.warnings.clone(),
+            companions: companion_outputs(job, base),
         });
     }
 
