@@ -37,9 +37,44 @@ pub const PROCESS_BYTES: u64 = 24 * MIB;
 /// output image plus the encoder's buffers) or metrics (the output plus their analyses); the
 /// decoded sample and the process itself are there throughout.
 pub fn job_estimate(method: &dyn Method, params: &Params, sample: (u32, u32), output: &OutputSpec, metrics: bool) -> u64 {
+    job_estimate_with(method, params, sample, output, metrics, None)
+}
+
+/// What a job renders from its placement ([`job_estimate_with`]): companions, a source map, a
+/// main output rendered from a sample that is not 8-bit RGB.
+#[derive(Clone, Copy, Debug)]
+pub struct Materials {
+    pub companions: usize,
+    pub source_map: bool,
+}
+
+/// [`job_estimate`] of a job that also renders from its placement: the placement (a source per
+/// pixel, blend chains where the method feathers: at most 20 B per output pixel), one rendering at
+/// a time in the widest precision (float RGBA, 16 B per pixel, twice while it is converted and
+/// encoded) and the source map's integer channels (at most 14 four-byte channels, twice).
+/// Such a job is never rendered in strips.
+pub fn job_estimate_with(
+    method: &dyn Method,
+    params: &Params,
+    sample: (u32, u32),
+    output: &OutputSpec,
+    metrics: bool,
+    materials: Option<Materials>,
+) -> u64 {
     let out_px = u64::from(output.width) * u64::from(output.height);
     let raw = out_px * 3;
     let sample_bytes = u64::from(sample.0) * u64::from(sample.1) * 3;
+    if let Some(m) = materials {
+        let rendering = if m.companions > 0 || output.format == Format::Exr || output.bit_depth == 16 { 32 * out_px } else { 0 };
+        let map = if m.source_map { 112 * out_px } else { 0 };
+        // Companion samples are decoded like the sample (at most float RGBA each).
+        let companions = m.companions as u64 * u64::from(sample.0) * u64::from(sample.1) * 16;
+        return job_estimate_with(method, params, sample, output, metrics, None).max(
+            PROCESS_BYTES + 2 * sample_bytes + method.peak_memory(params, sample, (output.width, output.height)),
+        ) + 20 * out_px
+            + rendering.max(map)
+            + companions;
+    }
     if renders_in_strips(method, output, metrics) {
         // One strip at a time (counted by the method) and the PNG compressor's window and buffer.
         return PROCESS_BYTES + 2 * sample_bytes + method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
