@@ -51,7 +51,7 @@ pub struct Materials {
 /// [`job_estimate`] of a job that also renders from its placement: the placement (a source per
 /// pixel, blend chains where the method feathers: at most 20 B per output pixel), one rendering at
 /// a time in the widest precision (float RGBA, 16 B per pixel, twice while it is converted and
-/// encoded) and the source map's integer channels (at most 14 four-byte channels, twice).
+/// encoded) and the source map's integer channels (two, plus four per blend step; about 40 B per pixel in all).
 /// Such a job is never rendered in strips.
 pub fn job_estimate_with(
     method: &dyn Method,
@@ -66,7 +66,7 @@ pub fn job_estimate_with(
     let sample_bytes = u64::from(sample.0) * u64::from(sample.1) * 3;
     if let Some(m) = materials {
         let rendering = if m.companions > 0 || output.format == Format::Exr || output.bit_depth == 16 { 32 * out_px } else { 0 };
-        let map = if m.source_map { 112 * out_px } else { 0 };
+        let map = if m.source_map { 40 * out_px } else { 0 };
         // Companion samples are decoded like the sample (at most float RGBA each).
         let companions = m.companions as u64 * u64::from(sample.0) * u64::from(sample.1) * 16;
         return job_estimate_with(method, params, sample, output, metrics, None).max(
