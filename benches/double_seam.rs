@@ -36,7 +36,8 @@ fn main() {
                     given.push(("search".to_string(), ParamValue::Str(s.into())));
                 }
                 let params = resolve(m.params(), &given).unwrap();
-                let req = Request { sample: &sample, width: size, height: size, params: &params, seed: 1, placement: false, tileable: false };
+                let req =
+                    Request { sample: &sample, width: size, height: size, params: &params, seed: 1, placement: false, tileable: false };
                 let mut times: Vec<f64> = (0..runs)
                     .map(|_| {
                         let t = Instant::now();

@@ -51,6 +51,7 @@ fn record(k: usize) -> JobRecord {
         }],
         seams: None,
         warnings: Vec::new(),
+        companions: Vec::new(),
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
         timing: Some(Timing {

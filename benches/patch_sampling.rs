@@ -34,7 +34,17 @@ fn bench(c: &mut Criterion) {
             group.bench_function(format!("{name}, {threads} thread(s)"), |b| {
                 b.iter(|| {
                     pool.install(|| {
-                        method.synthesize(&Request { sample: &sample, width: 386, height: 386, params: &params, seed: 1, placement: false, tileable: false }).unwrap()
+                        method
+                            .synthesize(&Request {
+                                sample: &sample,
+                                width: 386,
+                                height: 386,
+                                params: &params,
+                                seed: 1,
+                                placement: false,
+                                tileable: false,
+                            })
+                            .unwrap()
                     })
                 })
             });

@@ -91,7 +91,8 @@ fn main() {
                         given.push(("tile".into(), ParamValue::Int(64)));
                     }
                     let params = resolve(m.params(), &given).unwrap();
-                    let req = Request { sample: &sample, width: 1280, height: 1280, params: &params, seed: 1, placement: false, tileable: false };
+                    let req =
+                        Request { sample: &sample, width: 1280, height: 1280, params: &params, seed: 1, placement: false, tileable: false };
                     let n = if method == "quilting" { quilt_runs } else { runs };
                     if method != "quilting" {
                         pool.install(|| m.synthesize(&req).unwrap());

@@ -101,7 +101,15 @@ impl Session<'_> {
 
     /// Synthesises the texture.
     pub fn run(&self) -> Result<Synthesis, Error> {
-        let request = Request { sample: self.sample, width: self.width, height: self.height, params: &self.params, seed: self.seed, placement: false, tileable: false };
+        let request = Request {
+            sample: self.sample,
+            width: self.width,
+            height: self.height,
+            params: &self.params,
+            seed: self.seed,
+            placement: false,
+            tileable: false,
+        };
         self.method.synthesize(&request).map_err(|source| Error::Synthesis { method: self.method.name().into(), source })
     }
 }
@@ -135,7 +143,17 @@ mod tests {
         let a = session.run().unwrap();
         assert_eq!(a.image.dimensions(), (48, 40));
         let m = methods::find("quilting").unwrap();
-        let b = m.synthesize(&Request { sample: &s, width: 48, height: 40, params: session.params(), seed: 3, placement: false, tileable: false }).unwrap();
+        let b = m
+            .synthesize(&Request {
+                sample: &s,
+                width: 48,
+                height: 40,
+                params: session.params(),
+                seed: 3,
+                placement: false,
+                tileable: false,
+            })
+            .unwrap();
         assert_eq!(a.image, b.image);
         assert_eq!(session.params().int("overlap").unwrap(), 3, "derived default filled in");
     }

@@ -69,9 +69,9 @@ pub fn job_estimate_with(
         let map = if m.source_map { 40 * out_px } else { 0 };
         // Companion samples are decoded like the sample (at most float RGBA each).
         let companions = m.companions as u64 * u64::from(sample.0) * u64::from(sample.1) * 16;
-        return job_estimate_with(method, params, sample, output, metrics, None).max(
-            PROCESS_BYTES + 2 * sample_bytes + method.peak_memory(params, sample, (output.width, output.height)),
-        ) + 20 * out_px
+        return job_estimate_with(method, params, sample, output, metrics, None)
+            .max(PROCESS_BYTES + 2 * sample_bytes + method.peak_memory(params, sample, (output.width, output.height)))
+            + 20 * out_px
             + rendering.max(map)
             + companions;
     }

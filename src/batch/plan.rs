@@ -179,16 +179,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             }
         };
         let needs_placement = sample.native.is_some() || !job.companions.is_empty() || job.output.source_map.is_some();
-        let materials = needs_placement
-            .then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
-        let estimate = memory::job_estimate_with(
-            job.method,
-            &job.params,
-            sample.image.dimensions(),
-            &job.output,
-            !job.metrics.is_empty(),
-            materials,
-        );
+        let materials =
+            needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
+        let estimate =
+            memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
         let (content_key, mut record) = base_record(&job, &sample, &companions, &opts.out);
         record.warnings = advice::warning(&analyses[&sample.pixel_digest.sha256], job.method.name(), &job.params).into_iter().collect();
         let action = decide(&job, &content_key, previous.get(&job.id), opts);

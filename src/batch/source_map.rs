@@ -41,7 +41,8 @@ pub fn encode(p: &Placement) -> std::result::Result<Vec<u8>, String> {
             }
         }
     }
-    let mut list: Vec<AnyChannel<FlatSamples>> = vec![AnyChannel::new("X", FlatSamples::U32(xs)), AnyChannel::new("Y", FlatSamples::U32(ys))];
+    let mut list: Vec<AnyChannel<FlatSamples>> =
+        vec![AnyChannel::new("X", FlatSamples::U32(xs)), AnyChannel::new("Y", FlatSamples::U32(ys))];
     for (k, ch) in blend_channels.into_iter().enumerate() {
         for (suffix, data) in ["X", "Y", "N", "D"].iter().zip(ch) {
             list.push(AnyChannel::new(format!("B{}{suffix}", k + 1).as_str(), FlatSamples::U32(data)));
@@ -85,7 +86,7 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
         .ok_or_else(|| format!("unsupported source map `{info}` (this texsyn reads version 1)"))?;
     let (w, h) = (layer.size.width() as u32, layer.size.height() as u32);
     let channel = |name: &str| -> Option<&Vec<u32>> {
-        layer.channel_data.list.iter().find(|c| c.name == Text::from(name)).and_then(|c| match &c.sample_data {
+        layer.channel_data.list.iter().find(|c| c.name.eq(name)).and_then(|c| match &c.sample_data {
             FlatSamples::U32(v) => Some(v),
             _ => None,
         })
@@ -160,8 +161,11 @@ mod tests {
     #[test]
     fn other_files_are_refused_with_a_reason() {
         assert!(decode(b"not an exr").unwrap_err().contains("not a readable EXR"));
-        let img = crate::image::io::encode(&RgbImage::new(4, 4), crate::image::io::Encoding { format: crate::image::io::Format::Exr, bit_depth: 32 })
-            .unwrap();
+        let img = crate::image::io::encode(
+            &RgbImage::new(4, 4),
+            crate::image::io::Encoding { format: crate::image::io::Format::Exr, bit_depth: 32 },
+        )
+        .unwrap();
         assert!(decode(&img.bytes).unwrap_err().contains("not a texsyn source map"));
     }
 }

@@ -286,7 +286,7 @@ fn decode_exr(bytes: &[u8], limits: DecodeLimits) -> Result<NativeImage, ImageEr
         return Err(ImageError::Decode("EXR layer is impossibly large".into()));
     }
     check_size(size.width() as u32, size.height() as u32, limits)?;
-    let has_alpha = header.channels.list.iter().any(|c| c.name == exr::prelude::Text::from("A"));
+    let has_alpha = header.channels.list.iter().any(|c| c.name.eq("A"));
     let c = if has_alpha { 4 } else { 3 };
     // The exr crate validates chunk tables against the header; a panic inside it is still turned
     // into an error rather than taking the process down.

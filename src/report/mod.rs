@@ -106,7 +106,8 @@ fn load(path: &Path, expected_sha256: &str, as_sample: bool) -> Result<RgbImage,
     let rgb = imageio::native_to_rgb8(&native);
     // Outputs and samples are recorded by their stored samples; manifests before native-precision
     // samples recorded a sample by the 8-bit pixels the method saw (the same for 8-bit RGB).
-    let matches = native.pixel_digest().sha256 == expected_sha256 || (as_sample && imageio::rgb_pixel_digest(&rgb).sha256 == expected_sha256);
+    let matches =
+        native.pixel_digest().sha256 == expected_sha256 || (as_sample && imageio::rgb_pixel_digest(&rgb).sha256 == expected_sha256);
     if !matches {
         return Err(format!("{}: pixels differ from the manifest's record (changed since the run? see `texsyn verify`)", path.display()));
     }
@@ -314,7 +315,8 @@ fn sample_images(m: &model::Model, s: usize, stem: &str, prefix: &str) -> Result
             for (k, (label, c)) in e.companions.iter().enumerate() {
                 let shown_c = match load(&c.path, &c.pixel_digest, false) {
                     Ok(img) => {
-                        let rel = format!("{prefix}images/outputs/{stem}/{:02}-{}-companion-{}.png", g + 1, fmt::file_stem(&group.label), k + 1);
+                        let rel =
+                            format!("{prefix}images/outputs/{stem}/{:02}-{}-companion-{}.png", g + 1, fmt::file_stem(&group.label), k + 1);
                         files.push((rel.clone(), png(&img, &rel)?));
                         Ok((rel, img.width(), img.height()))
                     }

@@ -20,7 +20,11 @@ fn decode(path: &Path) -> NativeImage {
 /// A textured 16-bit RGB sample whose values are (almost all) not multiples of 257.
 fn sample16(w: u32, h: u32) -> NativeImage {
     let v: Vec<u16> = (0..h)
-        .flat_map(|y| (0..w).flat_map(move |x| (0..3u32).map(move |c| ((x / 6 + y / 9) % 2 * 30_000 + (x * 997 + y * 131 + c * 7919) % 9000 + 1) as u16)))
+        .flat_map(|y| {
+            (0..w).flat_map(move |x| {
+                (0..3u32).map(move |c| ((x / 6 + y / 9) % 2 * 30_000 + (x * 997 + y * 131 + c * 7919) % 9000 + 1) as u16)
+            })
+        })
         .collect();
     NativeImage { width: w, height: h, channels: 3, samples: Samples::U16(v) }
 }
@@ -95,8 +99,9 @@ fn sixteen_bit_samples_keep_their_exact_values_and_companions_follow_the_placeme
 fn float_samples_keep_values_above_one_and_below_zero() {
     let d = scratch("matexr");
     let (w, h) = (80u32, 80u32);
-    let v: Vec<f32> =
-        (0..h).flat_map(|y| (0..w).flat_map(move |x| (0..3u32).map(move |c| ((x * 37 + y * 11 + c * 5) % 100) as f32 / 25.0 - 0.5))).collect();
+    let v: Vec<f32> = (0..h)
+        .flat_map(|y| (0..w).flat_map(move |x| (0..3u32).map(move |c| ((x * 37 + y * 11 + c * 5) % 100) as f32 / 25.0 - 0.5)))
+        .collect();
     let s = NativeImage { width: w, height: h, channels: 3, samples: Samples::F32(v.clone()) };
     save(&d.join("in/sky.exr"), &s, Format::Exr, 32);
     for (name, method, extra) in [("q", "quilting", "block = 24"), ("p", "patch-sampling", "block = 24")] {
@@ -135,7 +140,8 @@ fn float_samples_keep_values_above_one_and_below_zero() {
 #[test]
 fn rgba_samples_give_rgba_outputs() {
     let d = scratch("matrgba");
-    let data: Vec<u8> = (0..64u32 * 64).flat_map(|i| [(i % 64 * 4) as u8, (i / 64 * 4) as u8, (i * 13 % 256) as u8, (i * 7 % 256) as u8]).collect();
+    let data: Vec<u8> =
+        (0..64u32 * 64).flat_map(|i| [(i % 64 * 4) as u8, (i / 64 * 4) as u8, (i * 13 % 256) as u8, (i * 7 % 256) as u8]).collect();
     save(&d.join("in/leaf.png"), &NativeImage { width: 64, height: 64, channels: 4, samples: Samples::U8(data) }, Format::Png, 8);
     job(
         &d.join("jobs"),
@@ -241,12 +247,35 @@ fn bad_companions_and_maps_get_clear_errors_and_nothing_else_is_lost() {
     let s = repo().join("jobs/samples");
     let jobs = d.join("jobs");
     let head = |method: &str, path: &str| {
-        format!("sample = \"{}/rock_a_albedo.png\"\nmethod = \"{method}\"\nseed = 1\n[output]\npath = \"{path}\"\nwidth = 100\nheight = 100\n", m.display())
+        format!(
+            "sample = \"{}/rock_a_albedo.png\"\nmethod = \"{method}\"\nseed = 1\n[output]\npath = \"{path}\"\nwidth = 100\nheight = 100\n",
+            m.display()
+        )
     };
-    job(&jobs, "good.toml", &format!("{}[[companion]]\nsample = \"{}/rock_a_normal.png\"\npath = \"good_n.png\"\nkind = \"normal\"\n", head("quilting", "good.png"), m.display()));
-    job(&jobs, "size.toml", &format!("{}[[companion]]\nsample = \"{}/crops/grass_gray_128.png\"\npath = \"size_n.png\"\n", head("quilting", "size.png"), s.display()));
+    job(
+        &jobs,
+        "good.toml",
+        &format!(
+            "{}[[companion]]\nsample = \"{}/rock_a_normal.png\"\npath = \"good_n.png\"\nkind = \"normal\"\n",
+            head("quilting", "good.png"),
+            m.display()
+        ),
+    );
+    job(
+        &jobs,
+        "size.toml",
+        &format!(
+            "{}[[companion]]\nsample = \"{}/crops/grass_gray_128.png\"\npath = \"size_n.png\"\n",
+            head("quilting", "size.png"),
+            s.display()
+        ),
+    );
     write(&d.join("broken.png"), "this is not a png");
-    job(&jobs, "unreadable.toml", &format!("{}[[companion]]\nsample = \"{}/broken.png\"\npath = \"u_n.png\"\n", head("quilting", "u.png"), d.display()));
+    job(
+        &jobs,
+        "unreadable.toml",
+        &format!("{}[[companion]]\nsample = \"{}/broken.png\"\npath = \"u_n.png\"\n", head("quilting", "u.png"), d.display()),
+    );
     job(
         &jobs,
         "twice.toml",
@@ -257,7 +286,15 @@ fn bad_companions_and_maps_get_clear_errors_and_nothing_else_is_lost() {
         ),
     );
     job(&jobs, "wrap.toml", &head("coevolution", "w.png").replace("height = 100\n", "height = 100\ntileable = true\n"));
-    job(&jobs, "kind.toml", &format!("{}[[companion]]\nsample = \"{}/rock_a_normal.png\"\npath = \"k.png\"\nkind = \"bump\"\n", head("quilting", "k0.png"), m.display()));
+    job(
+        &jobs,
+        "kind.toml",
+        &format!(
+            "{}[[companion]]\nsample = \"{}/rock_a_normal.png\"\npath = \"k.png\"\nkind = \"bump\"\n",
+            head("quilting", "k0.png"),
+            m.display()
+        ),
+    );
     let out = d.join("out");
     let o = run_expect(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out), 1);
     let t = text(&o);
@@ -288,7 +325,8 @@ fn bad_companions_and_maps_get_clear_errors_and_nothing_else_is_lost() {
     let map_job = format!("{}source_map = \"m.exr\"\n", head("quilting", "m.png"));
     job(&d.join("j3"), "m.toml", &map_job);
     run_ok(texsyn().arg("run").arg(d.join("j3")).arg("-o").arg(d.join("o3")));
-    let o = run_expect(texsyn().arg("apply").arg(d.join("o3/m.exr")).arg(s.join("crops/grass_gray_128.png")).arg("-o").arg(d.join("x.png")), 2);
+    let o =
+        run_expect(texsyn().arg("apply").arg(d.join("o3/m.exr")).arg(s.join("crops/grass_gray_128.png")).arg("-o").arg(d.join("x.png")), 2);
     assert!(text(&o).contains("128x128") && text(&o).contains("256x256"), "{}", text(&o));
     assert!(!d.join("x.png").exists());
     let o = run_expect(texsyn().arg("apply").arg(s.join("cork.png")).arg(s.join("cork.png")).arg("-o").arg(d.join("y.png")), 2);

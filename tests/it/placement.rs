@@ -30,7 +30,12 @@ fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValu
 #[test]
 fn quilting_placement_renders_its_image() {
     check("quilting", "crops/pebbles_beige_128.png", (150, 130), &[]);
-    check("quilting", "crops/grass_gray_128.png", (150, 130), &[("cut", ParamValue::Str("none".into())), ("blend", ParamValue::Str("feather".into()))]);
+    check(
+        "quilting",
+        "crops/grass_gray_128.png",
+        (150, 130),
+        &[("cut", ParamValue::Str("none".into())), ("blend", ParamValue::Str("feather".into()))],
+    );
 }
 
 #[test]

@@ -4,11 +4,11 @@
 use super::source::{Ctx, Raw, RawCompanion, Ready, de_int, de_param, type_name};
 use super::sweep;
 use super::{COMPANION_KEYS, Companion, Job, JobError, JobFile, MAX_OUTPUT_SIDE, OUTPUT_KEYS, TOP_KEYS, normalise_output_path};
-use crate::synth::placement::MapKind;
 use crate::digest::Digest;
 use crate::image::io::Format;
 use crate::synth::methods;
 use crate::synth::params;
+use crate::synth::placement::MapKind;
 use std::collections::BTreeMap;
 use std::path::Path;
 use toml::Spanned;
@@ -300,7 +300,9 @@ fn read_output(ctx: &mut Ctx, t: &DeTable, raw: &mut Raw) {
                     Some(&key),
                     format!("source map `{s}` must end in .exr (the placement is stored as an EXR with integer channels)"),
                 ),
-                other => ctx.err(Some(v.span()), Some(&key), format!("expected a string (a path ending in .exr), found {}", type_name(other))),
+                other => {
+                    ctx.err(Some(v.span()), Some(&key), format!("expected a string (a path ending in .exr), found {}", type_name(other)))
+                }
             },
             other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, OUTPUT_KEYS)),
         }
@@ -334,19 +336,35 @@ fn read_companions(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
                             c.sample = Some(p);
                         } else {
                             let why = missing_file_reason(&p);
-                            ctx.err(Some(v.span()), Some(&key), format!("companion sample `{}` {why} (paths are relative to the job file)", p.display()));
+                            ctx.err(
+                                Some(v.span()),
+                                Some(&key),
+                                format!("companion sample `{}` {why} (paths are relative to the job file)", p.display()),
+                            );
                         }
                     }
-                    other => ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string (the map's path), found {}", type_name(other))),
+                    other => ctx.err(
+                        Some(v.span()),
+                        Some(&key),
+                        format!("expected a non-empty string (the map's path), found {}", type_name(other)),
+                    ),
                 },
                 "path" => match v.get_ref() {
                     DeValue::String(s) if !s.is_empty() => c.path = Some((s.to_string(), v.span())),
-                    other => ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string (where to write it), found {}", type_name(other))),
+                    other => ctx.err(
+                        Some(v.span()),
+                        Some(&key),
+                        format!("expected a non-empty string (where to write it), found {}", type_name(other)),
+                    ),
                 },
                 "kind" => match v.get_ref() {
                     DeValue::String(s) if s.as_ref() as &str == "color" => c.kind = MapKind::Color,
                     DeValue::String(s) if s.as_ref() as &str == "normal" => c.kind = MapKind::Normal,
-                    DeValue::String(s) => ctx.err(Some(v.span()), Some(&key), format!("unknown kind `{s}`; use \"color\" (blended as is) or \"normal\" (blended normals are renormalised)")),
+                    DeValue::String(s) => ctx.err(
+                        Some(v.span()),
+                        Some(&key),
+                        format!("unknown kind `{s}`; use \"color\" (blended as is) or \"normal\" (blended normals are renormalised)"),
+                    ),
                     other => ctx.err(Some(v.span()), Some(&key), format!("expected \"color\" or \"normal\", found {}", type_name(other))),
                 },
                 "bit_depth" => match de_int(v.get_ref()) {

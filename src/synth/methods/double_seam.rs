@@ -8,12 +8,12 @@
 //! Comparing two lines instead of a whole overlap is the paper's speed argument.
 
 use crate::image::RgbImage;
-use crate::synth::primitives::canvas::Canvas as PixelCanvas;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::BlockGrid;
+use crate::synth::primitives::canvas::Canvas as PixelCanvas;
 use crate::synth::primitives::color::HsiPlanes;
 use crate::synth::primitives::correlation::pearson_from;
 use crate::synth::primitives::edges::{otsu_edges, sobel4};
@@ -416,7 +416,14 @@ struct Canvas {
 impl Canvas {
     fn new(w: u32, h: u32, sample: (u32, u32), record: bool) -> Canvas {
         let n = w as usize * h as usize;
-        Canvas { rgb: PixelCanvas::new(w, h, sample, record), w: w as usize, h: vec![0.0; n], s: vec![0.0; n], i: vec![0.0; n], e: vec![0; n] }
+        Canvas {
+            rgb: PixelCanvas::new(w, h, sample, record),
+            w: w as usize,
+            h: vec![0.0; n],
+            s: vec![0.0; n],
+            i: vec![0.0; n],
+            e: vec![0; n],
+        }
     }
 
     fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), c0: u32, r0: u32, block: u32) {
@@ -784,7 +791,9 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "hue_mode");
         let s = structured();
-        let e = DoubleSeam.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err();
+        let e = DoubleSeam
+            .synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "hue_mode"), "{e}");
     }
 }

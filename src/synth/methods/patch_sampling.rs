@@ -1342,7 +1342,9 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "search");
         let s = texture(64, 64);
-        let e = PatchSampling.synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err();
+        let e = PatchSampling
+            .synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "search"), "{e}");
     }
 }

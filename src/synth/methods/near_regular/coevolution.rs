@@ -890,7 +890,9 @@ mod tests {
             ("t2_y", ParamValue::Int(16)),
             ("c_tol", ParamValue::Float(0.0)),
         ]);
-        let out = Coevolution.synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4, placement: false, tileable: false }).unwrap();
+        let out = Coevolution
+            .synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4, placement: false, tileable: false })
+            .unwrap();
         assert_eq!(out.image.dimensions(), (90, 70));
         let hist = out.diagnostics["mean_fitness"].as_array().unwrap();
         assert_eq!(hist.last().unwrap().as_f64(), Some(0.0), "{hist:?}");
@@ -924,7 +926,15 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(64, 64, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let e = Coevolution
-            .synthesize(&Request { sample: &noise, width: 40, height: 40, params: &params(&[]), seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &noise,
+                width: 40,
+                height: 40,
+                params: &params(&[]),
+                seed: 1,
+                placement: false,
+                tileable: false,
+            })
             .unwrap_err()
             .to_string();
         assert!(e.contains("no lattice found; give t1/t2"), "{e}");
@@ -936,7 +946,15 @@ mod tests {
             ("cols", ParamValue::Int(2)),
         ]);
         let e = Coevolution
-            .synthesize(&Request { sample: &periodic(), width: 200, height: 200, params: &small, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &periodic(),
+                width: 200,
+                height: 200,
+                params: &small,
+                seed: 1,
+                placement: false,
+                tileable: false,
+            })
             .unwrap_err()
             .to_string();
         assert!(e.contains("uncovered"), "{e}");
@@ -956,7 +974,17 @@ mod tests {
             let want =
                 golden[format!("coevolution/{name}.toml")][format!("coevolution/{name}.png")]["sha256"].as_str().unwrap().to_string();
             for p in [params(&[]), params(&[("r_mut", ParamValue::Int(0)), ("mask", ParamValue::Str("exact".into()))])] {
-                let out = Coevolution.synthesize(&Request { sample: &sample, width: 384, height: 384, params: &p, seed: 7, placement: false, tileable: false }).unwrap();
+                let out = Coevolution
+                    .synthesize(&Request {
+                        sample: &sample,
+                        width: 384,
+                        height: 384,
+                        params: &p,
+                        seed: 7,
+                        placement: false,
+                        tileable: false,
+                    })
+                    .unwrap();
                 assert_eq!(crate::image::io::rgb_pixel_digest(&out.image).sha256, want, "{name}");
                 assert!(out.diagnostics.get("mask").is_none() && out.diagnostics.get("mutation").is_none());
             }

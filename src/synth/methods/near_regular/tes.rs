@@ -9,11 +9,11 @@
 
 use super::grid::{F_PEN, Fill, GRID_PARAMS, Geometry, LatticeGrid, converged, texels};
 use crate::image::RgbImage;
-use crate::synth::primitives::canvas::Canvas;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::boundary_cut::{horizontal_cut, vertical_cut};
+use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::pixel_error;
 use crate::synth::rng::Stream;
 use std::time::Instant;

@@ -795,16 +795,25 @@ mod tests {
     fn a_small_output_is_a_crop_of_a_large_one_and_threads_do_not_matter() {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
-        let small = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
-        let big = RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
+        let small = RwTiles
+            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false })
+            .unwrap();
+        let big = RwTiles
+            .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+            .unwrap();
         assert_eq!(small.image.dimensions(), (300, 200));
         assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let single =
-            one.install(|| RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap());
+        let single = one.install(|| {
+            RwTiles
+                .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+                .unwrap()
+        });
         assert_eq!(single.image, big.image);
         assert_eq!(single.diagnostics, big.diagnostics);
-        let other = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10, placement: false, tileable: false }).unwrap();
+        let other = RwTiles
+            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10, placement: false, tileable: false })
+            .unwrap();
         assert_ne!(other.image, small.image);
         // Every output pixel is a sample pixel (no blending).
         let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
@@ -874,7 +883,9 @@ mod tests {
         for candidates in [1, 5] {
             let p = aligned(&[("patch_candidates", ParamValue::Int(candidates))]);
             for seed in 0..6 {
-                let out = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false }).unwrap();
+                let out = RwTiles
+                    .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false })
+                    .unwrap();
                 assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
                 assert_eq!(out.diagnostics["patches"]["seam_cost"], 0, "{candidates} seed {seed}");
                 let img = out.image;
@@ -921,7 +932,10 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err().to_string();
+        let e = RwTiles
+            .synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let errs = RwTiles.check(&aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]), (128, 128), (64, 64));
         assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");

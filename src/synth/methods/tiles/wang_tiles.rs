@@ -748,7 +748,10 @@ mod tests {
         // (the coded sample makes the colour tell the position), except at tile corners.
         let sample = coded(100, 90);
         let p = params(&[("tile", ParamValue::Int(32))]);
-        let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4, placement: false, tileable: false }).unwrap().image;
+        let out = WangTiles
+            .synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4, placement: false, tileable: false })
+            .unwrap()
+            .image;
         for y in 0..160u32 {
             for x in 0..200u32 {
                 let corner = |v: u32| v.is_multiple_of(32) || v % 32 == 31;
@@ -772,13 +775,28 @@ mod tests {
         let sample = coded(128, 128);
         for cut in ["dp", "shortest_path"] {
             let p = params(&[("tile", ParamValue::Int(40)), ("cut", ParamValue::Str(cut.into()))]);
-            let small = WangTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
-            let big = WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
+            let small = WangTiles
+                .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false })
+                .unwrap();
+            let big = WangTiles
+                .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+                .unwrap();
             assert_eq!(small.image.dimensions(), (300, 200));
             assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-            let single =
-                one.install(|| WangTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap());
+            let single = one.install(|| {
+                WangTiles
+                    .synthesize(&Request {
+                        sample: &sample,
+                        width: 600,
+                        height: 500,
+                        params: &p,
+                        seed: 9,
+                        placement: false,
+                        tileable: false,
+                    })
+                    .unwrap()
+            });
             assert_eq!(single.image, big.image);
             assert_eq!(single.diagnostics, big.diagnostics);
         }
@@ -829,7 +847,17 @@ mod tests {
             for candidates in [1, 5] {
                 let p = aligned(&[("cut", ParamValue::Str(cut.into())), ("patch_candidates", ParamValue::Int(candidates))]);
                 for seed in 0..6 {
-                    let out = WangTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false }).unwrap();
+                    let out = WangTiles
+                        .synthesize(&Request {
+                            sample: &sample,
+                            width: 200,
+                            height: 180,
+                            params: &p,
+                            seed,
+                            placement: false,
+                            tileable: false,
+                        })
+                        .unwrap();
                     assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
                     assert_eq!(out.diagnostics["diamond_centres"]["seam_cost"], 0, "{cut} {candidates} seed {seed}");
                     let img = out.image;
@@ -885,7 +913,10 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = WangTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err().to_string();
+        let e = WangTiles
+            .synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let parallel = aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]);
         let errs = WangTiles.check(&parallel, (128, 128), (64, 64));
