@@ -332,3 +332,48 @@ fn bad_companions_and_maps_get_clear_errors_and_nothing_else_is_lost() {
     let o = run_expect(texsyn().arg("apply").arg(s.join("cork.png")).arg(s.join("cork.png")).arg("-o").arg(d.join("y.png")), 2);
     assert!(text(&o).contains("cork.png"), "{}", text(&o));
 }
+
+/// The report shows each companion beside the output it shares a placement with, and in a real
+/// browser every image decodes; the shown companion is the companion file, pixel for pixel.
+#[test]
+fn the_report_shows_companions_next_to_their_output() {
+    let d = scratch("matreport");
+    let m = repo().join("jobs/samples/materials");
+    job(
+        &d.join("jobs"),
+        "rock.toml",
+        &format!(
+            "sample = \"{0}/rock_a_albedo.png\"\nmethod = \"quilting\"\nseed = 2\n[output]\npath = \"rock/albedo.png\"\nwidth = 200\nheight = 180\n[[companion]]\nsample = \"{0}/rock_a_normal.png\"\npath = \"rock/normal.png\"\nkind = \"normal\"\n[[companion]]\nsample = \"{0}/rock_a_gloss.png\"\npath = \"rock/gloss.png\"\n",
+            m.display()
+        ),
+    );
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(d.join("jobs")).arg("-o").arg(&out));
+    let rep = d.join("rep");
+    run_ok(texsyn().arg("report").arg(out.join("manifest.json")).arg("-o").arg(&rep));
+    let dom = crate::report::dump_dom(&rep.join("index.html"));
+    let all = crate::report::tags(&dom);
+    let body = all.iter().find(|t| t.name == "body").unwrap();
+    let ok = body.attrs.get("data-images-ok").cloned().unwrap_or_default();
+    let (shown, total) = ok.split_once('/').unwrap();
+    assert_eq!(shown, total, "every image decoded: {:?}", body.attrs.get("data-images-failed"));
+    let figures: Vec<usize> = all
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.name == "figure" && t.attrs.get("data-role").map(String::as_str) == Some("companion"))
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(figures.len(), 2, "one figure per companion");
+    let main = all
+        .iter()
+        .position(|t| {
+            t.name == "figure" && t.attrs.get("data-job").map(String::as_str) == Some("rock.toml") && t.attrs.get("data-group").is_some()
+        })
+        .unwrap();
+    assert!(figures.iter().all(|&f| f > main), "companions follow their output");
+    for (f, file) in figures.iter().zip(["rock/normal.png", "rock/gloss.png"]) {
+        assert!(all[*f].text.contains(file), "caption names {file}: {}", all[*f].text);
+        let src = all[f + 1..].iter().find(|t| t.name == "img").unwrap().attrs["src"].clone();
+        assert_eq!(rgb(&rep.join(&src)), rgb(&out.join(file)), "{file} shown 1:1");
+    }
+}
