@@ -377,3 +377,31 @@ fn the_report_shows_companions_next_to_their_output() {
         assert_eq!(rgb(&rep.join(&src)), rgb(&out.join(file)), "{file} shown 1:1");
     }
 }
+
+/// `jobs/materials/`: every bundled material set, tileable, with its companions. A 2×2 tiling of
+/// each output shows no seam at the wrap: the jump across the wrap, relative to the image's
+/// typical neighbour jump, is no larger than the method's own interior seams' (the
+/// `seam_visibility` of its recorded seam grid), for the albedo and every companion.
+#[test]
+fn bundled_materials_wrap_no_worse_than_their_interior_seams() {
+    let out = scratch("matwrap");
+    run_ok(texsyn().arg("run").arg(repo().join("jobs/materials")).arg("-o").arg(&out));
+    let m = manifest(&out);
+    let jobs = m["jobs"].as_array().unwrap();
+    assert!(jobs.len() >= 5, "every material set has a job");
+    let mut checked = Vec::new();
+    for j in jobs {
+        assert_eq!(j["output_spec"]["tileable"], true, "{}: tileable", j["id"]);
+        assert!(!j["companions"].as_array().unwrap().is_empty(), "{}: with companions", j["id"]);
+        let seams: texsyn::image::seam_grid::SeamGrid = serde_json::from_value(j["seams"].clone()).unwrap();
+        for o in j["outputs"].as_array().unwrap().iter().filter(|o| o["format"] == "png") {
+            let img = rgb(&out.join(o["path"].as_str().unwrap()));
+            let wrap = texsyn::metrics::wrap_visibility(&img).unwrap();
+            let interior = texsyn::metrics::seam_visibility(&img, &seams).unwrap();
+            checked.push(format!("{} {}: wrap {wrap:.3}, interior seams {interior:.3}", j["id"], o["path"]));
+            assert!(wrap <= interior, "{}: the wrap ({wrap:.3}) shows more than the interior seams ({interior:.3})", o["path"]);
+        }
+    }
+    eprintln!("{}", checked.join("\n"));
+    run_ok(texsyn().arg("verify").arg(out.join("manifest.json")));
+}
