@@ -30,19 +30,21 @@ pub struct Synthesizer {
     given: Vec<(String, ParamValue)>,
     seed: u64,
     size: Option<(u32, u32)>,
+    placement: bool,
+    tileable: bool,
 }
 
 impl Synthesizer {
     /// A synthesis with a method's typed configuration (seed 0, the sample's size until set).
     pub fn new<C: MethodConfig>(config: C) -> Synthesizer {
-        Synthesizer { method: C::METHOD, given: config.to_params(), seed: 0, size: None }
+        Synthesizer { method: C::METHOD, given: config.to_params(), seed: 0, size: None, placement: false, tileable: false }
     }
 
     /// A synthesis by method name and job-file parameter values, for callers that pick the
     /// method at run time.
     pub fn by_name(method: &str, given: Vec<(String, ParamValue)>) -> Result<Synthesizer, Error> {
         let m = find(method)?;
-        Ok(Synthesizer { method: m.name(), given, seed: 0, size: None })
+        Ok(Synthesizer { method: m.name(), given, seed: 0, size: None, placement: false, tileable: false })
     }
 
     /// The seed: the only source of randomness.
@@ -54,6 +56,20 @@ impl Synthesizer {
     /// The output size in pixels (default: the sample's size).
     pub fn size(mut self, width: u32, height: u32) -> Synthesizer {
         self.size = Some((width, height));
+        self
+    }
+
+    /// Also return the placement ([`Synthesis::placement`]): where every output pixel comes from,
+    /// to render companion maps (normal, gloss…) or the sample in its own precision with
+    /// [`crate::synth::placement::Placement::render`]. Never changes the pixels.
+    pub fn placement(mut self) -> Synthesizer {
+        self.placement = true;
+        self
+    }
+
+    /// Make the output wrap seamlessly; [`Synthesizer::build`] refuses a method or size that cannot.
+    pub fn tileable(mut self) -> Synthesizer {
+        self.tileable = true;
         self
     }
 
@@ -71,7 +87,12 @@ impl Synthesizer {
         if !errors.is_empty() {
             return Err(Error::Params { method: method.name().into(), errors });
         }
-        Ok(Session { method, params, sample, seed: self.seed, width, height })
+        if self.tileable
+            && let Err(why) = method.tileable(&params, sample.dimensions(), (width, height))
+        {
+            return Err(Error::Usage(why));
+        }
+        Ok(Session { method, params, sample, seed: self.seed, width, height, placement: self.placement, tileable: self.tileable })
     }
 }
 
@@ -87,6 +108,8 @@ pub struct Session<'a> {
     seed: u64,
     width: u32,
     height: u32,
+    placement: bool,
+    tileable: bool,
 }
 
 impl Session<'_> {
@@ -107,8 +130,8 @@ impl Session<'_> {
             height: self.height,
             params: &self.params,
             seed: self.seed,
-            placement: false,
-            tileable: false,
+            placement: self.placement,
+            tileable: self.tileable,
         };
         self.method.synthesize(&request).map_err(|source| Error::Synthesis { method: self.method.name().into(), source })
     }
