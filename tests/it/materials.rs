@@ -367,7 +367,7 @@ fn the_report_shows_companions_next_to_their_output() {
     let main = all
         .iter()
         .position(|t| {
-            t.name == "figure" && t.attrs.get("data-job").map(String::as_str) == Some("rock.toml") && t.attrs.get("data-group").is_some()
+            t.name == "figure" && t.attrs.get("data-job").map(String::as_str) == Some("rock.toml") && t.attrs.contains_key("data-group")
         })
         .unwrap();
     assert!(figures.iter().all(|&f| f > main), "companions follow their output");
