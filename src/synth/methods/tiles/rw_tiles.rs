@@ -19,9 +19,9 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_rw;
-use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
+use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
 use super::wang::{TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
@@ -333,8 +333,7 @@ pub fn build_from_patches(
         .into_par_iter()
         .map(|t| {
             let c = set.colours(t);
-            let patches = [pa[c[0] as usize], pb[c[1] as usize], pa[c[2] as usize], pb[c[3] as usize]];
-            build_tile(sample, g, patches, err).map(|mut tile| {
+            build_tile(sample, g, patches_of(c, pa, pb), err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -348,8 +347,8 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let f = g.f;
     let n = (f * f) as usize;
     let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
-        let (ox, oy) = g.origin(k);
-        sample.get((patches[k].0 as i32 + x - ox) as u32, (patches[k].1 as i32 + y - oy) as u32)
+        let (sx, sy) = g.sample_pixel(k, patches[k], x, y);
+        sample.get(sx, sy)
     };
     let mut labels = vec![UNSET; n];
     let mut locked = vec![UNSET; n];
@@ -548,7 +547,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
         }
     }
-    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs })
+    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs, sources: Vec::new() })
 }
 
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
@@ -638,6 +637,11 @@ impl Method for RwTiles {
         common::strip_peak_memory(sample, output)
     }
 
+    fn tileable(&self, params: &Params, _sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = RwTilesConfig::from_params(params).map_err(|e| e.to_string())?;
+        common::tileable(self.name(), cfg.tile, cfg.export_tiles, output)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         Ok(common::render_whole(self.fill(req)?, req))
     }
@@ -660,6 +664,9 @@ impl RwTiles {
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
+        if req.tileable {
+            self.tileable(req.params, req.sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+        }
         let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
         let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
@@ -667,7 +674,7 @@ impl RwTiles {
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
+        let tiling = tiles.tiling(order, req);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -682,6 +689,10 @@ impl RwTiles {
             "lattice": { "i": [tiling.r0, tiling.r0 + tiling.rows as i64 - 1], "j": [tiling.c0, tiling.c0 + tiling.cols as i64 - 1] },
             "usage": tiling.usage(set),
         });
+        if req.tileable {
+            // Only then, so that the record of an ordinary fill stays as it was.
+            diagnostics["wraps"] = serde_json::Value::Bool(true);
+        }
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
@@ -795,16 +806,25 @@ mod tests {
     fn a_small_output_is_a_crop_of_a_large_one_and_threads_do_not_matter() {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
-        let small = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
-        let big = RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap();
+        let small = RwTiles
+            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false })
+            .unwrap();
+        let big = RwTiles
+            .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+            .unwrap();
         assert_eq!(small.image.dimensions(), (300, 200));
         assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let single =
-            one.install(|| RwTiles.synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false }).unwrap());
+        let single = one.install(|| {
+            RwTiles
+                .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+                .unwrap()
+        });
         assert_eq!(single.image, big.image);
         assert_eq!(single.diagnostics, big.diagnostics);
-        let other = RwTiles.synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10, placement: false, tileable: false }).unwrap();
+        let other = RwTiles
+            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10, placement: false, tileable: false })
+            .unwrap();
         assert_ne!(other.image, small.image);
         // Every output pixel is a sample pixel (no blending).
         let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
@@ -874,7 +894,9 @@ mod tests {
         for candidates in [1, 5] {
             let p = aligned(&[("patch_candidates", ParamValue::Int(candidates))]);
             for seed in 0..6 {
-                let out = RwTiles.synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false }).unwrap();
+                let out = RwTiles
+                    .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false })
+                    .unwrap();
                 assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
                 assert_eq!(out.diagnostics["patches"]["seam_cost"], 0, "{candidates} seed {seed}");
                 let img = out.image;
@@ -921,7 +943,10 @@ mod tests {
         let mut st = Stream::new(3, "noise");
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
-        let e = RwTiles.synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err().to_string();
+        let e = RwTiles
+            .synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
         let errs = RwTiles.check(&aligned(&[("t2_x", ParamValue::Int(32)), ("t2_y", ParamValue::Int(0))]), (128, 128), (64, 64));
         assert!(errs.iter().any(|e| e.key == "t1_x" && e.message.contains("parallel")), "{errs:?}");
@@ -1018,5 +1043,76 @@ mod tests {
             }
             assert_eq!(pixels, whole.image.as_raw(), "strips of {rows} rows");
         }
+    }
+
+    #[test]
+    fn a_tileable_output_wraps_as_seamlessly_as_its_tiles_join() {
+        // The wrap is one line each way while the interior figure pools every seam band, so one
+        // output's wrap scatters around it (measured: up to 1.27× either way); over five seeds it
+        // is no worse. A wrap that did not match would jump like the ordinary fill's, which is
+        // printed for comparison.
+        use super::common::testing::{sample, wrapping};
+        use crate::metrics::seams::wrap_visibility;
+        for (name, size) in [("bricks_gray.png", (384, 256)), ("pebbles_beige.png", (256, 320))] {
+            let s = sample(name);
+            for set in ["minimal", "complete"] {
+                let p = params(&[("tile_set", ParamValue::Str(set.into()))]);
+                let (mut wraps, mut interiors) = (0.0, 0.0);
+                for seed in 1..6 {
+                    let (_, wrap, interior) = wrapping(&RwTiles, &p, &s, size, seed);
+                    let req = Request { sample: &s, width: size.0, height: size.1, params: &p, seed, placement: false, tileable: false };
+                    let ordinary = wrap_visibility(&RwTiles.synthesize(&req).unwrap().image).unwrap();
+                    eprintln!(
+                        "{} {name} {set} seed {seed}: wrap {wrap:.3}, interior seams {interior:.3}, ordinary fill's wrap {ordinary:.3}",
+                        RwTiles.name()
+                    );
+                    assert!(wrap <= 1.3 * interior, "{name} {set} seed {seed}: wrap {wrap:.3}, interior seams {interior:.3}");
+                    (wraps, interiors) = (wraps + wrap, interiors + interior);
+                }
+                assert!(wraps <= interiors, "{name} {set}: mean wrap {:.3} > mean interior seams {:.3}", wraps / 5.0, interiors / 5.0);
+            }
+        }
+    }
+
+    #[test]
+    fn the_2x2_repeat_of_a_tileable_fill_is_one_seamless_tiling() {
+        use super::common::testing::{repeat_is_one_tiling, sample};
+        let s = sample("bricks_gray.png");
+        for set in [TileSet::Minimal, TileSet::Complete] {
+            let tiles = build_tile_set(&s, 64, 8, set, PixelError::Squared, 3).unwrap();
+            for (period, seed) in [((384, 256), 1), ((64, 64), 2), ((64, 320), 3), ((512, 128), 4)] {
+                let twice = repeat_is_one_tiling(&tiles, period, seed);
+                assert_eq!(twice.violations(set), 0, "{set:?} {period:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn one_tile_wraps_with_itself_and_ordinary_fills_do_not_change() {
+        use super::common::testing::{sample, wrapping};
+        let s = sample("bricks_gray.png");
+        let p = params(&[("tile", ParamValue::Int(48))]);
+        wrapping(&RwTiles, &p, &s, (48, 48), 2);
+        wrapping(&RwTiles, &p, &s, (48, 192), 2);
+        // Asking for a placement only adds it; without `tileable` the fill is the keyed one.
+        let plain = Request { sample: &s, width: 96, height: 96, params: &p, seed: 2, placement: false, tileable: false };
+        let without = RwTiles.synthesize(&plain).unwrap();
+        let with = RwTiles.synthesize(&Request { placement: true, ..plain }).unwrap();
+        assert!(without.placement.is_none() && without.diagnostics.get("wraps").is_none());
+        assert_eq!(with.image, without.image);
+        assert_eq!(with.placement.unwrap().render_rgb8(&s), without.image);
+    }
+
+    #[test]
+    fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
+        let p = params(&[]);
+        assert_eq!(RwTiles.tileable(&p, (256, 256), (640, 128)), Ok(()));
+        let e = RwTiles.tileable(&p, (256, 256), (700, 100)).unwrap_err();
+        assert!(e.contains("multiple of the tile size 64") && e.contains("704x128 would work"), "{e}");
+        let s = super::common::testing::sample("bricks_gray.png");
+        let req = Request { sample: &s, width: 700, height: 100, params: &p, seed: 1, placement: false, tileable: true };
+        assert!(RwTiles.synthesize(&req).unwrap_err().to_string().contains("704x128 would work"));
+        let export = params(&[("export_tiles", ParamValue::Bool(true))]);
+        assert!(RwTiles.tileable(&export, (256, 256), (128, 128)).unwrap_err().contains("export_tiles"));
     }
 }
