@@ -82,7 +82,7 @@ pub fn tileable(method: &str, period: u32, export_tiles: bool, output: (u32, u32
             "tileable {method} output cannot also export its tile set (export_tiles): the export records the position-keyed tiling, not the wrapping one; turn off one of them"
         ));
     }
-    if output.0 % period != 0 || output.1 % period != 0 {
+    if !output.0.is_multiple_of(period) || !output.1.is_multiple_of(period) {
         // The nearest whole numbers of tiles, never zero.
         let near = |v: u32| ((v + period / 2) / period).max(1) * period;
         return Err(format!(

@@ -6,6 +6,9 @@
 //! `(r − 1, col)` and its `b` equals the `d` of tile `(r, col − 1)`. The Cohen baseline uses
 //! `[N, W, S, E]` on rows and columns; RW-Tiles use `[NW, NE, SE, SW]` on the rhombus lattice
 //! `(i, j)` (docs/methods.md §3.5–3.6).
+//!
+//! An output that wraps (`Request::tileable`) is tiled on a torus instead ([`Torus`],
+//! [`tile_torus`]): the same colour rule, with the positions a period apart being one tile.
 
 use crate::synth::rng::Stream;
 
