@@ -1029,72 +1029,21 @@ mod tests {
 
     #[test]
     fn a_tileable_output_wraps_as_seamlessly_as_its_tiles_join() {
-        // The wrap is one line each way while the interior figure pools every seam band, so one
-        // output's wrap scatters around it (measured: up to 1.27× either way); over five seeds it
-        // is no worse. A wrap that did not match would jump like the ordinary fill's, which is
-        // printed for comparison.
-        use super::common::testing::{sample, wrapping};
-        use crate::metrics::seams::wrap_visibility;
-        for (name, size) in [("bricks_gray.png", (384, 256)), ("pebbles_beige.png", (256, 320))] {
-            let s = sample(name);
-            for set in ["minimal", "complete"] {
-                let p = params(&[("tile_set", ParamValue::Str(set.into()))]);
-                let (mut wraps, mut interiors) = (0.0, 0.0);
-                for seed in 1..6 {
-                    let (_, wrap, interior) = wrapping(&WangTiles, &p, &s, size, seed);
-                    let req = Request { sample: &s, width: size.0, height: size.1, params: &p, seed, placement: false, tileable: false };
-                    let ordinary = wrap_visibility(&WangTiles.synthesize(&req).unwrap().image).unwrap();
-                    eprintln!(
-                        "{} {name} {set} seed {seed}: wrap {wrap:.3}, interior seams {interior:.3}, ordinary fill's wrap {ordinary:.3}",
-                        WangTiles.name()
-                    );
-                    assert!(wrap <= 1.3 * interior, "{name} {set} seed {seed}: wrap {wrap:.3}, interior seams {interior:.3}");
-                    (wraps, interiors) = (wraps + wrap, interiors + interior);
-                }
-                assert!(wraps <= interiors, "{name} {set}: mean wrap {:.3} > mean interior seams {:.3}", wraps / 5.0, interiors / 5.0);
-            }
-        }
+        common::testing::wraps_as_seamlessly_as_the_tiles_join(&WangTiles);
     }
 
     #[test]
     fn the_2x2_repeat_of_a_tileable_fill_is_one_seamless_tiling() {
-        use super::common::testing::{repeat_is_one_tiling, sample};
-        let s = sample("bricks_gray.png");
-        for set in [TileSet::Minimal, TileSet::Complete] {
-            let tiles = build_tile_set(&s, 64, 8, set, Cut::Dp, PixelError::Squared, 3).unwrap();
-            for (period, seed) in [((384, 256), 1), ((64, 64), 2), ((64, 320), 3), ((512, 128), 4)] {
-                let twice = repeat_is_one_tiling(&tiles, period, seed);
-                assert_eq!(twice.violations(set), 0, "{set:?} {period:?}");
-            }
-        }
+        common::testing::repeats_are_single_tilings(|s, set| build_tile_set(s, 64, 8, set, Cut::Dp, PixelError::Squared, 3).unwrap());
     }
 
     #[test]
     fn one_tile_wraps_with_itself_and_ordinary_fills_do_not_change() {
-        use super::common::testing::{sample, wrapping};
-        let s = sample("bricks_gray.png");
-        let p = params(&[("tile", ParamValue::Int(48))]);
-        wrapping(&WangTiles, &p, &s, (48, 48), 2);
-        wrapping(&WangTiles, &p, &s, (48, 192), 2);
-        // Asking for a placement only adds it; without `tileable` the fill is the keyed one.
-        let plain = Request { sample: &s, width: 96, height: 96, params: &p, seed: 2, placement: false, tileable: false };
-        let without = WangTiles.synthesize(&plain).unwrap();
-        let with = WangTiles.synthesize(&Request { placement: true, ..plain }).unwrap();
-        assert!(without.placement.is_none() && without.diagnostics.get("wraps").is_none());
-        assert_eq!(with.image, without.image);
-        assert_eq!(with.placement.unwrap().render_rgb8(&s), without.image);
+        common::testing::one_tile_wraps_and_ordinary_fills_do_not_change(&WangTiles);
     }
 
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
-        let p = params(&[]);
-        assert_eq!(WangTiles.tileable(&p, (256, 256), (640, 128)), Ok(()));
-        let e = WangTiles.tileable(&p, (256, 256), (700, 100)).unwrap_err();
-        assert!(e.contains("multiple of the tile size 64") && e.contains("704x128 would work"), "{e}");
-        let s = super::common::testing::sample("bricks_gray.png");
-        let req = Request { sample: &s, width: 700, height: 100, params: &p, seed: 1, placement: false, tileable: true };
-        assert!(WangTiles.synthesize(&req).unwrap_err().to_string().contains("704x128 would work"));
-        let export = params(&[("export_tiles", ParamValue::Bool(true))]);
-        assert!(WangTiles.tileable(&export, (256, 256), (128, 128)).unwrap_err().contains("export_tiles"));
+        common::testing::refuses_what_cannot_wrap(&WangTiles);
     }
 }
