@@ -274,7 +274,14 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                 }
                 let data = read_tile(t)?;
                 let raster = data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-                tiles.push(WangTile { colours: t.colours, raster, labels: Vec::new(), cut_costs: [0; 4], fallback_pixels: 0 });
+                tiles.push(WangTile {
+                    colours: t.colours,
+                    raster,
+                    labels: Vec::new(),
+                    cut_costs: [0; 4],
+                    fallback_pixels: 0,
+                    sources: Vec::new(),
+                });
             }
             Ok(Loaded::Wang(index, WangTileSet { geometry: g, set, dn: [(0, 0); 2], de: [(0, 0); 2], tiles }))
         }
@@ -318,6 +325,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     centre_block: 0,
                     strip_costs: [0; 4],
                     pocket_costs: Vec::new(),
+                    sources: Vec::new(),
                 });
             }
             Ok(Loaded::Rw(index, RwTileSet { geometry: g, set, pa: [(0, 0); 2], pb: [(0, 0); 2], tiles }))

@@ -6,8 +6,9 @@
 //! back; both render through [`RwTileSet::render`]. Keeping the set here, below both, is what lets
 //! the export render a loaded set without importing the method that imports the export.
 
-use super::wang::{TileSet, Tiling, TilingOrder, tile_rect};
+use super::wang::{TileSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
+use crate::synth::placement::UNCOVERED;
 use rayon::prelude::*;
 
 /// Geometry of one RW-tile's framework (§3.2): sub-block side `s`, overlap `ov`, `h = s − ov`,
@@ -92,6 +93,13 @@ impl Geometry {
         }
     }
 
+    /// The sample pixel that framework pixel `(x, y)` reads from block `k` cut at sample corner `p`.
+    #[inline]
+    pub fn sample_pixel(&self, k: usize, p: (u32, u32), x: i32, y: i32) -> (u32, u32) {
+        let (ox, oy) = self.origin(k);
+        ((p.0 as i32 + x - ox) as u32, (p.1 as i32 + y - oy) as u32)
+    }
+
     /// Index of framework pixel `(x, y)` in the `f × f` rasters.
     #[inline]
     pub fn idx(&self, x: i32, y: i32) -> usize {
@@ -113,6 +121,15 @@ pub struct RwTile {
     /// Path costs of the four strip seams (N, E, S, W) and of the three centre pockets.
     pub strip_costs: [u64; 4],
     pub pocket_costs: Vec<u64>,
+    /// `f × f` sample indices (`y · sample_width + x`) the raster's pixels of `R` are copies of
+    /// ([`UNCOVERED`] outside `R`): filled by [`RwTileSet::record_sources`] only when a job asks
+    /// for its placement, empty otherwise.
+    pub sources: Vec<u32>,
+}
+
+/// The sample corners of a tile's blocks `B1..B4`, from its colours `[NW, NE, SE, SW]`.
+pub fn patches_of(colours: [u8; 4], pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> [(u32, u32); 4] {
+    [pa[colours[0] as usize], pb[colours[1] as usize], pa[colours[2] as usize], pb[colours[3] as usize]]
 }
 
 /// A built tile set.
@@ -162,10 +179,23 @@ impl RwTileSet {
     /// Renders output rows `y0..` into `rows` (whole rows of a `width`-wide output), the same
     /// pixels as those rows of [`RwTileSet::render`]: how a large fill is written strip by strip.
     pub fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
+        self.copy_rows(tiling, width, y0, rows, 3, |tile| &tile.raster);
+    }
+
+    /// Lays a tiling of `f × f` planes of `ch` values per pixel (a tile's raster or its sources)
+    /// into output rows `y0..`, copying runs of tile rows (§3.6); rows are filled in parallel.
+    fn copy_rows<T: Copy + Send + Sync>(
+        &self,
+        tiling: &Tiling,
+        width: u32,
+        y0: u32,
+        rows: &mut [T],
+        ch: usize,
+        plane: impl Fn(&RwTile) -> &[T] + Sync,
+    ) {
         let g = self.geometry;
         let (f, h2) = (g.f as usize, 2 * g.h as i64);
-        let row_len = width as usize * 3;
-        rows.par_chunks_mut(row_len).enumerate().for_each(|(y, row)| {
+        rows.par_chunks_mut(width as usize * ch).enumerate().for_each(|(y, row)| {
             let y = y as i64 + i64::from(y0);
             let mut x = 0i64;
             while x < width as i64 {
@@ -173,12 +203,43 @@ impl RwTileSet {
                 let to_i = h2 - (x + y - g.u0 as i64).rem_euclid(h2);
                 let to_j = (y - x - g.w0 as i64).rem_euclid(h2) + 1;
                 let run = to_i.min(to_j).min(width as i64 - x) as usize;
-                let tile = &self.tiles[tiling.at(i, j)];
-                let src = (fy as usize * f + fx as usize) * 3;
-                row[x as usize * 3..(x as usize + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
+                let tile = plane(&self.tiles[tiling.at(i, j)]);
+                let src = (fy as usize * f + fx as usize) * ch;
+                row[x as usize * ch..(x as usize + run) * ch].copy_from_slice(&tile[src..src + run * ch]);
                 x += run as i64;
             }
         });
+    }
+
+    /// Places the tiles for a `period` output that wraps, both sizes multiples of the tile
+    /// `T = 2h` ([`tile_torus`], stream `rwtiles/torus`), over an output of `cover` size (the
+    /// period itself, or more to see it repeat). Shifting the output by `(W, 0) = 2h·(m, 0)` moves
+    /// [`locate`]'s lattice by `(m, −m)` and leaves framework coordinates alone; `(0, H) =
+    /// 2h·(0, n)` moves it by `(n, n)`: the tiling is periodic on those two.
+    pub fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
+        let t = self.geometry.tile() as i64;
+        let (m, n) = (period.0 as i64 / t, period.1 as i64 / t);
+        assert!(m * t == period.0 as i64 && n * t == period.1 as i64, "{period:?} is not a whole number of {t}-pixel tiles");
+        let (i, j) = lattice_range(&self.geometry, cover.0, cover.1);
+        tile_torus(self.set, &Torus::new((m, -m), (n, n)), i, j, seed, "rwtiles/torus")
+    }
+
+    /// Fills every tile's [`RwTile::sources`] from its block labels, the same sample pixels its
+    /// raster was composed of.
+    pub fn record_sources(&mut self, sample_width: u32) {
+        let g = self.geometry;
+        for tile in &mut self.tiles {
+            let p = patches_of(tile.colours, self.pa, self.pb);
+            tile.sources = (0..g.f * g.f)
+                .map(|i| match tile.labels[i as usize] {
+                    UNSET => UNCOVERED,
+                    k => {
+                        let (sx, sy) = g.sample_pixel(k as usize, p[k as usize], i % g.f, i / g.f);
+                        sy * sample_width + sx
+                    }
+                })
+                .collect();
+        }
     }
 }
 
@@ -203,6 +264,18 @@ pub fn lattice_range(g: &Geometry, width: u32, height: u32) -> ((i64, i64), (i64
 impl super::common::TileRenderer for RwTileSet {
     fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
         RwTileSet::render_rows(self, tiling, width, y0, rows)
+    }
+    fn source_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u32]) {
+        self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.sources)
+    }
+    fn record_sources(&mut self, sample_width: u32) {
+        RwTileSet::record_sources(self, sample_width)
+    }
+    fn tile_output(&self, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
+        RwTileSet::tile_output(self, order, width, height, seed)
+    }
+    fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
+        RwTileSet::tile_torus(self, period, cover, seed)
     }
 }
 

@@ -19,9 +19,9 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_rw;
-use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET};
+use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
 use super::wang::{TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
@@ -333,8 +333,7 @@ pub fn build_from_patches(
         .into_par_iter()
         .map(|t| {
             let c = set.colours(t);
-            let patches = [pa[c[0] as usize], pb[c[1] as usize], pa[c[2] as usize], pb[c[3] as usize]];
-            build_tile(sample, g, patches, err).map(|mut tile| {
+            build_tile(sample, g, patches_of(c, pa, pb), err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -348,8 +347,8 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let f = g.f;
     let n = (f * f) as usize;
     let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
-        let (ox, oy) = g.origin(k);
-        sample.get((patches[k].0 as i32 + x - ox) as u32, (patches[k].1 as i32 + y - oy) as u32)
+        let (sx, sy) = g.sample_pixel(k, patches[k], x, y);
+        sample.get(sx, sy)
     };
     let mut labels = vec![UNSET; n];
     let mut locked = vec![UNSET; n];
@@ -548,7 +547,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
         }
     }
-    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs })
+    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs, sources: Vec::new() })
 }
 
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
@@ -638,6 +637,11 @@ impl Method for RwTiles {
         common::strip_peak_memory(sample, output)
     }
 
+    fn tileable(&self, params: &Params, _sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = RwTilesConfig::from_params(params).map_err(|e| e.to_string())?;
+        common::tileable(self.name(), cfg.tile, cfg.export_tiles, output)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         Ok(common::render_whole(self.fill(req)?, req))
     }
@@ -660,6 +664,9 @@ impl RwTiles {
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
+        if req.tileable {
+            self.tileable(req.params, req.sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+        }
         let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
         let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
@@ -667,7 +674,7 @@ impl RwTiles {
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
+        let tiling = tiles.tiling(order, req);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -682,6 +689,10 @@ impl RwTiles {
             "lattice": { "i": [tiling.r0, tiling.r0 + tiling.rows as i64 - 1], "j": [tiling.c0, tiling.c0 + tiling.cols as i64 - 1] },
             "usage": tiling.usage(set),
         });
+        if req.tileable {
+            // Only then, so that the record of an ordinary fill stays as it was.
+            diagnostics["wraps"] = serde_json::Value::Bool(true);
+        }
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
@@ -1032,5 +1043,25 @@ mod tests {
             }
             assert_eq!(pixels, whole.image.as_raw(), "strips of {rows} rows");
         }
+    }
+
+    #[test]
+    fn a_tileable_output_wraps_as_seamlessly_as_its_tiles_join() {
+        common::testing::wraps_as_seamlessly_as_the_tiles_join(&RwTiles);
+    }
+
+    #[test]
+    fn the_2x2_repeat_of_a_tileable_fill_is_one_seamless_tiling() {
+        common::testing::repeats_are_single_tilings(|s, set| build_tile_set(s, 64, 8, set, PixelError::Squared, 3).unwrap());
+    }
+
+    #[test]
+    fn one_tile_wraps_with_itself_and_ordinary_fills_do_not_change() {
+        common::testing::one_tile_wraps_and_ordinary_fills_do_not_change(&RwTiles);
+    }
+
+    #[test]
+    fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
+        common::testing::refuses_what_cannot_wrap(&RwTiles);
     }
 }

@@ -6,6 +6,9 @@
 //! `(r − 1, col)` and its `b` equals the `d` of tile `(r, col − 1)`. The Cohen baseline uses
 //! `[N, W, S, E]` on rows and columns; RW-Tiles use `[NW, NE, SE, SW]` on the rhombus lattice
 //! `(i, j)` (docs/methods.md §3.5–3.6).
+//!
+//! An output that wraps (`Request::tileable`) is tiled on a torus instead ([`Torus`],
+//! [`tile_torus`]): the same colour rule, with the positions a period apart being one tile.
 
 use crate::synth::rng::Stream;
 
@@ -41,6 +44,18 @@ impl TileSet {
                 [a, b, c, a ^ b ^ c]
             }
             TileSet::Complete => [k >> 3 & 1, k >> 2 & 1, k >> 1 & 1, k & 1],
+        }
+    }
+
+    /// The index of the tile with colours `[a, b, c, d]` (for the minimal set they must satisfy
+    /// its parity rule).
+    pub fn index(&self, [a, b, c, d]: [u8; 4]) -> usize {
+        match self {
+            TileSet::Minimal => {
+                assert_eq!(a ^ b ^ c ^ d, 0, "colours {:?} are not a minimal-set tile", [a, b, c, d]);
+                (a * 4 + b * 2 + c) as usize
+            }
+            TileSet::Complete => (a * 8 + b * 4 + c * 2 + d) as usize,
         }
     }
 
@@ -174,6 +189,117 @@ pub fn tile_rect(
     Tiling { r0, c0, rows, cols, tiles }
 }
 
+/// The tile positions `(r, c)` modulo a lattice of periods: the tiles of an output that wraps.
+/// Held in Hermite normal form, periods `(a, b)` and `(0, d)`, so that every position has one
+/// representative `(r', c')` with `0 ≤ r' < a`, `0 ≤ c' < d` (class `r'·d + c'`). Wang tiles wrap
+/// on a rectangle of `rows × cols`; RW tiles on the sheared lattice their output periods map to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Torus {
+    a: i64,
+    b: i64,
+    d: i64,
+}
+
+impl Torus {
+    /// The positions modulo the lattice spanned by `v1` and `v2` (which must be independent).
+    pub fn new(v1: (i64, i64), v2: (i64, i64)) -> Torus {
+        // Extended Euclid on the first coordinates: x·v1 + y·v2 = (g, ·) and a combination with
+        // first coordinate 0 span the same lattice as v1, v2.
+        let (mut r0, mut r1, mut x0, mut x1, mut y0, mut y1) = (v1.0, v2.0, 1i64, 0i64, 0i64, 1i64);
+        while r1 != 0 {
+            let q = r0.div_euclid(r1);
+            (r0, r1) = (r1, r0 - q * r1);
+            (x0, x1) = (x1, x0 - q * x1);
+            (y0, y1) = (y1, y0 - q * y1);
+        }
+        let sign = if r0 < 0 { -1 } else { 1 };
+        let (g, x, y) = (r0 * sign, x0 * sign, y0 * sign);
+        assert!(g > 0, "periods {v1:?}, {v2:?} leave the rows unbounded");
+        let d = ((v2.0 / g) * v1.1 - (v1.0 / g) * v2.1).abs();
+        assert!(d > 0, "periods {v1:?}, {v2:?} are parallel");
+        Torus { a: g, b: (x * v1.1 + y * v2.1).rem_euclid(d), d }
+    }
+
+    /// How many distinct tile positions (the lattice's index).
+    pub fn len(&self) -> usize {
+        (self.a * self.d) as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The class of position `(r, c)`, in `0..len()`.
+    #[inline]
+    pub fn class(&self, r: i64, c: i64) -> usize {
+        let k = r.div_euclid(self.a);
+        ((r - k * self.a) * self.d + (c - k * self.b).rem_euclid(self.d)) as usize
+    }
+
+    /// The representative position of class `k`.
+    fn position(&self, k: usize) -> (i64, i64) {
+        (k as i64 / self.d, k as i64 % self.d)
+    }
+}
+
+/// A tiling of rows `r0..=r1` × columns `c0..=c1` that is periodic on `torus`, so an output cut
+/// from it wraps: every tile edge, the ones across the periods included, joins equal colours.
+///
+/// Instead of placing tiles (a scanline on a torus closes on tiles whose four colours are all
+/// fixed, which the minimal set cannot always match), the colours of the torus's edges are drawn
+/// from stream `label` and each tile is the one with its four edge colours. `south[k]` is the edge
+/// below class `k` (its `c`, the `a` of the tile a row down), `east[k]` the one to its right (its
+/// `d`, the next column's `b`). The complete set takes any colours. The minimal set needs an even
+/// number of colour-1 edges at every tile, i.e. the colour-1 edges form a cycle of the tile graph:
+/// so they are a random sum of the 4-cycles around tile corners and of the two loops along rows
+/// and columns, all of which are cycles.
+pub fn tile_torus(set: TileSet, torus: &Torus, (r0, r1): (i64, i64), (c0, c1): (i64, i64), seed: u64, label: &str) -> Tiling {
+    assert!(r0 <= r1 && c0 <= c1, "empty tiling range");
+    let n = torus.len();
+    let mut stream = Stream::new(seed, label);
+    let (mut south, mut east) = (vec![0u8; n], vec![0u8; n]);
+    match set {
+        TileSet::Complete => {
+            for k in 0..n {
+                south[k] = stream.below(2) as u8;
+                east[k] = stream.below(2) as u8;
+            }
+        }
+        TileSet::Minimal => {
+            for k in 0..n {
+                if stream.below(2) == 1 {
+                    let (r, c) = torus.position(k);
+                    south[k] ^= 1;
+                    east[torus.class(r + 1, c)] ^= 1;
+                    south[torus.class(r, c + 1)] ^= 1;
+                    east[k] ^= 1;
+                }
+            }
+            for (step, edges) in [((1, 0), &mut south), ((0, 1), &mut east)] {
+                if stream.below(2) == 1 {
+                    let mut p = (0i64, 0i64);
+                    loop {
+                        edges[torus.class(p.0, p.1)] ^= 1;
+                        p = (p.0 + step.0, p.1 + step.1);
+                        if torus.class(p.0, p.1) == 0 {
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let (rows, cols) = ((r1 - r0 + 1) as usize, (c1 - c0 + 1) as usize);
+    let mut tiles = Vec::with_capacity(rows * cols);
+    for r in r0..=r1 {
+        for c in c0..=c1 {
+            let k = torus.class(r, c);
+            tiles.push(set.index([south[torus.class(r - 1, c)], east[torus.class(r, c - 1)], south[k], east[k]]) as u8);
+        }
+    }
+    Tiling { r0, c0, rows, cols, tiles }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -247,5 +373,58 @@ mod tests {
         let s1 = tile_rect(set, TilingOrder::Scanline, (0, 6), (0, 5), 0, 11, "t");
         let s2 = tile_rect(set, TilingOrder::Scanline, (0, 6), (0, 9), 0, 11, "t");
         assert!((0..=6).any(|r| (0..=5).any(|c| s1.at(r, c) != s2.at(r, c))));
+    }
+
+    #[test]
+    fn torus_classes_follow_the_periods() {
+        for (v1, v2) in [((3, 0), (0, 5)), ((2, -2), (3, 3)), ((1, -1), (1, 1)), ((4, -4), (1, 1)), ((1, 0), (0, 1))] {
+            let t = Torus::new(v1, v2);
+            assert_eq!(t.len() as i64, (v1.0 * v2.1 - v1.1 * v2.0).abs(), "{v1:?} {v2:?}");
+            let mut seen = std::collections::HashSet::new();
+            for r in -7..9 {
+                for c in -7..9 {
+                    let k = t.class(r, c);
+                    seen.insert(k);
+                    assert_eq!(t.class(r + v1.0, c + v1.1), k);
+                    assert_eq!(t.class(r - v2.0, c - v2.1), k);
+                    assert_eq!(t.position(k), t.position(t.class(t.position(k).0, t.position(k).1)));
+                }
+            }
+            assert_eq!(seen.len(), t.len(), "{v1:?} {v2:?}");
+        }
+    }
+
+    #[test]
+    fn torus_tilings_match_every_edge_across_the_periods_too() {
+        for set in [TileSet::Minimal, TileSet::Complete] {
+            for (v1, v2) in [
+                ((1, 0), (0, 1)),
+                ((1, 0), (0, 4)),
+                ((3, 0), (0, 1)),
+                ((4, 0), (0, 6)),
+                ((1, -1), (1, 1)),
+                ((3, -3), (2, 2)),
+                ((5, -5), (1, 1)),
+            ] {
+                let torus = Torus::new(v1, v2);
+                for seed in 0..8 {
+                    let t = tile_torus(set, &torus, (-6, 9), (-8, 7), seed, "test/torus");
+                    assert_eq!(t.violations(set), 0, "{set:?} {v1:?} {v2:?} seed {seed}");
+                    for r in -6..=9 - v1.0.max(v2.0) {
+                        for c in -8..=7 {
+                            for v in [v1, v2] {
+                                if (-8..=7).contains(&(c + v.1)) && r + v.0 <= 9 {
+                                    assert_eq!(t.at(r, c), t.at(r + v.0, c + v.1), "({r},{c}) + {v:?}");
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            for (v1, v2) in [((20, 0), (0, 20)), ((12, -12), (10, 10))] {
+                let big = tile_torus(set, &Torus::new(v1, v2), (0, 40), (0, 40), 1, "test/torus");
+                assert!(big.usage(set).iter().all(|&u| u > 0), "{set:?} {v1:?} {v2:?}: every tile is used");
+            }
+        }
     }
 }

@@ -5,7 +5,7 @@
 //! it back; both render through [`WangTileSet::render`]. Keeping the set here, below both, is what
 //! lets the export render a loaded set without importing the method that imports the export.
 
-use super::wang::{TileSet, Tiling, TilingOrder, tile_rect};
+use super::wang::{TileSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
 use rayon::prelude::*;
 
@@ -57,6 +57,13 @@ impl Geometry {
         }
     }
 
+    /// The sample pixel that tile pixel `(x, y)` reads from diamond `d` centred at sample pixel `q`.
+    #[inline]
+    pub fn sample_pixel(&self, d: usize, q: (u32, u32), x: i32, y: i32) -> (u32, u32) {
+        let (cx, cy) = self.centre(d);
+        ((q.0 as i32 + x - cx) as u32, (q.1 as i32 + y - cy) as u32)
+    }
+
     /// Tile corner where the cut between diamonds `k` and `k + 1` starts.
     pub fn corner(&self, k: usize) -> (i32, i32) {
         let l = self.t - 1;
@@ -77,6 +84,14 @@ pub struct WangTile {
     pub cut_costs: [u64; 4],
     /// Pixels no flood reached (labelled with the first covering diamond); 0 in practice.
     pub fallback_pixels: usize,
+    /// `t × t` sample indices (`y · sample_width + x`) the raster's pixels are copies of: filled by
+    /// [`WangTileSet::record_sources`] only when a job asks for its placement, empty otherwise.
+    pub sources: Vec<u32>,
+}
+
+/// The sample centres of a tile's diamonds in N, E, S, W order, from its colours `[N, W, S, E]`.
+pub fn diamonds_of(colours: [u8; 4], dn: [(u32, u32); 2], de: [(u32, u32); 2]) -> [(u32, u32); 4] {
+    [dn[colours[0] as usize], de[colours[3] as usize], dn[colours[2] as usize], de[colours[1] as usize]]
 }
 
 /// A built tile set.
@@ -122,24 +137,76 @@ impl WangTileSet {
     /// Renders output rows `y0..` into `rows` (whole rows of a `width`-wide output), the same
     /// pixels as those rows of [`WangTileSet::render`]: how a large fill is written strip by strip.
     pub fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
+        self.copy_rows(tiling, width, y0, rows, 3, |tile| &tile.raster);
+    }
+
+    /// Lays a tiling of `t × t` planes of `ch` values per pixel (a tile's raster or its sources)
+    /// into output rows `y0..`; output rows are filled in parallel.
+    fn copy_rows<T: Copy + Send + Sync>(
+        &self,
+        tiling: &Tiling,
+        width: u32,
+        y0: u32,
+        rows: &mut [T],
+        ch: usize,
+        plane: impl Fn(&WangTile) -> &[T] + Sync,
+    ) {
         let t = self.geometry.t as usize;
-        rows.par_chunks_mut(width as usize * 3).enumerate().for_each(|(y, row)| {
+        rows.par_chunks_mut(width as usize * ch).enumerate().for_each(|(y, row)| {
             let y = y + y0 as usize;
             let (r, ty) = (y / t, y % t);
             let mut x = 0usize;
             while x < width as usize {
                 let run = (t - x % t).min(width as usize - x);
-                let tile = &self.tiles[tiling.at(r as i64, (x / t) as i64)];
-                let src = (ty * t + x % t) * 3;
-                row[x * 3..(x + run) * 3].copy_from_slice(&tile.raster[src..src + run * 3]);
+                let tile = plane(&self.tiles[tiling.at(r as i64, (x / t) as i64)]);
+                let src = (ty * t + x % t) * ch;
+                row[x * ch..(x + run) * ch].copy_from_slice(&tile[src..src + run * ch]);
                 x += run;
             }
         });
+    }
+
+    /// Places the tiles on the torus of a `period` output that wraps, both sizes multiples of the
+    /// tile side ([`tile_torus`], stream `wang/torus`), over an output of `cover` size (the period
+    /// itself, or more to see it repeat).
+    pub fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
+        let t = self.geometry.t as i64;
+        let (rows, cols) = (period.1 as i64 / t, period.0 as i64 / t);
+        assert!(rows * t == period.1 as i64 && cols * t == period.0 as i64, "{period:?} is not a whole number of {t}-pixel tiles");
+        let range = |size: u32| (0, (size as i64 - 1) / t);
+        tile_torus(self.set, &Torus::new((rows, 0), (0, cols)), range(cover.1), range(cover.0), seed, "wang/torus")
+    }
+
+    /// Fills every tile's [`WangTile::sources`] from its diamond labels, the same sample pixels
+    /// its raster was composed of.
+    pub fn record_sources(&mut self, sample_width: u32) {
+        let g = self.geometry;
+        for tile in &mut self.tiles {
+            let q = diamonds_of(tile.colours, self.dn, self.de);
+            tile.sources = (0..g.t * g.t)
+                .map(|i| {
+                    let (sx, sy) = g.sample_pixel(tile.labels[i as usize] as usize, q[tile.labels[i as usize] as usize], i % g.t, i / g.t);
+                    sy * sample_width + sx
+                })
+                .collect();
+        }
     }
 }
 
 impl super::common::TileRenderer for WangTileSet {
     fn render_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u8]) {
         WangTileSet::render_rows(self, tiling, width, y0, rows)
+    }
+    fn source_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u32]) {
+        self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.sources)
+    }
+    fn record_sources(&mut self, sample_width: u32) {
+        WangTileSet::record_sources(self, sample_width)
+    }
+    fn tile_output(&self, order: TilingOrder, width: u32, height: u32, seed: u64) -> Tiling {
+        WangTileSet::tile_output(self, order, width, height, seed)
+    }
+    fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
+        WangTileSet::tile_torus(self, period, cover, seed)
     }
 }

@@ -17,10 +17,10 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, pick_candidate, representative};
+use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_wang;
 use super::wang::{TileSet, Tiling, TilingOrder};
-use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet};
+use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
@@ -353,9 +353,7 @@ pub fn build_from_diamonds(
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
-            // [N, W, S, E] colours → diamonds in N, E, S, W order.
-            let q = [dn[c[0] as usize], de[c[3] as usize], dn[c[2] as usize], de[c[1] as usize]];
-            build_tile(sample, g, q, cut, err).map(|mut tile| {
+            build_tile(sample, g, diamonds_of(c, dn, de), cut, err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -412,8 +410,8 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     let t = g.t;
     let n = (t * t) as usize;
     let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
-        let (cx, cy) = g.centre(d);
-        sample.get((q[d].0 as i32 + x - cx) as u32, (q[d].1 as i32 + y - cy) as u32)
+        let (sx, sy) = g.sample_pixel(d, q[d], x, y);
+        sample.get(sx, sy)
     };
     let mut labels = vec![UNSET; n];
     let mut is_cut = vec![false; n];
@@ -504,7 +502,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
         }
     }
-    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels })
+    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, sources: Vec::new() })
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -594,6 +592,11 @@ impl Method for WangTiles {
         common::strip_peak_memory(sample, output)
     }
 
+    fn tileable(&self, params: &Params, _sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = WangTilesConfig::from_params(params).map_err(|e| e.to_string())?;
+        common::tileable(self.name(), cfg.tile, cfg.export_tiles, output)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         Ok(common::render_whole(self.fill(req)?, req))
     }
@@ -616,6 +619,9 @@ impl WangTiles {
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
             return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
+        if req.tileable {
+            self.tileable(req.params, req.sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+        }
         let (set, order) = (cfg.tile_set, cfg.tiling);
         let t0 = Instant::now();
         let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
@@ -632,7 +638,7 @@ impl WangTiles {
         )?;
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tiles.tile_output(order, req.width, req.height, req.seed);
+        let tiling = tiles.tiling(order, req);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -646,6 +652,10 @@ impl WangTiles {
             "grid": { "rows": tiling.rows, "cols": tiling.cols },
             "usage": tiling.usage(set),
         });
+        if req.tileable {
+            // Only then, so that the record of an ordinary fill stays as it was.
+            diagnostics["wraps"] = serde_json::Value::Bool(true);
+        }
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
@@ -1015,5 +1025,25 @@ mod tests {
             }
             assert_eq!(pixels, whole.image.as_raw(), "strips of {rows} rows");
         }
+    }
+
+    #[test]
+    fn a_tileable_output_wraps_as_seamlessly_as_its_tiles_join() {
+        common::testing::wraps_as_seamlessly_as_the_tiles_join(&WangTiles);
+    }
+
+    #[test]
+    fn the_2x2_repeat_of_a_tileable_fill_is_one_seamless_tiling() {
+        common::testing::repeats_are_single_tilings(|s, set| build_tile_set(s, 64, 8, set, Cut::Dp, PixelError::Squared, 3).unwrap());
+    }
+
+    #[test]
+    fn one_tile_wraps_with_itself_and_ordinary_fills_do_not_change() {
+        common::testing::one_tile_wraps_and_ordinary_fills_do_not_change(&WangTiles);
+    }
+
+    #[test]
+    fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
+        common::testing::refuses_what_cannot_wrap(&WangTiles);
     }
 }
