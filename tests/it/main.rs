@@ -16,3 +16,4 @@ mod report;
 mod shards;
 mod signals;
 mod tile_export;
+mod tileable;
