@@ -719,7 +719,13 @@ impl Method for PatchSampling {
                 .map(|&(bi, bj)| match &torus {
                     Some(t) => {
                         let sides = t.sides(&done, bi, bj);
-                        Zone { target: Cow::Owned(t.window(&canvas.image, bi, bj)), origin: (0, 0), regions: t.regions(sides), block, sides }
+                        Zone {
+                            target: Cow::Owned(t.window(&canvas.image, bi, bj)),
+                            origin: (0, 0),
+                            regions: t.regions(sides),
+                            block,
+                            sides,
+                        }
                     }
                     None => Zone {
                         target: Cow::Borrowed(&canvas.image),
@@ -882,7 +888,15 @@ fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
 /// `{ d < ε²·Σ_Ω |out(p)|² }` (the same set as `sqrt(d/A) < ε·sqrt(Σ|out|²/A)`, decided on exact
 /// integers against one `f64` threshold), the best position if that set is empty.
 /// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`.
-fn exhaustive_block(search: &mut OverlapSearch, sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
+fn exhaustive_block(
+    search: &mut OverlapSearch,
+    sample: &RgbImage,
+    zone: &Zone,
+    bi: u32,
+    bj: u32,
+    settings: &Settings,
+    seed: u64,
+) -> BlockResult {
     let (canvas, origin, regions) = (&*zone.target, zone.origin, zone.regions.clone());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
     let mut result =
@@ -1409,7 +1423,9 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "search");
         let s = texture(64, 64);
-        let e = PatchSampling.synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false }).unwrap_err();
+        let e = PatchSampling
+            .synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "search"), "{e}");
     }
 }

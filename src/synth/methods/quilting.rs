@@ -321,8 +321,12 @@ mod tests {
         let fft = params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3))]);
         let direct =
             params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
-        let a = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9, placement: false, tileable: false }).unwrap();
-        let b = Quilting.synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9, placement: false, tileable: false }).unwrap();
+        let a = Quilting
+            .synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9, placement: false, tileable: false })
+            .unwrap();
+        let b = Quilting
+            .synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9, placement: false, tileable: false })
+            .unwrap();
         assert_eq!(a.image, b.image);
     }
 
@@ -332,7 +336,9 @@ mod tests {
         let colours: std::collections::HashSet<[u8; 3]> =
             (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
         let p = params(&[("block", ParamValue::Int(20))]);
-        let out = Quilting.synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1, placement: false, tileable: false }).unwrap();
+        let out = Quilting
+            .synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1, placement: false, tileable: false })
+            .unwrap();
         for y in 0..90 {
             for x in 0..90 {
                 assert!(colours.contains(&out.image.get(x, y)), "pixel ({x},{y}) is not a sample colour");
@@ -346,7 +352,10 @@ mod tests {
         // the pattern exactly, so the output is itself periodic.
         let s = RgbImage::from_fn(48, 48, |x, y| [(x % 8 * 30) as u8, (y % 8 * 30) as u8, ((x + y) % 8 * 20) as u8]);
         let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4)), ("tolerance", ParamValue::Float(0.0))]);
-        let out = Quilting.synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5, placement: false, tileable: false }).unwrap().image;
+        let out = Quilting
+            .synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5, placement: false, tileable: false })
+            .unwrap()
+            .image;
         for y in 0..52 {
             for x in 0..52 {
                 assert_eq!(out.get(x, y), out.get(x + 8, y + 8), "({x},{y})");
@@ -409,6 +418,10 @@ mod tests {
         assert_eq!(errs.len(), 1);
         assert_eq!(errs[0].key, "cut");
         let s = sample();
-        assert!(Quilting.synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false }).is_err());
+        assert!(
+            Quilting
+                .synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false })
+                .is_err()
+        );
     }
 }

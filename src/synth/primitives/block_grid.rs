@@ -4,8 +4,8 @@
 //! seams can be for the seam-visibility metric.
 
 use super::boundary_cut::{horizontal_cut, vertical_cut};
-use super::overlap::{Rect, error_surface};
 use super::canvas::Canvas;
+use super::overlap::{Rect, error_surface};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 
