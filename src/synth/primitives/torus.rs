@@ -37,7 +37,7 @@ pub struct Sides {
 /// Whether `len` pixels wrap with this stride: a whole number of strides, at least two blocks (one
 /// block would overlap itself).
 fn wraps(len: u32, stride: u32) -> bool {
-    len % stride == 0 && len / stride >= 2
+    len.is_multiple_of(stride) && len / stride >= 2
 }
 
 /// The nearest lengths that wrap, below (when there is one) and above; `len` itself when it wraps.
