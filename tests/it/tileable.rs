@@ -4,7 +4,10 @@
 //! does not depend on the thread count, and sizes that cannot wrap are refused with a sentence
 //! saying what would.
 //!
-//! Set `TEXSYN_TILEABLE_PNG=dir` to also write each output tiled 2×2 into `dir` (to look at).
+//! Knobs for looking and measuring (run with `--nocapture` to see the numbers): set
+//! `TEXSYN_TILEABLE_PNG=dir` to also write each output tiled 2×2 into `dir`; `TEXSYN_SEED=n`
+//! synthesises with another seed (the limits below were measured at the default, 11);
+//! `TEXSYN_NO_ASSERT=1` prints every sample's numbers without asserting the limits.
 
 use crate::common::{repo, rgb};
 use texsyn::image::seam_grid::{SeamBand, SeamGrid};
