@@ -17,3 +17,4 @@ mod report;
 mod shards;
 mod signals;
 mod tile_export;
+mod tileable;

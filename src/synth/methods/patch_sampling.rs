@@ -16,6 +16,11 @@
 //! The block is pasted with feathering over its zone (B5). The output is the top-left
 //! `width × height` of the grid.
 //!
+//! **Tileable outputs** (`Request::tileable`): the grid is laid on a torus (`primitives::torus`);
+//! a block's zone is every side that already holds content, the wrapped right and bottom sides of
+//! the last column and row included, read through a wrapped window of the canvas; it is feathered
+//! (or cut) on all of them. The waves are those of the torus, still one labelled stream per block.
+//!
 //! **Diagnostics** (the manifest's `diagnostics`, deterministic): always `search`, `blocks`
 //! (`cols`, `rows`), `searched_blocks`, `mean_rms_error` (RMS difference per channel over the
 //! zone, averaged over blocks); for swarms `mean_iterations`, `mean_evaluations`, `early_stops`,
@@ -49,9 +54,11 @@ use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::{Rect, rect_ssd};
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
 use crate::synth::primitives::pso::{self, ChaosParams, Outcome, SwarmParams};
+use crate::synth::primitives::torus::{Sides, TorusGrid};
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
 use serde_json::{Value, json};
+use std::borrow::Cow;
 
 pub struct PatchSampling;
 
@@ -671,8 +678,13 @@ impl Method for PatchSampling {
             return Err(SynthError::Failed(format!("overlap {overlap} must be in 1..={}", block / 2)));
         }
         let settings = Settings::of(&cfg);
+        let torus = if req.tileable {
+            Some(torus_of(&cfg, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?)
+        } else {
+            None
+        };
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
-        let (cw, ch) = layout.canvas();
+        let (cw, ch) = torus.map_or(layout.canvas(), |t| t.size());
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
         let first = match settings.first {
@@ -691,9 +703,39 @@ impl Method for PatchSampling {
         };
         let needs_exhaustive = settings.search == Search::Exhaustive || settings.optimum;
         let mut search = needs_exhaustive.then(|| OverlapSearch::new(sample, block, block));
-        let mut results: Vec<BlockResult> = Vec::with_capacity((layout.rows * layout.cols) as usize);
+        let (cols, rows) = torus.map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
+        let mut results: Vec<BlockResult> = Vec::with_capacity((rows * cols) as usize);
+        let mut done = vec![false; (rows * cols) as usize];
+        let schedule = match &torus {
+            Some(t) => t.waves(),
+            None => waves(&layout),
+        };
 
-        for wave in waves(&layout) {
+        for wave in schedule {
+            // What each block of the wave is compared with: the canvas itself on the plain grid; on
+            // a torus a wrapped window of it, over every side that already holds content.
+            let zones: Vec<Zone> = wave
+                .iter()
+                .map(|&(bi, bj)| match &torus {
+                    Some(t) => {
+                        let sides = t.sides(&done, bi, bj);
+                        Zone {
+                            target: Cow::Owned(t.window(&canvas.image, bi, bj)),
+                            origin: (0, 0),
+                            regions: t.regions(sides),
+                            block,
+                            sides,
+                        }
+                    }
+                    None => Zone {
+                        target: Cow::Borrowed(&canvas.image),
+                        origin: layout.origin(bi, bj),
+                        regions: layout.overlap_regions(bi, bj),
+                        block,
+                        sides: Sides { left: bj > 0, top: bi > 0, ..Sides::default() },
+                    },
+                })
+                .collect();
             let mut found: Vec<BlockResult> = if wave == [(0, 0)] {
                 vec![BlockResult {
                     bi: 0,
@@ -708,37 +750,69 @@ impl Method for PatchSampling {
                 }]
             } else if settings.search == Search::Exhaustive {
                 let s = search.as_mut().expect("exhaustive search prepared");
-                wave.iter().map(|&(bi, bj)| exhaustive_block(s, sample, &canvas.image, &layout, bi, bj, &settings, req.seed)).collect()
+                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| exhaustive_block(s, sample, zone, bi, bj, &settings, req.seed)).collect()
             } else {
-                let canvas = &canvas.image;
-                let layout = &layout;
                 let settings = &settings;
-                wave.par_iter().with_max_len(1).map(|&(bi, bj)| swarm_block(sample, canvas, layout, bi, bj, settings, req.seed)).collect()
+                wave.par_iter()
+                    .zip(zones.par_iter())
+                    .with_max_len(1)
+                    .map(|(&(bi, bj), zone)| swarm_block(sample, zone, bi, bj, settings, req.seed))
+                    .collect()
             };
             if settings.optimum {
                 let s = search.as_mut().expect("exhaustive search prepared");
-                for r in found.iter_mut().filter(|r| (r.bi, r.bj) != (0, 0)) {
+                for (r, zone) in found.iter_mut().zip(&zones).filter(|(r, _)| (r.bi, r.bj) != (0, 0)) {
                     // The optimum, and how many positions are within 3 % of it (paper 002's
                     // success criterion, Table 2): how hard the block problem is for a swarm.
-                    let regions = layout.overlap_regions(r.bi, r.bj);
-                    let origin = (r.bj * layout.stride(), r.bi * layout.stride());
-                    let c = s.candidates(&canvas.image, origin, &regions, NEAR_OPTIMUM);
+                    let c = s.candidates(&zone.target, zone.origin, &zone.regions, NEAR_OPTIMUM);
                     r.optimum = Some(c.min_ssd);
                     r.near_optimum = Some(c.members.len());
                 }
             }
-            for r in &found {
-                let dst = (r.bj * layout.stride(), r.bi * layout.stride());
-                paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, settings.blend);
+            let sides: Vec<Sides> = zones.into_iter().map(|z| z.sides).collect();
+            for (r, sides) in found.iter().zip(sides) {
+                match &torus {
+                    Some(t) => t.paste(&mut canvas, sample, r.pos, r.bi, r.bj, sides, settings.blend),
+                    None => {
+                        let dst = (r.bj * layout.stride(), r.bi * layout.stride());
+                        paste_block(&mut canvas, sample, r.pos, dst, block, overlap, r.bj > 0, r.bi > 0, settings.blend);
+                    }
+                }
+                done[(r.bi * cols + r.bj) as usize] = true;
             }
             results.extend(found);
         }
         results.sort_by_key(|r| (r.bi, r.bj));
-        let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
-        let seams = layout.seam_grid(req.width, req.height);
-        let diagnostics = diagnostics(&layout, &settings, &results);
+        let (image, placement, seams) = match &torus {
+            Some(t) => {
+                let (image, placement) = canvas.finish();
+                (image, placement, t.seam_grid())
+            }
+            None => {
+                let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
+                (image, placement, layout.seam_grid(req.width, req.height))
+            }
+        };
+        let mut diagnostics = diagnostics((cols, rows), &settings, &results);
+        if torus.is_some() {
+            diagnostics["tileable"] = json!(true);
+        }
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
+
+    fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = PatchSamplingConfig::from_params(p).map_err(|e| e.to_string())?;
+        torus_of(&cfg, sample, output).map(|_| ())
+    }
+}
+
+/// The torus a tileable output is made on, or why there is none.
+fn torus_of(cfg: &PatchSamplingConfig, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
+    let smaller = sample.0.min(sample.1);
+    if cfg.block > smaller {
+        return Err(format!("block {} does not fit in the {}x{} sample; use at most {smaller}", cfg.block, sample.0, sample.1));
+    }
+    TorusGrid::new("patch sampling", cfg.block, cfg.overlap_or_derived(), output.0, output.1, smaller)
 }
 
 /// `SSD(sample block at (x, y), output block, Ω)` (eq. 7).
@@ -746,12 +820,22 @@ fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: 
     regions.iter().map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
 }
 
+/// What a block's search compares candidates with: the output over its zone, at
+/// `origin + region` of `target` (the canvas itself, or on a torus a wrapped window of it), and
+/// the sides the paste will cut or feather.
+struct Zone<'a> {
+    target: Cow<'a, RgbImage>,
+    origin: (u32, u32),
+    regions: Vec<Rect>,
+    block: u32,
+    sides: Sides,
+}
+
 /// The swarm search of one block (§4.2 step 5, §4.3).
-fn swarm_block(sample: &RgbImage, canvas: &RgbImage, layout: &BlockGrid, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
-    let regions = layout.overlap_regions(bi, bj);
-    let origin = (bj * layout.stride(), bi * layout.stride());
+fn swarm_block(sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
+    let (canvas, origin, regions) = (&*zone.target, zone.origin, &zone.regions);
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
-    let (nx, ny) = (sample.width() - layout.block + 1, sample.height() - layout.block + 1);
+    let (nx, ny) = (sample.width() - zone.block + 1, sample.height() - zone.block + 1);
     let hi = [(nx - 1) as f64, (ny - 1) as f64];
     let mut params = settings.swarm;
     if settings.delta_rms > 0.0 {
@@ -766,7 +850,7 @@ fn swarm_block(sample: &RgbImage, canvas: &RgbImage, layout: &BlockGrid, bi: u32
         let pos = round_position(x, hi);
         let i = pos.1 as usize * nx as usize + pos.0 as usize;
         if memo[i] == u64::MAX {
-            memo[i] = zone_error(sample, canvas, pos, origin, &regions);
+            memo[i] = zone_error(sample, canvas, pos, origin, regions);
         }
         memo[i] as f64
     });
@@ -781,7 +865,7 @@ fn swarm_block(sample: &RgbImage, canvas: &RgbImage, layout: &BlockGrid, bi: u32
             for x in x0..=x1 {
                 let i = y as usize * nx as usize + x as usize;
                 if memo[i] == u64::MAX {
-                    memo[i] = zone_error(sample, canvas, (x, y), origin, &regions);
+                    memo[i] = zone_error(sample, canvas, (x, y), origin, regions);
                 }
                 if memo[i] < error {
                     error = memo[i];
@@ -804,19 +888,16 @@ fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
 /// `{ d < ε²·Σ_Ω |out(p)|² }` (the same set as `sqrt(d/A) < ε·sqrt(Σ|out|²/A)`, decided on exact
 /// integers against one `f64` threshold), the best position if that set is empty.
 /// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`.
-#[allow(clippy::too_many_arguments)]
 fn exhaustive_block(
     search: &mut OverlapSearch,
     sample: &RgbImage,
-    canvas: &RgbImage,
-    layout: &BlockGrid,
+    zone: &Zone,
     bi: u32,
     bj: u32,
     settings: &Settings,
     seed: u64,
 ) -> BlockResult {
-    let regions = layout.overlap_regions(bi, bj);
-    let origin = (bj * layout.stride(), bi * layout.stride());
+    let (canvas, origin, regions) = (&*zone.target, zone.origin, zone.regions.clone());
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
     let mut result =
         BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
@@ -844,7 +925,7 @@ fn exhaustive_block(
             Vec::new()
         } else if min == 0 {
             // A tolerance relative to 0 cannot express the bound: scan every position, pruned.
-            members_below(sample, canvas, origin, &regions, layout.block, threshold)
+            members_below(sample, canvas, origin, &regions, zone.block, threshold)
         } else {
             // A superset of the bound (the margin covers rounding of threshold / min), then the exact rule.
             let tol = (threshold / min as f64 - 1.0) * (1.0 + 1e-9) + 1e-9;
@@ -904,13 +985,13 @@ fn members_below(
 }
 
 /// The manifest's diagnostics: a summary always, every searched block with `diagnostics = true`.
-fn diagnostics(layout: &BlockGrid, settings: &Settings, results: &[BlockResult]) -> Value {
+fn diagnostics((cols, rows): (u32, u32), settings: &Settings, results: &[BlockResult]) -> Value {
     let searched: Vec<&BlockResult> = results.iter().filter(|r| (r.bi, r.bj) != (0, 0)).collect();
     let n = searched.len();
     let mean = |f: &dyn Fn(&BlockResult) -> f64| if n == 0 { 0.0 } else { searched.iter().map(|r| f(r)).sum::<f64>() / n as f64 };
     let mut summary = json!({
         "search": settings.search.name(),
-        "blocks": { "cols": layout.cols, "rows": layout.rows },
+        "blocks": { "cols": cols, "rows": rows },
         "searched_blocks": n,
         "mean_rms_error": mean(&|r| rms(r.error, r.zone_pixels)),
     });

@@ -14,6 +14,7 @@ use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, Para
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
 use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap_search::OverlapSearch;
+use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 
 pub struct Quilting;
@@ -188,6 +189,9 @@ impl Method for Quilting {
         if block > sample.width() || block > sample.height() {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
+        if req.tileable {
+            return self.synthesize_torus(req, &cfg);
+        }
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
@@ -222,6 +226,61 @@ impl Method for Quilting {
             },
         });
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+    }
+
+    fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = QuiltingConfig::from_params(p).map_err(|e| e.to_string())?;
+        torus_of(&cfg, sample, output).map(|_| ())
+    }
+}
+
+/// The torus a tileable output is made on, or why there is none.
+fn torus_of(cfg: &QuiltingConfig, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
+    let smaller = sample.0.min(sample.1);
+    if cfg.block > smaller {
+        return Err(format!("block {} does not fit in the {}x{} sample; use at most {smaller}", cfg.block, sample.0, sample.1));
+    }
+    TorusGrid::new("quilting", cfg.block, cfg.overlap_or_derived(), output.0, output.1, smaller)
+}
+
+impl Quilting {
+    /// Quilting on a torus (`primitives::torus`): the same raster order, search and streams, but
+    /// a block's overlap is every side that already holds content, the wrapped right and bottom
+    /// sides of the last column and row included, and it is cut (or feathered) on all of them.
+    fn synthesize_torus(&self, req: &Request, cfg: &QuiltingConfig) -> Result<Synthesis, SynthError> {
+        let sample = req.sample;
+        let torus = torus_of(cfg, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+        let (block, rule) = (cfg.block, cfg.overlap_rule());
+        let (w, h) = torus.size();
+        let mut canvas = Canvas::new(w, h, sample.dimensions(), req.placement);
+        let mut search = OverlapSearch::new(sample, block, block);
+        let mut done = vec![false; (torus.rows * torus.cols) as usize];
+        let mut candidate_counts = Vec::with_capacity(done.len());
+        for (bi, bj) in torus.raster() {
+            let sides = torus.sides(&done, bi, bj);
+            let (sx, sy) = if bi == 0 && bj == 0 {
+                let mut s = Stream::new(req.seed, "quilt/first");
+                let x = s.below((sample.width() - block + 1) as u64) as u32;
+                let y = s.below((sample.height() - block + 1) as u64) as u32;
+                (x, y)
+            } else {
+                let window = torus.window(&canvas.image, bi, bj);
+                let c = cfg.search.candidates(&mut search, &window, (0, 0), &torus.regions(sides), cfg.tolerance);
+                candidate_counts.push(c.members.len());
+                let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
+                let pick = c.members[s.below_usize(c.members.len())];
+                (pick.0, pick.1)
+            };
+            torus.paste(&mut canvas, sample, (sx, sy), bi, bj, sides, rule);
+            done[torus.index(bi, bj)] = true;
+        }
+        let (image, placement) = canvas.finish();
+        let diagnostics = serde_json::json!({
+            "blocks": { "cols": torus.cols, "rows": torus.rows },
+            "tileable": true,
+            "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+        });
+        Ok(Synthesis { image, seams: Some(torus.seam_grid()), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }
 

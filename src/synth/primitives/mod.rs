@@ -11,3 +11,4 @@ pub mod overlap;
 pub mod overlap_search;
 pub mod pso;
 pub mod shortest_path;
+pub mod torus;

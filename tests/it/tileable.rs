@@ -1,0 +1,203 @@
+//! Tileable outputs (`Request::tileable`) of the overlapping-block methods must wrap as well as
+//! their own interior seams join, on real samples: a texture artist tiles them 2×2 and more, so a
+//! wrap seam is a defect in every tile. Also: the placement stays exact on the torus, the result
+//! does not depend on the thread count, and sizes that cannot wrap are refused with a sentence
+//! saying what would.
+//!
+//! Knobs for looking and measuring (run with `--nocapture` to see the numbers): set
+//! `TEXSYN_TILEABLE_PNG=dir` to also write each output tiled 2×2 into `dir`; `TEXSYN_SEED=n`
+//! synthesises with another seed (the limits below were measured at the default, 11);
+//! `TEXSYN_NO_ASSERT=1` prints every sample's numbers without asserting the limits.
+
+use crate::common::{repo, rgb};
+use texsyn::image::seam_grid::{SeamBand, SeamGrid};
+use texsyn::metrics::seams::{seam_visibility, wrap_visibility};
+use texsyn::synth::method::{Method, Request, Synthesis};
+use texsyn::synth::methods;
+use texsyn::synth::params::resolve;
+use texsyn::{ParamValue, RgbImage};
+
+fn synth(method: &str, sample: &RgbImage, size: (u32, u32), given: &[(&str, ParamValue)], placement: bool) -> Synthesis {
+    let m: &dyn Method = methods::find(method).unwrap();
+    let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+    let params = resolve(m.params(), &given).unwrap();
+    m.tileable(&params, sample.dimensions(), size).unwrap_or_else(|e| panic!("{method}: {e}"));
+    let seed = std::env::var("TEXSYN_SEED").map_or(11, |v| v.parse().unwrap());
+    let req = Request { sample, width: size.0, height: size.1, params: &params, seed, placement, tileable: true };
+    let out = m.synthesize(&req).unwrap();
+    assert_eq!(out.image.dimensions(), size, "{method}");
+    out
+}
+
+fn tiled(img: &RgbImage) -> RgbImage {
+    let (w, h) = img.dimensions();
+    RgbImage::from_fn(2 * w, 2 * h, |x, y| img.get(x % w, y % h))
+}
+
+fn samples() -> Vec<(String, RgbImage)> {
+    let mut v: Vec<(String, RgbImage)> =
+        ["pebbles_beige.png", "bricks_gray.png"].iter().map(|n| (n.to_string(), rgb(&repo().join("jobs/samples").join(n)))).collect();
+    for n in ["aztek_wall_albedo.png", "brick_a_albedo.png", "cobblestone_a_albedo.png", "rock_a_albedo.png", "wood_b_albedo.png"] {
+        v.push((n.to_string(), rgb(&repo().join("tests/fixtures/advice").join(n))));
+    }
+    v
+}
+
+/// Limits on how much worse a wrap may look than the interior, per method (see `check_wraps`).
+struct Limits {
+    /// `wrap_visibility` over the larger of the interior seam visibility and that of the interior
+    /// lines in the wrap's place in the block grid.
+    wrap: f64,
+    /// The seam bands where the wrap closes over the other seam bands.
+    closing: f64,
+}
+
+/// Wrap vs interior seams for one method and variant on every sample.
+///
+/// Three views, printed for every sample: `wrap_visibility` (the jump across the wrap line itself);
+/// the interior seam visibility over all seam bands; and the bands where the wrap *closes* (the
+/// last column's right overlap and the last row's bottom one, a few pixels past the wrap line, or
+/// double-seam's first pasted column) against all the other bands. On a torus the wrap line lies
+/// inside the last blocks, so `wrap_visibility` alone would miss a bad closing cut; hence the
+/// third view. Why limits instead of "no worse": `wrap_visibility` is one row and one column,
+/// while the seam metric averages bands over the whole image; on structured samples (bricks,
+/// cracks) one line's jump depends on whether it runs along a mortar line, which is why it is
+/// also compared with the interior lines in the same place of the grid (`x = k·stride`). And the
+/// closing blocks must fit two or three neighbours at once instead of one or two, so their seams
+/// are a little worse on samples with a strong period that does not divide the output.
+fn check_wraps(method: &str, size: (u32, u32), stride: u32, given: &[(&str, ParamValue)], limits: Limits) {
+    for (name, sample) in samples() {
+        let out = synth(method, &sample, size, given, false);
+        let seams = out.seams.as_ref().unwrap();
+        let interior = seam_visibility(&out.image, seams).unwrap();
+        let wrap = wrap_visibility(&out.image).unwrap();
+        let lines = |n: u32| (1..n / stride).map(|k| SeamBand { start: k * stride, len: 1 }).collect::<Vec<_>>();
+        let phase = seam_visibility(&out.image, &SeamGrid { columns: lines(size.0), rows: lines(size.1) }).unwrap();
+        // The seam grids list the band where the wrap closes first.
+        let split = |keep: &dyn Fn(usize) -> bool| SeamGrid {
+            columns: seams.columns.iter().enumerate().filter(|(k, _)| keep(*k)).map(|(_, b)| *b).collect(),
+            rows: seams.rows.iter().enumerate().filter(|(k, _)| keep(*k)).map(|(_, b)| *b).collect(),
+        };
+        let closing = seam_visibility(&out.image, &split(&|k| k == 0)).unwrap();
+        let inner = seam_visibility(&out.image, &split(&|k| k > 0)).unwrap();
+        println!(
+            "{method} {given:?} {name}: wrap {wrap:.3}, same-place lines {phase:.3}, interior seams {interior:.3}; closing bands {closing:.3}, other bands {inner:.3}"
+        );
+        if let Ok(dir) = std::env::var("TEXSYN_TILEABLE_PNG") {
+            let tag: String = given.iter().map(|(k, v)| format!("_{k}-{v:?}")).collect::<String>();
+            let tag: String = tag.chars().filter(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '-').collect();
+            let path = std::path::Path::new(&dir).join(format!("{method}{tag}_{}", name.replace(".png", "_2x2.png")));
+            texsyn::save_image(&tiled(&out.image), path).unwrap();
+        }
+        if std::env::var("TEXSYN_NO_ASSERT").is_ok() {
+            continue;
+        }
+        let base = interior.max(phase);
+        assert!(
+            wrap <= limits.wrap * base,
+            "{method} {given:?} on {name}: wrap {wrap} > {} x max(interior {interior}, same-place lines {phase})",
+            limits.wrap
+        );
+        assert!(
+            closing <= limits.closing * inner,
+            "{method} {given:?} on {name}: closing seams {closing} > {} x other seams {inner}",
+            limits.closing
+        );
+    }
+}
+
+// The limits are what was measured (seed 11, the seven samples), with a little room, not goals:
+// wrap / max(interior, same-place lines) and closing / other bands. Where they exceed 1.25 the
+// wrap is visibly worse than the interior (see `check_wraps` and the commit message):
+// - quilting, dp cut, bricks_gray: 1.67. Its long straight mortar lines in the last row must meet
+//   both the row above and the first row, whose lines lie elsewhere; the lines end at the wrap.
+// - quilting, feather, brick_a: 1.70 for the wrap line (closing bands 1.23).
+// - patch sampling, brick_a: closing bands 1.84 (feather), 1.62 (cut); aztek with cut: 1.69. The
+//   brick courses do not divide the output height, so the last row is broken into short bricks.
+// - double-seam: closing bands up to 2.1 (cobblestone; 1.1 on average over three seeds): its
+//   blocks are pasted verbatim, and the closing ones must fit two or three neighbours.
+
+#[test]
+fn quilting_wraps_like_its_seams() {
+    let s = |v: &str| ParamValue::Str(v.into());
+    check_wraps("quilting", (336, 252), 42, &[], Limits { wrap: 1.75, closing: 1.3 });
+    check_wraps("quilting", (336, 252), 42, &[("cut", s("none"))], Limits { wrap: 1.25, closing: 1.3 });
+    check_wraps("quilting", (336, 252), 42, &[("cut", s("none")), ("blend", s("feather"))], Limits { wrap: 1.75, closing: 1.3 });
+}
+
+#[test]
+fn patch_sampling_wraps_like_its_seams() {
+    check_wraps("patch-sampling", (250, 225), 25, &[], Limits { wrap: 1.25, closing: 2.0 });
+    check_wraps("patch-sampling", (250, 225), 25, &[("blend", ParamValue::Str("cut".into()))], Limits { wrap: 1.25, closing: 2.0 });
+}
+
+#[test]
+fn double_seam_wraps_like_its_seams() {
+    check_wraps("double-seam", (336, 252), 42, &[], Limits { wrap: 1.25, closing: 2.2 });
+}
+
+fn check_placement(method: &str, size: (u32, u32), given: &[(&str, ParamValue)]) {
+    let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
+    let without = synth(method, &s, size, given, false);
+    let with = synth(method, &s, size, given, true);
+    assert_eq!(with.image, without.image, "{method} {given:?}: the placement changed the pixels");
+    let rendered = with.placement.as_ref().unwrap().render_rgb8(&s);
+    assert!(rendered == with.image, "{method} {given:?}: the placement does not render the tileable image");
+}
+
+#[test]
+fn tileable_placements_render_their_images() {
+    let q = |k: &'static str, v: &str| (k, ParamValue::Str(v.into()));
+    check_placement("quilting", (128, 96), &[("block", ParamValue::Int(38))]);
+    check_placement("quilting", (128, 96), &[("block", ParamValue::Int(38)), q("cut", "none")]);
+    check_placement("quilting", (128, 96), &[("block", ParamValue::Int(38)), q("cut", "none"), q("blend", "feather")]);
+    check_placement("patch-sampling", (100, 75), &[]);
+    check_placement("patch-sampling", (100, 75), &[q("blend", "cut")]);
+    check_placement("patch-sampling", (100, 75), &[q("search", "exhaustive")]);
+    check_placement("double-seam", (108, 81), &[("block", ParamValue::Int(32))]);
+}
+
+#[test]
+fn tileable_patch_sampling_does_not_depend_on_the_thread_count() {
+    let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
+    let given = [("diagnostics", ParamValue::Bool(true))];
+    let runs: Vec<Synthesis> = [1, 3]
+        .iter()
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+                .install(|| synth("patch-sampling", &s, (125, 100), &given, false))
+        })
+        .collect();
+    assert!(runs[0].image == runs[1].image);
+    assert_eq!(runs[0].diagnostics, runs[1].diagnostics);
+}
+
+#[test]
+fn sizes_that_cannot_wrap_are_refused_saying_what_would() {
+    let refusal = |method: &str, sample: (u32, u32), size: (u32, u32), given: &[(&str, ParamValue)]| -> String {
+        let m = methods::find(method).unwrap();
+        let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        let params = resolve(m.params(), &given).unwrap();
+        m.tileable(&params, sample, size).unwrap_err()
+    };
+    let e = refusal("quilting", (256, 256), (768, 768), &[]);
+    assert_eq!(
+        e,
+        "tileable quilting needs width and height multiples of block - overlap = 42 (at least 2 blocks each way); 756x756 or 798x798 would work, or block = 56 for 768x768"
+    );
+    let e = refusal("patch-sampling", (256, 256), (768, 512), &[]);
+    assert!(e.contains("block - overlap = 25") && e.contains("750x500 or 775x525"), "{e}");
+    let e = refusal("double-seam", (256, 256), (500, 500), &[]);
+    assert!(e.contains("block - overlap = 42") && e.contains("504x504"), "{e}");
+    let e = refusal("double-seam", (64, 64), (84, 84), &[("block", ParamValue::Int(60)), ("overlap", ParamValue::Int(18))]);
+    assert!(e.contains("sample"), "{e}");
+    // A synthesis asked anyway fails with the same sentence.
+    let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
+    let m = methods::find("quilting").unwrap();
+    let params = resolve(m.params(), &[]).unwrap();
+    let req = Request { sample: &s, width: 100, height: 100, params: &params, seed: 1, placement: false, tileable: true };
+    assert!(m.synthesize(&req).unwrap_err().to_string().contains("multiples of block - overlap = 42"));
+}
