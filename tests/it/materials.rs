@@ -310,7 +310,8 @@ fn bad_companions_and_maps_get_clear_errors_and_nothing_else_is_lost() {
         "is also written by `companion[1].path`",
         "wrap.toml",
         "`output.tileable`",
-        "coevolution",
+        "coevolution places texels on the sample's lattice, which does not wrap",
+        "methods that can wrap a 100x100 output:",
         "kind.toml",
         "unknown kind `bump`",
     ] {

@@ -633,6 +633,13 @@ impl Method for Coevolution {
         }
     }
 
+    fn tileable(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Result<(), String> {
+        // The output is the sample's lattice (t1, t2) laid from one corner; it would wrap only
+        // when the output size is a whole number of lattice periods, which t1 and t2 (found
+        // per sample, generally oblique) almost never allow.
+        Err("coevolution places texels on the sample's lattice, which does not wrap at the output's edges".into())
+    }
+
     fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256²): lattice extraction on the sample
         // (FFT autocorrelation, about 9 MB for 256²) and about 3.5 B per output pixel; 1024²:
