@@ -127,24 +127,49 @@ pub fn analyse(img: &RgbImage) -> Analysis {
 
 /// Aligned tiles look right only when the tiles' translation vectors are (nearly) lattice
 /// vectors: a phase residual above this fraction of the shorter lattice vector cuts texels apart.
-pub const PHASE_TOLERANCE: f64 = 0.2;
+pub const PHASE_TOLERANCE: f64 = crate::synth::methods::tiles::align::PHASE_TOLERANCE;
 
-/// For a tile method with alignment on (`auto` or `lattice`) and the sample's lattice: the phase
-/// residual at the job's tile size, and the tile size (that fits the sample) with the smallest.
-fn tile_phase(a: &Analysis, method: &str, p: &Params) -> Option<(f64, i64, f64)> {
+/// A tile job's phase on the sample's lattice ([`tile_phase`]).
+struct TilePhase {
+    /// The tile size the job uses: its `tile`, or what `tile = "auto"` chooses on this sample.
+    tile: i64,
+    /// Whether `tile` is `auto`'s choice.
+    auto: bool,
+    /// The phase residual at `tile`, in pixels.
+    now: f64,
+    /// The tile size (that fits the sample) with the smallest residual, and that residual.
+    best: (i64, f64),
+    /// What `tile = "auto"` chooses on this sample, when it finds a size in phase.
+    auto_pick: Option<i64>,
+}
+
+/// For a tile method with alignment on (`auto` or `lattice`) and the sample's lattice: the tile
+/// size the job uses (`tile = "auto"` resolved as the method resolves it), its phase residual,
+/// and the tile size (that fits the sample) with the smallest.
+fn tile_phase(a: &Analysis, method: &str, p: &Params) -> Option<TilePhase> {
     use crate::synth::methods::tiles::{align, rw_tiles::RwAlign, wang_tiles::WangAlign};
     let l = a.lattice.as_ref()?;
-    let (tile, overlap) = (int(p, "tile")?, int(p, "overlap")?);
+    let overlap = int(p, "overlap")?;
     let al = align::Alignment::new(l.t1, l.t2, "extracted").ok()?;
     let side = i64::from(a.width.min(a.height));
-    let (vectors, sizes): (fn(i64) -> [align::V; 2], Vec<i64>) = if method == "wang-tiles" {
+    let wang = method == "wang-tiles";
+    let (sample, ov) = ((a.width, a.height), u32::try_from(overlap).ok()?);
+    let auto = if wang { WangAlign::auto_tile(Some(&al), sample, ov, None) } else { RwAlign::auto_tile(Some(&al), sample, ov, None) };
+    // `auto` records a residual only when it found a size in phase.
+    let auto_pick = auto.record.get("residual_px").map(|_| auto.tile);
+    let (tile, auto) = match (int(p, "tile"), word(p, "tile")) {
+        (Some(t), _) => (t, false),
+        (None, Some(align::AUTO_TILE)) => (auto.tile, true),
+        _ => return None,
+    };
+    let (vectors, sizes): (fn(i64) -> [align::V; 2], Vec<i64>) = if wang {
         (WangAlign::vectors, (8.max(2 * overlap)..=side - overlap).filter(|t| t % 2 == 0).collect())
     } else {
         (RwAlign::vectors, (8.max(2 * overlap + 4)..=2 * (side - overlap)).filter(|t| t % 2 == 0).collect())
     };
     let now = align::residual_px(&al, vectors(tile));
-    let (best, residual) = *align::suggest(&al, sizes.into_iter(), vectors, tile, 1).first()?;
-    Some((now, best, residual))
+    let best = *align::suggest(&al, sizes.into_iter(), vectors, tile, 1).first()?;
+    Some(TilePhase { tile, auto, now, best, auto_pick })
 }
 
 /// A method's fit to a sample.
@@ -218,15 +243,31 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 set: vec![("align".into(), "lattice".into())],
                 because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
             },
+            // `tile = "auto"` (the default) picks an in-phase size when one fits the sample with a
+            // lattice cell to spare: then nothing is said. A given size out of phase, or `auto`
+            // finding none and keeping 64, is warned about, naming the size that misses least.
             Kind::NearRegular => match tile_phase(a, method, p) {
-                Some((now, best, best_residual)) if now > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) => Fit::FitsWith {
-                    set: vec![("tile".into(), best.to_string())],
-                    because: format!(
-                        "at tile {} the tiles' translations miss the sample's lattice by {now:.1} px, so even aligned tiles cut texels \
-                         out of phase; tile {best} misses it by {best_residual:.1} px",
-                        int(p, "tile").unwrap_or(0)
-                    ),
-                },
+                Some(ph) if ph.now > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) => {
+                    let (tile, now, (best, best_residual)) = (ph.tile, ph.now, ph.best);
+                    let at = if ph.auto {
+                        format!(
+                            "no tile size that leaves a lattice cell to spare in the sample is in phase with its lattice, so tile = \"auto\" \
+                             keeps {tile}, whose translations miss the lattice by {now:.1} px"
+                        )
+                    } else {
+                        format!("at tile {tile} the tiles' translations miss the sample's lattice by {now:.1} px")
+                    };
+                    let or_auto = match ph.auto_pick {
+                        Some(t) if !ph.auto => format!(" (leaving tile out, its default \"auto\" picks {t} here)"),
+                        _ => String::new(),
+                    };
+                    Fit::FitsWith {
+                        set: vec![("tile".into(), best.to_string())],
+                        because: format!(
+                            "{at}: even aligned tiles cut texels out of phase; tile {best} misses it by {best_residual:.1} px{or_auto}"
+                        ),
+                    }
+                }
                 _ => Fit::Fits,
             },
             Kind::Oriented => Fit::NotFor {
@@ -309,6 +350,11 @@ mod tests {
         assert_eq!(warning(&a, "wang-tiles", &tile(64)), None);
         let w = warning(&a, "wang-tiles", &tile(58)).expect("a tile out of phase with the lattice warns");
         assert!(w.contains("set tile = "), "{w}");
+        // The default, `tile = "auto"`, picks an in-phase size itself: nothing to say.
+        let auto =
+            params(&[("align", ParamValue::Str("auto".into())), ("tile", ParamValue::Str("auto".into())), ("overlap", ParamValue::Int(8))]);
+        assert_eq!(warning(&a, "wang-tiles", &auto), None);
+        assert_eq!(warning(&a, "rw-tiles", &auto), None);
         assert_eq!(warning(&a, "coevolution", &params(&[])), None);
         // Quilting's search keeps texels whole with any block: no advice to change it.
         assert_eq!(warning(&a, "quilting", &params(&[("block", ParamValue::Int(12))])), None);

@@ -137,8 +137,14 @@ fn advise_says_what_fits_and_refuses_what_it_cannot_read() {
     let t = text(&o);
     assert!(t.contains("near-regular: lattice t1 = "), "{t}");
     let line = |m: &str| t.lines().find(|l| l.trim_start().starts_with(m)).unwrap_or_else(|| panic!("no line for {m}:\n{t}")).to_string();
-    // `align` is `auto`, so the advice is about the tile size: 64 px tiles are out of phase.
-    assert!(line("rw-tiles").contains("fits with tile = "), "{t}");
+    // `align` and `tile` are `auto`: the tiles are aligned, at a size in phase with the lattice.
+    assert!(line("rw-tiles").contains("fits with its defaults"), "{t}");
+    assert!(line("wang-tiles").contains("fits with its defaults"), "{t}");
+    // The weave's lattice has no Wang tile size in phase that leaves a cell to spare: `auto`
+    // keeps 64, and the advice says so.
+    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/weave_gray.png")));
+    let w = line_of(&text(&o), "wang-tiles");
+    assert!(w.contains("fits with tile = ") && w.contains("tile = \"auto\" keeps 64"), "{w}");
     assert!(line("quilting").contains("fits with its defaults"), "{t}");
     let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/grass_gray.png")));
     let t = text(&o);
@@ -181,9 +187,9 @@ fn the_report_shows_the_warnings_next_to_the_image() {
     run_ok(texsyn().arg("report").arg(out.join("manifest.json")).arg("-o").arg(&dir).args(["--group-by", "method"]));
     let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
     // The shown image of a warned job carries its warning in its caption, and the summary lists all.
-    let bricks_rw = "bricks_gray__rw-tiles.toml";
-    assert!(warned.contains(&bricks_rw));
-    let fig = page.find(&format!("data-job=\"{bricks_rw}\"><img")).expect("the rw-tiles output of bricks is shown");
+    let bricks_ps = "bricks_gray__patch-sampling.toml";
+    assert!(warned.contains(&bricks_ps));
+    let fig = page.find(&format!("data-job=\"{bricks_ps}\"><img")).expect("the patch-sampling output of bricks is shown");
     let caption_end = page[fig..].find("</figure>").unwrap() + fig;
     assert!(page[fig..caption_end].contains("data-warning=\"1\""), "warning next to the image");
     assert!(page.contains(&format!("Method advice ({} jobs)", warned.len())));

@@ -352,6 +352,128 @@ pub fn suggest(
     all
 }
 
+/// The word of `tile = "auto"` (the default of both tile methods).
+pub const AUTO_TILE: &str = "auto";
+
+/// The size `tile = "auto"` uses when nothing calls for another: the paper's 64.
+pub const FALLBACK_TILE: i64 = 64;
+
+/// The smallest size `tile = "auto"` picks: smaller tiles hold too little of a texel to keep
+/// the tiling's variety (a 26 px tile in phase with a 26 px lattice is one texel per tile).
+pub const AUTO_MIN_TILE: i64 = 32;
+
+/// Aligned tiles look right only when the tiles' translation vectors are (nearly) lattice
+/// vectors: a phase residual above this fraction of the shorter lattice vector cuts texels apart
+/// (`texsyn advise` warns; `tile = "auto"` does not pick such a size).
+pub const PHASE_TOLERANCE: f64 = 0.2;
+
+/// The phase residual up to which a tile size counts as in phase with `al`
+/// ([`PHASE_TOLERANCE`] of its shortest vector).
+pub fn in_phase_px(al: &Alignment) -> f64 {
+    PHASE_TOLERANCE * norm(al.reduced.0)
+}
+
+/// The `tile` parameter's range (`8..=4096`).
+pub const TILE_RANGE: (i64, i64) = (8, 4096);
+
+/// What `tile = "auto"` resolved to for a job: the size and, for `diagnostics.tile_choice`, why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileChoice {
+    pub tile: i64,
+    pub record: serde_json::Value,
+}
+
+/// The tile size of `tile = "auto"` (in phase with the lattice when the tiles are aligned to one).
+///
+/// `sizes` are the method's valid tile sizes for its overlap (even, room for the overlap),
+/// `patch(t)` the side of the square of sample pixels one patch of a size-`t` tile reads, and
+/// `vectors(t)` its tile translation vectors. With a lattice, the candidates are the sizes from
+/// [`AUTO_MIN_TILE`] whose patch fits in the sample with a lattice cell to spare (so every patch
+/// has lattice translates to be placed at), and the choice is [`suggest`]'s first (the smallest
+/// phase residual, ties to the size nearest [`FALLBACK_TILE`]) — the size `texsyn advise` and
+/// `diagnostics.align.suggested_tiles` name, within these bounds — when it is in phase (residual at
+/// most [`in_phase_px`]). Without a lattice, or when no candidate fits or is in phase, it is
+/// [`FALLBACK_TILE`]. `wrap` (a tileable output's size) keeps only the sizes
+/// that divide it; without a lattice that is the dividing size nearest [`FALLBACK_TILE`], and when
+/// none divides, [`FALLBACK_TILE`] (the method's tileable check then refuses, naming it).
+pub fn auto_tile(
+    al: Option<&Alignment>,
+    sample: (u32, u32),
+    sizes: impl Iterator<Item = i64>,
+    patch: impl Fn(i64) -> i64,
+    vectors: fn(i64) -> [V; 2],
+    wrap: Option<(u32, u32)>,
+) -> TileChoice {
+    let (sw, sh) = (i64::from(sample.0), i64::from(sample.1));
+    let divides = |t: i64| wrap.is_none_or(|(w, h)| i64::from(w) % t == 0 && i64::from(h) % t == 0);
+    let sizes: Vec<i64> = sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= sw.min(sh) && divides(t)).collect();
+    let r3 = |x: f64| (x * 1000.0).round() / 1000.0;
+    let wrapping = if wrap.is_some() { " dividing the tileable output" } else { "" };
+    if let Some(al) = al {
+        let (a, b) = al.reduced;
+        let (mx, my) = (a.0.abs() + b.0.abs(), a.1.abs() + b.1.abs());
+        let fit: Vec<i64> = sizes.iter().copied().filter(|&t| patch(t) + mx <= sw && patch(t) + my <= sh).collect();
+        let best = suggest(al, fit.into_iter(), vectors, FALLBACK_TILE, 1).first().copied();
+        if let Some((tile, residual)) = best.filter(|b| b.1 <= in_phase_px(al)) {
+            let fallback = residual_px(al, vectors(FALLBACK_TILE));
+            let how = format!(
+                "auto: {tile}, the size{wrapping} that misses the lattice t1 = {:?}, t2 = {:?} least ({:.1} px; {FALLBACK_TILE} would miss it by {:.1} px)",
+                al.t1, al.t2, residual, fallback
+            );
+            return TileChoice { tile, record: serde_json::json!({ "tile": tile, "residual_px": r3(residual), "how": how }) };
+        }
+    }
+    let why = match al {
+        Some(_) if sizes.is_empty() => format!("no size from {AUTO_MIN_TILE}{wrapping} fits in the sample"),
+        Some(al) => format!(
+            "no size from {AUTO_MIN_TILE}{wrapping} that fits in the sample with a lattice cell to spare misses the lattice t1 = {:?}, t2 = {:?} by at most {:.1} px",
+            al.t1,
+            al.t2,
+            in_phase_px(al)
+        ),
+        None => "no lattice alignment".to_string(),
+    };
+    let tile = match wrap {
+        Some(_) if !divides(FALLBACK_TILE) => {
+            sizes.iter().copied().min_by_key(|&t| ((t - FALLBACK_TILE).abs(), t)).unwrap_or(FALLBACK_TILE)
+        }
+        _ => FALLBACK_TILE,
+    };
+    let how = if tile == FALLBACK_TILE {
+        format!("auto: {tile} ({why})")
+    } else {
+        format!("auto: {tile}, the size nearest {FALLBACK_TILE} that divides the tileable output ({why})")
+    };
+    TileChoice { tile, record: serde_json::json!({ "tile": tile, "how": how }) }
+}
+
+/// Whether `tile = "auto"` can make a tileable `output` wrap: some size from [`AUTO_MIN_TILE`] whose
+/// `patch` fits in the sample divides it (which one, the lattice decides: [`auto_tile`]); the
+/// refusal names the sizes tried.
+pub fn auto_tileable(
+    method: &str,
+    sample: (u32, u32),
+    sizes: impl Iterator<Item = i64>,
+    patch: impl Fn(i64) -> i64,
+    output: (u32, u32),
+) -> Result<(), String> {
+    let side = i64::from(sample.0.min(sample.1));
+    let fit: Vec<i64> = sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= side).collect();
+    if fit.iter().any(|&t| i64::from(output.0) % t == 0 && i64::from(output.1) % t == 0) {
+        return Ok(());
+    }
+    let near = |v: u32| ((i64::from(v) + FALLBACK_TILE / 2) / FALLBACK_TILE).max(1) * FALLBACK_TILE;
+    Err(format!(
+        "tileable {method} output must be a multiple of the tile size in both directions, and with tile = \"auto\" no tile size that fits this sample ({}..={}) divides {}x{}; {}x{} would work (tile {FALLBACK_TILE}), or set tile",
+        fit.first().copied().unwrap_or(AUTO_MIN_TILE),
+        fit.last().copied().unwrap_or(AUTO_MIN_TILE),
+        output.0,
+        output.1,
+        near(output.0),
+        near(output.1)
+    ))
+}
+
 /// The `diagnostics.align` record: the lattice, each tile translation vector's residual, the class
 /// offset, each cut's phase error and suggested tile sizes.
 pub fn diagnostics(al: &Alignment, vectors: [V; 2], offset: V, errors: &[(&str, V)], suggested: &[(i64, f64)]) -> serde_json::Value {
@@ -436,6 +558,30 @@ mod tests {
         assert_eq!(al.place(&mut st, (0, 0), (3, 3), (12, 12), &[(10, 10)]), Ok((10, 10)));
         let e = first_fitting::<()>(&al, || Err(SynthError::Failed("no lattice translate fits".into()))).unwrap_err().to_string();
         assert!(e.contains("no first patch of 1000 drawn") && e.contains("use a smaller tile or overlap, or align = \"none\""), "{e}");
+    }
+
+    #[test]
+    fn auto_tile_is_in_phase_bounded_and_divides_a_tileable_output() {
+        let al = Alignment::new((27, 0), (0, 26), "given").unwrap();
+        let wang = |t: i64| [(t, 0), (0, t)];
+        let sizes = || (16..=4096).filter(|t| t % 2 == 0);
+        let patch = |t: i64| t + 8;
+        // 26 misses the lattice least (1 px) but is below the smallest automatic size.
+        let c = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, None);
+        assert_eq!(c.tile, 54, "{}", c.record);
+        assert_eq!(c.record["residual_px"], 2.0);
+        assert!(c.record["how"].as_str().unwrap().contains("64 would miss it by 12.0 px"), "{}", c.record);
+        // No lattice: the paper's 64; a sample too small for any in-phase size with a cell to spare: 64.
+        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, None).tile, 64);
+        let small = auto_tile(Some(&al), (60, 60), sizes(), patch, wang, None);
+        assert_eq!(small.tile, 64);
+        assert!(small.record.get("residual_px").is_none(), "{}", small.record);
+        // A tileable 640x130 output: only 130's even divisors from 32 (also dividing 640)…
+        let w = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, Some((640, 130)));
+        assert!(640 % w.tile == 0 && 130 % w.tile == 0 || w.tile == 64, "{}", w.record);
+        // …and 700x100 without a lattice: the divisor nearest 64.
+        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, Some((700, 100))).tile, 50);
+        assert!(auto_tileable("wang-tiles", (256, 256), sizes(), patch, (701, 701)).unwrap_err().contains("704x704 would work"));
     }
 
     #[test]

@@ -77,11 +77,7 @@ pub fn render_in_strips(filled: (Synthesis, impl TileRenderer, Tiling), req: &Re
 /// tiles both ways (the tiling is then chosen on a torus) and no tile-set export, whose index
 /// records the position-keyed tiling `texsyn tiles render` reproduces, not the wrapping one.
 pub fn tileable(method: &str, period: u32, export_tiles: bool, output: (u32, u32)) -> Result<(), String> {
-    if export_tiles {
-        return Err(format!(
-            "tileable {method} output cannot also export its tile set (export_tiles): the export records the position-keyed tiling, not the wrapping one; turn off one of them"
-        ));
-    }
+    tileable_export(method, export_tiles)?;
     if !output.0.is_multiple_of(period) || !output.1.is_multiple_of(period) {
         // The nearest whole numbers of tiles, never zero.
         let near = |v: u32| ((v + period / 2) / period).max(1) * period;
@@ -92,6 +88,35 @@ pub fn tileable(method: &str, period: u32, export_tiles: bool, output: (u32, u32
         ));
     }
     Ok(())
+}
+
+/// The `tile` parameter of both tile methods: `Some(size)`, or `None` for `"auto"`.
+pub fn tile_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {
+    p.int_or_word("tile")?
+        .map(|t| u32::try_from(t).map_err(|_| crate::synth::error::SynthError::param("tile", format!("{t} is not a size"))))
+        .transpose()
+}
+
+/// A tileable output cannot also export the tile set.
+pub fn tileable_export(method: &str, export_tiles: bool) -> Result<(), String> {
+    if export_tiles {
+        return Err(format!(
+            "tileable {method} output cannot also export its tile set (export_tiles): the export records the position-keyed tiling, not the wrapping one; turn off one of them"
+        ));
+    }
+    Ok(())
+}
+
+/// A [`tileable`] refusal, naming the size `tile = "auto"` chose when it chose one.
+pub fn auto_named(why: String, choice: Option<&super::align::TileChoice>) -> String {
+    match choice {
+        Some(c) => format!(
+            "{why}; the tile size {} is tile = \"auto\"'s choice for this sample ({}); give the output a multiple of it, or set tile",
+            c.tile,
+            c.record["how"].as_str().unwrap_or("auto")
+        ),
+        None => why,
+    }
 }
 
 /// Peak memory of a tile fill rendered in strips: the tile set (built from sample-sized cost
@@ -277,7 +302,7 @@ pub(crate) mod testing {
     /// `tileable` (and `synthesize` asked to wrap anyway) refuse sizes that are not whole tiles,
     /// naming ones that are, and the tile-set export.
     pub fn refuses_what_cannot_wrap(m: &dyn Method) {
-        let p = params(m, &[]);
+        let p = params(m, &[("tile", ParamValue::Int(64))]);
         assert_eq!(m.tileable(&p, (256, 256), (640, 128)), Ok(()));
         let e = m.tileable(&p, (256, 256), (700, 100)).unwrap_err();
         assert!(e.contains("multiple of the tile size 64") && e.contains("704x128 would work"), "{e}");
@@ -286,6 +311,21 @@ pub(crate) mod testing {
         assert!(m.synthesize(&req).unwrap_err().to_string().contains("704x128 would work"));
         let export = params(m, &[("export_tiles", ParamValue::Bool(true))]);
         assert!(m.tileable(&export, (256, 256), (128, 128)).unwrap_err().contains("export_tiles"));
+        // `tile = "auto"` (the default) keeps the sizes that divide the output: 700x100 wraps
+        // with 50 or 100, chosen with the sample's lattice and recorded.
+        let auto = params(m, &[]);
+        assert_eq!(m.tileable(&auto, (256, 256), (700, 100)), Ok(()));
+        let req = Request { sample: &s, width: 700, height: 100, params: &auto, seed: 1, placement: false, tileable: true };
+        let out = m.synthesize(&req).unwrap();
+        let t = out.diagnostics["tile_choice"]["tile"].as_u64().unwrap();
+        assert!(700 % t == 0 && 100 % t == 0, "{}", out.diagnostics["tile_choice"]);
+        // No size divides 701: refused up front, and by the fill (asked anyway) naming the size
+        // `auto` chose.
+        let e = m.tileable(&auto, (256, 256), (701, 701)).unwrap_err();
+        assert!(e.contains("tile = \"auto\"") && e.contains("704x704 would work"), "{e}");
+        let req = Request { width: 701, height: 701, ..req };
+        let e = m.synthesize(&req).unwrap_err().to_string();
+        assert!(e.contains("multiple of the tile size 64") && e.contains("tile = \"auto\"'s choice"), "{e}");
     }
 
     /// [`repeat_is_one_tiling`] for sets built by `build` (from bricks_gray), at several periods.

@@ -28,7 +28,9 @@ use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
 use crate::synth::method::{Method, Request, Strips, Synthesis};
-use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
+use crate::synth::params::{
+    Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, int_or, word,
+};
 use crate::synth::primitives::shortest_path::{flood4, shortest_path};
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -39,9 +41,9 @@ pub struct RwTiles;
 const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "tile",
-        kind: ParamKind::Int { min: 8, max: 4096 },
-        default: Default::Int(64),
-        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap",
+        kind: ParamKind::IntOr { min: 8, max: 4096, word: "auto" },
+        default: Default::Str("auto"),
+        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it; the choice recorded as diagnostics.tile_choice",
     },
     ParamSpec {
         name: "overlap",
@@ -89,8 +91,9 @@ const PARAMS: &[ParamSpec] = &[
 /// The parameters of `rw-tiles` (its `PARAMS` table) as Rust values: one field per parameter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RwTilesConfig {
-    /// `tile`: T, the rhombus' diagonals in pixels (even, 8..=4096).
-    pub tile: u32,
+    /// `tile`: T, the rhombus' diagonals in pixels (even, 8..=4096); `None` = "auto": in phase
+    /// with the sample's lattice when aligned to one, else 64 ([`align::auto_tile`]).
+    pub tile: Option<u32>,
     /// `overlap`: ov, the overlap of the four sub-blocks (even, 2..=2048, at most T/2 − 2).
     pub overlap: u32,
     /// `tile_set`: the 8-tile parity set or all 16 edge colourings.
@@ -112,7 +115,7 @@ pub struct RwTilesConfig {
 impl std::default::Default for RwTilesConfig {
     fn default() -> Self {
         RwTilesConfig {
-            tile: 64,
+            tile: None,
             overlap: 8,
             tile_set: TileSet::Minimal,
             pixel_error: PixelError::Squared,
@@ -130,7 +133,7 @@ impl MethodConfig for RwTilesConfig {
 
     fn to_params(&self) -> Vec<(String, ParamValue)> {
         let mut given = vec![
-            int("tile", self.tile),
+            int_or("tile", self.tile.map(i64::from), align::AUTO_TILE),
             int("overlap", self.overlap),
             word("tile_set", self.tile_set),
             word("pixel_error", self.pixel_error),
@@ -144,7 +147,7 @@ impl MethodConfig for RwTilesConfig {
 
     fn from_params(p: &Params) -> Result<Self, SynthError> {
         Ok(RwTilesConfig {
-            tile: p.uint("tile")?,
+            tile: common::tile_param(p)?,
             overlap: p.uint("overlap")?,
             tile_set: p.choice("tile_set")?,
             pixel_error: p.choice("pixel_error")?,
@@ -209,6 +212,12 @@ pub struct RwAlign {
 }
 
 impl RwAlign {
+    /// The size of `tile = "auto"` with overlap `ov` on a `sample`-sized sample aligned to
+    /// `lattice` (if any), for a tileable output of `wrap` pixels (if any): [`align::auto_tile`].
+    pub fn auto_tile(lattice: Option<&Alignment>, sample: (u32, u32), ov: u32, wrap: Option<(u32, u32)>) -> align::TileChoice {
+        align::auto_tile(lattice, sample, sizes(ov), patch(ov), RwAlign::vectors, wrap)
+    }
+
     /// The tile translation vectors `h(1, 1), h(−1, 1)` for tile `T = 2h`.
     pub fn vectors(tile: i64) -> [V; 2] {
         let h = tile / 2;
@@ -586,7 +595,9 @@ impl Method for RwTiles {
             Err(e) => return vec![e.into()],
         };
         let mut errors = Vec::new();
-        let (tile, ov) = (cfg.tile as i64, cfg.overlap as i64);
+        // `auto` is checked at its fallback size: what a sample without a lattice gets.
+        let (tile, ov) = (cfg.tile.map_or(align::FALLBACK_TILE, i64::from), cfg.overlap as i64);
+        let named = tile_words(cfg.tile);
         if tile % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {tile} must be even (the rhombus' diagonals are 2·(sub-block − overlap))")));
         }
@@ -594,7 +605,7 @@ impl Method for RwTiles {
             errors.push(ParamError::new("overlap", format!("overlap {ov} must be even (the E and W vertices must be pixels)")));
         }
         if 2 * ov + 4 > tile {
-            errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for tile {tile}: use at most {}", (tile - 4) / 2)));
+            errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for {named}: use at most {}", (tile - 4) / 2)));
         }
         errors.extend(align::check(cfg.align, cfg.lattice, sample));
         let s = tile / 2 + ov;
@@ -617,7 +628,7 @@ impl Method for RwTiles {
             errors.push(ParamError::new(
                 "tile",
                 format!(
-                    "tile {tile} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); {advice}",
+                    "{named} needs {s}x{s} sub-blocks (tile/2 + overlap), larger than the sample ({}x{}); {advice}",
                     sample.0, sample.1
                 ),
             ));
@@ -637,9 +648,15 @@ impl Method for RwTiles {
         common::strip_peak_memory(sample, output)
     }
 
-    fn tileable(&self, params: &Params, _sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+    fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = RwTilesConfig::from_params(params).map_err(|e| e.to_string())?;
-        common::tileable(self.name(), cfg.tile, cfg.export_tiles, output)
+        match cfg.tile {
+            Some(t) => common::tileable(self.name(), t, cfg.export_tiles, output),
+            // The size is chosen with the sample's pixels ([`align::auto_tile`] keeps the sizes
+            // that divide the output); `fill` checks it again, naming the size it chose.
+            None => common::tileable_export(self.name(), cfg.export_tiles)
+                .and_then(|()| align::auto_tileable(self.name(), sample, sizes(cfg.overlap), patch(cfg.overlap), output)),
+        }
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -655,21 +672,43 @@ impl Method for RwTiles {
     }
 }
 
+/// The tile sizes valid with overlap `ov` (even, at least 8, room for the overlap).
+fn sizes(ov: u32) -> impl Iterator<Item = i64> {
+    (8.max(2 * i64::from(ov) + 4)..=align::TILE_RANGE.1).filter(|t| t % 2 == 0)
+}
+
+/// The side of the sub-blocks (sample pixels) of a size-`t` tile: `t/2 + ov`.
+fn patch(ov: u32) -> impl Fn(i64) -> i64 {
+    move |t| t / 2 + i64::from(ov)
+}
+
+/// How the checks name the tile size: `tile 48`, or for `auto` its fallback size.
+fn tile_words(tile: Option<u32>) -> String {
+    match tile {
+        Some(t) => format!("tile {t}"),
+        None => format!("tile \"auto\" (its fallback size {}, used without a lattice)", align::FALLBACK_TILE),
+    }
+}
+
 impl RwTiles {
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
     fn fill(&self, req: &Request) -> Result<(Synthesis, RwTileSet, Tiling), SynthError> {
         let cfg = RwTilesConfig::from_params(req.params)?;
-        let (tile, ov) = (cfg.tile as i32, cfg.overlap as i32);
+        let t0 = Instant::now();
+        let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
+        let wrap = req.tileable.then_some((req.width, req.height));
+        let choice = cfg.tile.is_none().then(|| RwAlign::auto_tile(lattice.as_ref(), req.sample.dimensions(), cfg.overlap, wrap));
+        let (tile, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
         if req.tileable {
-            self.tileable(req.params, req.sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+            common::tileable(self.name(), tile as u32, cfg.export_tiles, (req.width, req.height))
+                .map_err(|e| SynthError::Failed(common::auto_named(e, choice.as_ref())))?;
         }
         let (set, order) = (cfg.tile_set, cfg.tiling);
-        let t0 = Instant::now();
-        let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
+        let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
         let (tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let build = t0.elapsed().as_secs_f64();
@@ -696,6 +735,10 @@ impl RwTiles {
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
+        if let Some(c) = choice {
+            // Only for `tile = "auto"`, so that the record of a given size stays as it was.
+            diagnostics["tile_choice"] = c.record;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -978,7 +1021,7 @@ mod tests {
     #[test]
     fn a_config_round_trips_through_the_table() {
         let cfg = RwTilesConfig {
-            tile: 48,
+            tile: Some(48),
             overlap: 6,
             tile_set: TileSet::Complete,
             pixel_error: PixelError::Euclidean,

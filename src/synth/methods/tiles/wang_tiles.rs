@@ -26,7 +26,9 @@ use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
 use crate::synth::method::{Method, Request, Strips, Synthesis};
-use crate::synth::params::{Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, word};
+use crate::synth::params::{
+    Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, int_or, word,
+};
 use crate::synth::primitives::shortest_path::{flood4, shortest_path};
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -37,9 +39,9 @@ pub struct WangTiles;
 const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "tile",
-        kind: ParamKind::Int { min: 8, max: 4096 },
-        default: Default::Int(64),
-        doc: "T: side of the square tiles (even); the diamonds span T + overlap pixels",
+        kind: ParamKind::IntOr { min: 8, max: 4096, word: "auto" },
+        default: Default::Str("auto"),
+        doc: "T: side of the square tiles (even); the diamonds span T + overlap pixels. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it; the choice recorded as diagnostics.tile_choice",
     },
     ParamSpec {
         name: "overlap",
@@ -103,8 +105,9 @@ crate::choice! {
 /// The parameters of `wang-tiles` (its `PARAMS` table) as Rust values: one field per parameter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WangTilesConfig {
-    /// `tile`: T, the side of the square tiles in pixels (even, 8..=4096).
-    pub tile: u32,
+    /// `tile`: T, the side of the square tiles in pixels (even, 8..=4096); `None` = "auto": in
+    /// phase with the sample's lattice when aligned to one, else 64 ([`align::auto_tile`]).
+    pub tile: Option<u32>,
     /// `overlap`: ov, how much the diamonds are enlarged (even, 2..=2048, at most T/2).
     pub overlap: u32,
     /// `cut`: how two diamonds are stitched.
@@ -128,7 +131,7 @@ pub struct WangTilesConfig {
 impl std::default::Default for WangTilesConfig {
     fn default() -> Self {
         WangTilesConfig {
-            tile: 64,
+            tile: None,
             overlap: 8,
             cut: Cut::Dp,
             tile_set: TileSet::Minimal,
@@ -147,7 +150,7 @@ impl MethodConfig for WangTilesConfig {
 
     fn to_params(&self) -> Vec<(String, ParamValue)> {
         let mut given = vec![
-            int("tile", self.tile),
+            int_or("tile", self.tile.map(i64::from), align::AUTO_TILE),
             int("overlap", self.overlap),
             word("cut", self.cut),
             word("tile_set", self.tile_set),
@@ -162,7 +165,7 @@ impl MethodConfig for WangTilesConfig {
 
     fn from_params(p: &Params) -> Result<Self, SynthError> {
         Ok(WangTilesConfig {
-            tile: p.uint("tile")?,
+            tile: common::tile_param(p)?,
             overlap: p.uint("overlap")?,
             cut: p.choice("cut")?,
             tile_set: p.choice("tile_set")?,
@@ -230,6 +233,12 @@ pub struct WangAlign {
 }
 
 impl WangAlign {
+    /// The size of `tile = "auto"` with overlap `ov` on a `sample`-sized sample aligned to
+    /// `lattice` (if any), for a tileable output of `wrap` pixels (if any): [`align::auto_tile`].
+    pub fn auto_tile(lattice: Option<&Alignment>, sample: (u32, u32), ov: u32, wrap: Option<(u32, u32)>) -> align::TileChoice {
+        align::auto_tile(lattice, sample, sizes(ov), patch(ov), WangAlign::vectors, wrap)
+    }
+
     /// The tile translation vectors `(t, 0), (0, t)`.
     pub fn vectors(t: i64) -> [V; 2] {
         [(t, 0), (0, t)]
@@ -542,7 +551,9 @@ impl Method for WangTiles {
             Err(e) => return vec![e.into()],
         };
         let mut errors = Vec::new();
-        let (t, ov) = (cfg.tile as i64, cfg.overlap as i64);
+        // `auto` is checked at its fallback size: what a sample without a lattice gets.
+        let (t, ov) = (cfg.tile.map_or(align::FALLBACK_TILE, i64::from), cfg.overlap as i64);
+        let tile = tile_words(cfg.tile);
         if t % 2 != 0 {
             errors.push(ParamError::new("tile", format!("tile {t} must be even (the diamonds are centred on the edge midpoints)")));
         }
@@ -550,7 +561,7 @@ impl Method for WangTiles {
             errors.push(ParamError::new("overlap", format!("overlap {ov} must be even (each diamond grows by overlap/2)")));
         }
         if ov * 2 > t {
-            errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the tile ({t}); use at most {}", t / 2)));
+            errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the {tile} ({t}); use at most {}", t / 2)));
         }
         errors.extend(align::check(cfg.align, cfg.lattice, sample));
         let need = t + ov - ov % 2;
@@ -572,7 +583,7 @@ impl Method for WangTiles {
             errors.push(ParamError::new(
                 "tile",
                 format!(
-                    "tile {t} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); {advice}",
+                    "{tile} needs diamonds of {need}x{need} (tile + overlap), larger than the sample ({}x{}); {advice}",
                     sample.0, sample.1
                 ),
             ));
@@ -592,9 +603,15 @@ impl Method for WangTiles {
         common::strip_peak_memory(sample, output)
     }
 
-    fn tileable(&self, params: &Params, _sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+    fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = WangTilesConfig::from_params(params).map_err(|e| e.to_string())?;
-        common::tileable(self.name(), cfg.tile, cfg.export_tiles, output)
+        match cfg.tile {
+            Some(t) => common::tileable(self.name(), t, cfg.export_tiles, output),
+            // The size is chosen with the sample's pixels ([`align::auto_tile`] keeps the sizes
+            // that divide the output); `fill` checks it again, naming the size it chose.
+            None => common::tileable_export(self.name(), cfg.export_tiles)
+                .and_then(|()| align::auto_tileable(self.name(), sample, sizes(cfg.overlap), patch(cfg.overlap), output)),
+        }
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -610,21 +627,43 @@ impl Method for WangTiles {
     }
 }
 
+/// The tile sizes valid with overlap `ov` (even, at least 8 and twice the overlap).
+fn sizes(ov: u32) -> impl Iterator<Item = i64> {
+    (8.max(2 * i64::from(ov))..=align::TILE_RANGE.1).filter(|t| t % 2 == 0)
+}
+
+/// The side of the diamonds' bounding square (sample pixels) of a size-`t` tile: `t + ov`.
+fn patch(ov: u32) -> impl Fn(i64) -> i64 {
+    move |t| t + i64::from(ov)
+}
+
+/// How the checks name the tile size: `tile 48`, or for `auto` its fallback size.
+fn tile_words(tile: Option<u32>) -> String {
+    match tile {
+        Some(t) => format!("tile {t}"),
+        None => format!("tile \"auto\" (its fallback size {}, used without a lattice)", align::FALLBACK_TILE),
+    }
+}
+
 impl WangTiles {
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
     fn fill(&self, req: &Request) -> Result<(Synthesis, WangTileSet, Tiling), SynthError> {
         let cfg = WangTilesConfig::from_params(req.params)?;
-        let (t, ov) = (cfg.tile as i32, cfg.overlap as i32);
+        let t0 = Instant::now();
+        let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
+        let wrap = req.tileable.then_some((req.width, req.height));
+        let choice = cfg.tile.is_none().then(|| WangAlign::auto_tile(lattice.as_ref(), req.sample.dimensions(), cfg.overlap, wrap));
+        let (t, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
             return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
         if req.tileable {
-            self.tileable(req.params, req.sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
+            common::tileable(self.name(), t as u32, cfg.export_tiles, (req.width, req.height))
+                .map_err(|e| SynthError::Failed(common::auto_named(e, choice.as_ref())))?;
         }
         let (set, order) = (cfg.tile_set, cfg.tiling);
-        let t0 = Instant::now();
-        let align = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
+        let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
         let (tiles, chosen) = build_tile_set_aligned(
             req.sample,
             t,
@@ -659,6 +698,10 @@ impl WangTiles {
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
+        }
+        if let Some(c) = choice {
+            // Only for `tile = "auto"`, so that the record of a given size stays as it was.
+            diagnostics["tile_choice"] = c.record;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -958,7 +1001,7 @@ mod tests {
     #[test]
     fn a_config_round_trips_through_the_table() {
         let cfg = WangTilesConfig {
-            tile: 32,
+            tile: Some(32),
             overlap: 4,
             cut: Cut::ShortestPath,
             tile_set: TileSet::Complete,
