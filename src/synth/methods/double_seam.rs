@@ -22,8 +22,8 @@ use crate::synth::rng::Stream;
 use rayon::prelude::*;
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
-use std::sync::Arc;
 use std::f64::consts::TAU;
+use std::sync::Arc;
 
 pub struct DoubleSeam;
 
@@ -536,9 +536,12 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
             let st_i = stride as i32;
             let (r, c) = (torus.rows, torus.cols);
             let mut hints = Vec::new();
-            for (ni, nj, dx, dy) in
-                [(bi, (bj + c - 1) % c, st_i, 0), ((bi + r - 1) % r, bj, 0, st_i), (bi, (bj + 1) % c, -st_i, 0), ((bi + 1) % r, bj, 0, -st_i)]
-            {
+            for (ni, nj, dx, dy) in [
+                (bi, (bj + c - 1) % c, st_i, 0),
+                ((bi + r - 1) % r, bj, 0, st_i),
+                (bi, (bj + 1) % c, -st_i, 0),
+                ((bi + 1) % r, bj, 0, -st_i),
+            ] {
                 if done[torus.index(ni, nj)] {
                     let (px, py) = picks[torus.index(ni, nj)];
                     hints.push((px + dx, py + dy));
@@ -758,6 +761,11 @@ fn score_all(
 /// that matters.
 const BOUND_SLACK: f64 = 1e-7;
 
+/// Whether a candidate whose `F` is at most `bound` may reach `theta` (a NaN bound may).
+fn may_reach(bound: f64, theta: f64) -> bool {
+    (bound + BOUND_SLACK).partial_cmp(&theta) != Some(std::cmp::Ordering::Less)
+}
+
 /// The candidate set and the pick of one grid position: the same as [`score_lines`] followed by
 /// [`pick`], without scoring every candidate in full where that is not needed. `hints` are
 /// positions likely to score well (the natural continuations of the neighbours); they are scored
@@ -862,7 +870,7 @@ fn choose(
         survivors = (0..mism.len())
             .filter(|&k| {
                 let u = cap / (1.0 + s.mu * (mism[k][0] as f64 / ns[0])) + cap / (1.0 + s.mu * (mism[k][1] as f64 / ns[1]));
-                !(u + BOUND_SLACK < theta_low)
+                may_reach(u, theta_low)
             })
             .collect();
     }
@@ -872,17 +880,13 @@ fn choose(
         let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
         f_low = f_low.max(full(best, mism[best]));
         let theta_low = s.tau.min(f_low - s.eps);
-        survivors = (0..u.len()).filter(|&k| !(u[k] + BOUND_SLACK < theta_low)).collect();
+        survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
     }
     let scores: Vec<f64> = survivors.par_iter().map(|&k| full(k, mism[k])).collect();
     let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let theta = s.tau.min(f_max - s.eps);
-    let members: Vec<(i32, i32)> = survivors
-        .iter()
-        .zip(&scores)
-        .filter(|(_, f)| **f >= theta)
-        .map(|(&k, _)| (x0 + (k % nx) as i32, y0 + (k / nx) as i32))
-        .collect();
+    let members: Vec<(i32, i32)> =
+        survivors.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(&k, _)| (x0 + (k % nx) as i32, y0 + (k / nx) as i32)).collect();
     if members.is_empty() {
         return everything();
     }
@@ -1347,7 +1351,9 @@ mod tests {
             Settings { a: 1, mu: 5.0, ..base },
         ];
         for s in &variants {
-            for (case, origin, natural) in [(Case::Horizontal, (20, 0), (30, 5)), (Case::L, (20, 20), (30, 25)), (Case::Vertical, (0, 20), (10, 25))] {
+            for (case, origin, natural) in
+                [(Case::Horizontal, (20, 0), (30, 5)), (Case::L, (20, 20), (30, 25)), (Case::Vertical, (0, 20), (10, 25))]
+            {
                 let ls = lines(case, s.block, s.g, s.a);
                 let stats = [candidate_stats(&prep, s, case, &ls[0]), candidate_stats(&prep, s, case, &ls[1])];
                 let (positions, scores) = score_all(&prep, s, case, &stats, &out, origin);
