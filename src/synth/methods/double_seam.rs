@@ -15,12 +15,15 @@ use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, Para
 use crate::synth::primitives::block_grid::BlockGrid;
 use crate::synth::primitives::canvas::Canvas as PixelCanvas;
 use crate::synth::primitives::color::HsiPlanes;
-use crate::synth::primitives::correlation::pearson_from;
+use crate::synth::primitives::correlation::{FLAT, pearson_from};
 use crate::synth::primitives::edges::{otsu_edges, sobel4};
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
+use rustfft::num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
 use std::f64::consts::TAU;
+use std::sync::Arc;
 
 pub struct DoubleSeam;
 
@@ -236,6 +239,16 @@ struct Prepared<'a> {
     w: usize,
     planes: HsiPlanes,
     edges: Vec<u8>,
+    /// The planes' spectra, for [`fft_bounds`].
+    spectra: Spectra,
+}
+
+impl<'a> Prepared<'a> {
+    fn new(rgb: &'a RgbImage, planes: HsiPlanes, edges: Vec<u8>) -> Prepared<'a> {
+        let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+        let spectra = Spectra::new(&planes, w, h);
+        Prepared { rgb, w, planes, edges, spectra }
+    }
 }
 
 /// Per candidate position, the candidate side of one line: mean and centred sum of squares of H,
@@ -338,7 +351,7 @@ impl Method for DoubleSeam {
         }
         let planes = HsiPlanes::of(sample);
         let edges = otsu_edges(&sobel4(&planes.i, sw as usize, sh as usize));
-        let prep = Prepared { rgb: sample, w: sw as usize, planes, edges };
+        let prep = Prepared::new(sample, planes, edges);
 
         if req.tileable {
             return synthesize_torus(req, &s, &prep);
@@ -350,6 +363,7 @@ impl Method for DoubleSeam {
         let (cw, ch) = grid.canvas();
         let mut out = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let mut stats: Vec<(Case, [LineStats; 2])> = Vec::new();
+        let mut picks = vec![(0i32, 0i32); (rows * cols) as usize];
         let mut set_sizes = Vec::new();
         let mut f_max_sum = 0.0;
         for bi in 0..rows {
@@ -374,12 +388,25 @@ impl Method for DoubleSeam {
                         stats.push((case, computed));
                     }
                     let st = &stats.iter().find(|(c, _)| *c == case).expect("computed").1;
-                    let (positions, scores) = score_all(&prep, &s, case, st, &out, (ox as i32, oy as i32));
-                    let (pick, size, f_max) = pick(&s, &positions, &scores, req.seed, bi, bj)?;
+                    let ls = lines(case, s.block, s.g, s.a);
+                    let ranges = admissible(&prep, &s, case);
+                    // The natural continuations of the left and the upper neighbour.
+                    let mut hints = Vec::new();
+                    if bj > 0 {
+                        let (px, py) = picks[(bi * cols + bj - 1) as usize];
+                        hints.push((px + stride as i32, py));
+                    }
+                    if bi > 0 {
+                        let (px, py) = picks[((bi - 1) * cols + bj) as usize];
+                        hints.push((px, py + stride as i32));
+                    }
+                    let origin = (ox as i32, oy as i32);
+                    let (pick, size, f_max) = choose(&prep, &s, &ls, ranges, st, &out, origin, &hints, (req.seed, bi, bj))?;
                     set_sizes.push(size);
                     f_max_sum += f_max;
                     pick
                 };
+                picks[(bi * cols + bj) as usize] = (x, y);
                 let c0 = if bj > 0 { g } else { 0 };
                 let r0 = if bi > 0 { g } else { 0 };
                 out.paste(&prep, (x as u32, y as u32), (ox, oy), c0, r0, block);
@@ -479,6 +506,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
     let (w, h) = torus.size();
     let mut out = Canvas::new(w, h, sample.dimensions(), req.placement);
     let mut done = vec![false; (torus.rows * torus.cols) as usize];
+    let mut picks = vec![(0i32, 0i32); done.len()];
     // Line statistics per line shape: a handful of shapes per job (first row, interior, last
     // column, last row, ...).
     let mut stats: Vec<([Vec<(i32, i32)>; 2], Ranges, [LineStats; 2])> = Vec::new();
@@ -504,14 +532,30 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
                 }
             };
             let (ls, ranges, st) = &stats[k];
-            let (positions, scores) = score_lines(prep, s, ls, ranges.clone(), st, &out, (ox as i32, oy as i32));
-            let (pick, size, f_max) = pick(s, &positions, &scores, req.seed, bi, bj)?;
+            // The natural continuations of the neighbours already there (through the wrap too).
+            let st_i = stride as i32;
+            let (r, c) = (torus.rows, torus.cols);
+            let mut hints = Vec::new();
+            for (ni, nj, dx, dy) in [
+                (bi, (bj + c - 1) % c, st_i, 0),
+                ((bi + r - 1) % r, bj, 0, st_i),
+                (bi, (bj + 1) % c, -st_i, 0),
+                ((bi + 1) % r, bj, 0, -st_i),
+            ] {
+                if done[torus.index(ni, nj)] {
+                    let (px, py) = picks[torus.index(ni, nj)];
+                    hints.push((px + dx, py + dy));
+                }
+            }
+            let origin = (ox as i32, oy as i32);
+            let (pick, size, f_max) = choose(prep, s, ls, ranges.clone(), st, &out, origin, &hints, (req.seed, bi, bj))?;
             set_sizes.push(size);
             f_max_sum += f_max;
             pick
         };
         out.paste(prep, (x as u32, y as u32), (ox, oy), g, g, block);
         done[torus.index(bi, bj)] = true;
+        picks[torus.index(bi, bj)] = (x, y);
     }
     let (image, placement) = out.rgb.finish();
     // Each pasted part starts at `k·stride + g`; k = 0 is where the wrap closes.
@@ -608,34 +652,58 @@ fn candidate_stats(prep: &Prepared, s: &Settings, case: Case, line: &[(i32, i32)
     candidate_stats_in(prep, s, admissible(prep, s, case), line)
 }
 
-/// [`candidate_stats`] over given position ranges.
+/// [`candidate_stats`] over given position ranges. Candidates in blocks of LANES along a row,
+/// each candidate's sums in line order as a two-pass mean and centred sum of squares.
 fn candidate_stats_in(prep: &Prepared, s: &Settings, (xs, ys): Ranges, line: &[(i32, i32)]) -> LineStats {
+    const LANES: usize = 8;
     let n = line.len() as f64;
     let w = prep.w as i32;
     let ys: Vec<i32> = ys.collect();
+    let (x0, nx) = (*xs.start(), (xs.end() - xs.start() + 1).max(0) as usize);
     ys.par_iter()
         .flat_map_iter(|&y| {
-            let xs = xs.clone();
-            xs.map(move |x| {
-                let idx: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x + c) as usize).collect();
-                let mut out = [0.0; 6];
-                for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
-                    if k == 0 && s.circular {
-                        let (sn, cs) = idx.iter().fold((0.0, 0.0), |(a, b), &i| (a + (TAU * plane[i]).sin(), b + (TAU * plane[i]).cos()));
+            let offsets: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x0 + c) as usize).collect();
+            let mut row = vec![[0.0; 6]; nx];
+            for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                if k == 0 && s.circular {
+                    for (x, out) in row.iter_mut().enumerate() {
+                        let (sn, cs) =
+                            offsets.iter().fold((0.0, 0.0), |(a, b), &i| (a + (TAU * plane[i + x]).sin(), b + (TAU * plane[i + x]).cos()));
                         let m = sn.atan2(cs);
-                        let ss: f64 = idx.iter().map(|&i| (TAU * plane[i] - m).sin().powi(2)).sum();
+                        let ss: f64 = offsets.iter().map(|&i| (TAU * plane[i + x] - m).sin().powi(2)).sum();
                         out[0] = m;
                         out[1] = ss;
-                    } else {
-                        let m = idx.iter().map(|&i| plane[i]).sum::<f64>() / n;
-                        let ss: f64 = idx.iter().map(|&i| (plane[i] - m) * (plane[i] - m)).sum();
-                        out[2 * k] = m;
-                        out[2 * k + 1] = ss;
                     }
+                    continue;
                 }
-                out
-            })
-            .collect::<Vec<_>>()
+                let mut x = 0;
+                while x < nx {
+                    let lanes = LANES.min(nx - x);
+                    let mut sum = [0.0f64; LANES];
+                    for &i in &offsets {
+                        for l in 0..lanes {
+                            sum[l] += plane[i + x + l];
+                        }
+                    }
+                    let mut m = [0.0f64; LANES];
+                    for l in 0..lanes {
+                        m[l] = sum[l] / n;
+                    }
+                    let mut ss = [0.0f64; LANES];
+                    for &i in &offsets {
+                        for l in 0..lanes {
+                            let d = plane[i + x + l] - m[l];
+                            ss[l] += d * d;
+                        }
+                    }
+                    for l in 0..lanes {
+                        row[x + l][2 * k] = m[l];
+                        row[x + l][2 * k + 1] = ss[l];
+                    }
+                    x += lanes;
+                }
+            }
+            row
         })
         .collect()
 }
@@ -676,6 +744,7 @@ fn output_line(out: &Canvas, s: &Settings, origin: (i32, i32), line: &[(i32, i32
 
 /// `F = F_1 + F_2` at every admissible position, row-major, evaluated in parallel by rows; each
 /// value's arithmetic is fixed, so the result does not depend on the thread count.
+#[cfg(test)]
 fn score_all(
     prep: &Prepared,
     s: &Settings,
@@ -685,6 +754,344 @@ fn score_all(
     origin: (i32, i32),
 ) -> (Vec<(i32, i32)>, Vec<f64>) {
     score_lines(prep, s, &lines(case, s.block, s.g, s.a), admissible(prep, s, case), stats, out, origin)
+}
+
+/// Slack added to an upper bound of `F` before it may rule a candidate out: far above the few
+/// ulps by which a computed Pearson correlation can exceed 1, far below any score difference
+/// that matters.
+const BOUND_SLACK: f64 = 1e-7;
+
+/// Whether a candidate whose `F` is at most `bound` may reach `theta` (a NaN bound may).
+fn may_reach(bound: f64, theta: f64) -> bool {
+    (bound + BOUND_SLACK).partial_cmp(&theta) != Some(std::cmp::Ordering::Less)
+}
+
+/// The candidate set and the pick of one grid position: the same as [`score_lines`] followed by
+/// [`pick`], without scoring every candidate in full where that is not needed. `hints` are
+/// positions likely to score well (the natural continuations of the neighbours); they are scored
+/// in full first, which bounds `F_max` from below and so `θ` from below. `D_HSI ≤ α + β + γ`
+/// bounds each line's `F_i` by the edge term alone, from the edge mismatches (exact integers):
+/// every candidate whose bound (plus [`BOUND_SLACK`]) stays under that `θ` is out (its `F` is
+/// below `θ`, so it is neither a member nor the maximum), and the rest are scored in full. When
+/// the bound rules out too few, every candidate is scored as before. Every full score is
+/// computed with the same operations in the same order as [`score_lines`] (per channel the cross
+/// sums are independent sums in line order), so `F_max`, `θ` and the set are bit for bit the same.
+#[allow(clippy::too_many_arguments)]
+fn choose(
+    prep: &Prepared,
+    s: &Settings,
+    ls: &[Vec<(i32, i32)>; 2],
+    (xs, ys): Ranges,
+    stats: &[LineStats; 2],
+    out: &Canvas,
+    origin: (i32, i32),
+    hints: &[(i32, i32)],
+    (seed, bi, bj): (u64, u32, u32),
+) -> Result<((i32, i32), usize, f64), SynthError> {
+    let everything = || -> Result<((i32, i32), usize, f64), SynthError> {
+        let (positions, scores) = score_lines(prep, s, ls, (xs.clone(), ys.clone()), stats, out, origin);
+        pick(s, &positions, &scores, seed, bi, bj)
+    };
+    if s.circular {
+        return everything();
+    }
+    let outs = [output_line(out, s, origin, &ls[0]), output_line(out, s, origin, &ls[1])];
+    let nx = (xs.end() - xs.start() + 1) as usize;
+    let (x0, y0) = (*xs.start(), *ys.start());
+    let ny = (ys.end() - ys.start() + 1).max(0) as usize;
+    let w = prep.w as i32;
+    let ns = [ls[0].len() as f64, ls[1].len() as f64];
+    // Line offsets relative to a candidate's (x, y) in the sample (y·w + x ≥ every negative one).
+    let offsets: [Vec<isize>; 2] = [0, 1].map(|li| ls[li].iter().map(|&(c, r)| (r * w + c) as isize).collect());
+    let base_of = |k: usize| ((y0 + (k / nx) as i32) * w + x0) as isize + (k % nx) as isize;
+    let mismatches_of = |k: usize, li: usize| -> u32 {
+        let base = base_of(k);
+        let o = &outs[li];
+        offsets[li].iter().zip(&o.edges).map(|(&off, &e1)| u32::from(e1 != prep.edges[(base + off) as usize])).sum()
+    };
+    // The full score of candidate k, in exactly score_lines' order of operations.
+    let full = |k: usize, mism: [u32; 2]| -> f64 {
+        let base = base_of(k);
+        let mut f = 0.0;
+        for li in 0..2 {
+            let o = &outs[li];
+            let stx = &stats[li][k];
+            let mut d = 0.0;
+            for (kk, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                let m2 = stx[2 * kk];
+                let mut acc = 0.0;
+                for (i, &off) in offsets[li].iter().enumerate() {
+                    acc += o.centred[kk][i] * (plane[(base + off) as usize] - m2);
+                }
+                d += s.weights[kk] * pearson_from(o.mean[kk], o.ss[kk], stx[2 * kk], stx[2 * kk + 1], acc);
+            }
+            if s.clamp {
+                d = d.max(0.0);
+            }
+            let de = mism[li] as f64 / ns[li];
+            f += d / (1.0 + s.mu * de);
+            if s.level_penalty > 0.0 {
+                f -= s.level_penalty * (o.mean[2] - stx[4]).abs();
+            }
+        }
+        f
+    };
+    // A lower bound of F_max from the hints, hence a lower bound of θ.
+    let mut f_low = f64::NEG_INFINITY;
+    for &(x, y) in hints {
+        if xs.contains(&x) && ys.contains(&y) {
+            let k = (y - y0) as usize * nx + (x - x0) as usize;
+            f_low = f_low.max(full(k, [mismatches_of(k, 0), mismatches_of(k, 1)]));
+        }
+    }
+    let theta_low = s.tau.min(f_low - s.eps);
+    let cap = {
+        let c = s.weights[0] + s.weights[1] + s.weights[2];
+        if s.clamp { c.max(0.0) } else { c }
+    };
+    if nx == 0 || ny == 0 {
+        return everything();
+    }
+    // Edge mismatches of both lines for every candidate, by rows.
+    let mism: Vec<[u32; 2]> = (0..ny)
+        .into_par_iter()
+        .flat_map_iter(|row| {
+            let mut m = [vec![0u32; nx], vec![0u32; nx]];
+            for li in 0..2 {
+                edge_mismatch_row(&prep.edges, &outs[li].edges, &offsets[li], base_of(row * nx) as usize, &mut m[li]);
+            }
+            (0..nx).map(move |x| [m[0][x], m[1][x]])
+        })
+        .collect();
+    let mut survivors: Vec<usize> = Vec::new();
+    if theta_low > cap + BOUND_SLACK {
+        // Below that a candidate with one perfect line can always reach θ: the edge bound
+        // rules nothing out.
+        survivors = (0..mism.len())
+            .filter(|&k| {
+                let u = cap / (1.0 + s.mu * (mism[k][0] as f64 / ns[0])) + cap / (1.0 + s.mu * (mism[k][1] as f64 / ns[1]));
+                may_reach(u, theta_low)
+            })
+            .collect();
+    }
+    if survivors.is_empty() || survivors.len() * 4 > mism.len() {
+        // The bound from approximate scores: every cross sum by FFT, within a rigorous margin.
+        let u = fft_bounds(prep, s, ls, &outs, stats, (x0, y0, nx, ny), &mism);
+        let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
+        f_low = f_low.max(full(best, mism[best]));
+        let theta_low = s.tau.min(f_low - s.eps);
+        survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
+    }
+    let scores: Vec<f64> = survivors.par_iter().map(|&k| full(k, mism[k])).collect();
+    let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let theta = s.tau.min(f_max - s.eps);
+    let members: Vec<(i32, i32)> =
+        survivors.iter().zip(&scores).filter(|(_, f)| **f >= theta).map(|(&k, _)| (x0 + (k % nx) as i32, y0 + (k / nx) as i32)).collect();
+    if members.is_empty() {
+        return everything();
+    }
+    let mut st = Stream::new(seed, &format!("seam/pick/bi={bi}/bj={bj}"));
+    Ok((members[st.below_usize(members.len())], members.len(), f_max))
+}
+
+/// Upper bounds of `F` at every candidate, from cross sums computed for all positions at once by
+/// FFT (three forward and three inverse 2-D transforms of the sample's size per grid position).
+/// The FFT's absolute error is far below `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the usual bound is
+/// about `1e-16` times that), and the margin added per correlation covers that and the rounding
+/// of the exact sums; degenerate lines take B8's values, which do not depend on the cross sum.
+fn fft_bounds(
+    prep: &Prepared,
+    s: &Settings,
+    ls: &[Vec<(i32, i32)>; 2],
+    outs: &[OutputLine; 2],
+    stats: &[LineStats; 2],
+    (x0, y0, nx, ny): (i32, i32, usize, usize),
+    mism: &[[u32; 2]],
+) -> Vec<f64> {
+    let sp = &prep.spectra;
+    let (w, h) = (sp.w, sp.h);
+    let cmin = ls.iter().flatten().map(|p| p.0).min().unwrap_or(0);
+    let rmin = ls.iter().flatten().map(|p| p.1).min().unwrap_or(0);
+    let zero = Complex64::new(0.0, 0.0);
+    // Kernels: line 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1.
+    let mut z = [vec![zero; w * h], vec![zero; w * h], vec![zero; w * h]];
+    for li in 0..2 {
+        for (i, &(c, r)) in ls[li].iter().enumerate() {
+            let at = (r - rmin) as usize * w + (c - cmin) as usize;
+            let o = &outs[li];
+            z[li][at] = Complex64::new(o.centred[0][i], o.centred[1][i]);
+            if li == 0 {
+                z[2][at].re = o.centred[2][i];
+            } else {
+                z[2][at].im = o.centred[2][i];
+            }
+        }
+    }
+    let rmax = ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
+    let mut spec: [Vec<Complex64>; 3] = [vec![zero; w * h], vec![zero; w * h], vec![zero; w * h]];
+    for (zz, sz) in z.iter_mut().zip(spec.iter_mut()) {
+        sp.forward(zz, 0..(rmax - rmin + 1) as usize, sz);
+    }
+    // Unpack the two real kernels' spectra of each plane and multiply with the sample's (into the
+    // kernel planes, free now: every entry is written).
+    let half = Complex64::new(0.5, 0.0);
+    let minus_half_i = Complex64::new(0.0, -0.5);
+    let i1 = Complex64::new(0.0, 1.0);
+    let mut p = z;
+    // Spectra are transposed: frequency (u, v) at u·h + v.
+    for u in 0..w {
+        for v in 0..h {
+            let f = u * h + v;
+            let nf = ((w - u) % w) * h + (h - v) % h;
+            let [sh, ss, si] = [sp.planes[0][f], sp.planes[1][f], sp.planes[2][f]];
+            let pair = |x: &Vec<Complex64>| -> (Complex64, Complex64) {
+                let (a, b) = (x[f], x[nf].conj());
+                ((a + b) * half, (a - b) * minus_half_i)
+            };
+            for (k, (sa, sb)) in [(sh, ss), (sh, ss), (si, si)].into_iter().enumerate() {
+                let (ta, tb) = pair(&spec[k]);
+                p[k][f] = sa * ta.conj() + i1 * (sb * tb.conj());
+            }
+        }
+    }
+    // The inverse transforms land in the spectra's buffers (every entry is written).
+    for (pp, out) in p.iter_mut().zip(spec.iter_mut()) {
+        sp.inverse(pp, (y0 + rmin) as usize..(y0 + rmin) as usize + ny, out);
+    }
+    let p = spec;
+    let scale = 1.0 / (w * h) as f64;
+    let log = ((w * h) as f64).log2().max(1.0);
+    // Per line and channel: Σ centred, Σ |centred|, and the error margin of the cross sum.
+    let mut sum_c = [[0.0; 3]; 2];
+    let mut margin = [[0.0; 3]; 2];
+    for li in 0..2 {
+        for k in 0..3 {
+            let c = &outs[li].centred[k];
+            sum_c[li][k] = c.iter().sum::<f64>();
+            let abs: f64 = c.iter().map(|v| v.abs()).sum();
+            margin[li][k] = 1e-9 * (sp.norms[k] * outs[li].ss[k].sqrt() * log + abs + 1e-3);
+        }
+    }
+    let cap = 1.0 + 1e-9;
+    (0..ny * nx)
+        .into_par_iter()
+        .map(|kidx| {
+            let (x, y) = (x0 + (kidx % nx) as i32, y0 + (kidx / nx) as i32);
+            let at = (y + rmin) as usize * w + (x + cmin) as usize;
+            let mut u = 0.0;
+            for li in 0..2 {
+                let o = &outs[li];
+                let stx = &stats[li][kidx];
+                let corr = [
+                    if li == 0 { p[0][at].re } else { p[1][at].re },
+                    if li == 0 { p[0][at].im } else { p[1][at].im },
+                    if li == 0 { p[2][at].re } else { p[2][at].im },
+                ];
+                let mut d = 0.0;
+                for k in 0..3 {
+                    let (v1, v2) = (o.ss[k], stx[2 * k + 1]);
+                    let c = corr[k] * scale - stx[2 * k] * sum_c[li][k];
+                    let rho = if v1 >= FLAT && v2 >= FLAT {
+                        ((c + margin[li][k]) / (v1 * v2).sqrt()).min(cap)
+                    } else {
+                        pearson_from(o.mean[k], v1, stx[2 * k], v2, c)
+                    };
+                    d += s.weights[k] * rho;
+                }
+                if s.clamp {
+                    d = d.max(0.0);
+                }
+                u += d / (1.0 + s.mu * (mism[kidx][li] as f64 / ls[li].len() as f64));
+            }
+            u
+        })
+        .collect()
+}
+
+/// The sample's H, S and I planes as 2-D spectra (transposed, see [`Spectra::forward`]), with the plans.
+struct Spectra {
+    w: usize,
+    h: usize,
+    planes: [Vec<Complex64>; 3],
+    /// Euclidean norm of each plane.
+    norms: [f64; 3],
+    row: [Arc<dyn Fft<f64>>; 2],
+    col: [Arc<dyn Fft<f64>>; 2],
+}
+
+impl Spectra {
+    fn new(planes: &HsiPlanes, w: usize, h: usize) -> Spectra {
+        let mut planner = FftPlanner::<f64>::new();
+        let mut sp = Spectra {
+            w,
+            h,
+            planes: [Vec::new(), Vec::new(), Vec::new()],
+            norms: [0.0; 3],
+            row: [planner.plan_fft_forward(w), planner.plan_fft_inverse(w)],
+            col: [planner.plan_fft_forward(h), planner.plan_fft_inverse(h)],
+        };
+        for (k, plane) in [&planes.h, &planes.s, &planes.i].into_iter().enumerate() {
+            let mut z: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+            let mut spec = vec![Complex64::new(0.0, 0.0); w * h];
+            sp.forward(&mut z, 0..h, &mut spec);
+            sp.planes[k] = spec;
+            sp.norms[k] = plane.iter().map(|v| v * v).sum::<f64>().sqrt();
+        }
+        sp
+    }
+
+    /// Forward 2-D FFT (unnormalised) of a row-major `w × h` plane whose rows outside `rows`
+    /// are zero; the spectrum is left transposed (`dst[u·h + v]`, `u` the column frequency).
+    fn forward(&self, data: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
+        let (w, h) = (self.w, self.h);
+        data[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[0].process(c));
+        transpose(data, w, h, dst);
+        dst.par_chunks_mut(h * 16).for_each(|c| self.col[0].process(c));
+    }
+
+    /// Inverse of [`Spectra::forward`] (unnormalised), from a transposed spectrum into a row-major
+    /// plane whose rows `rows` only are finished.
+    fn inverse(&self, spec: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
+        let (w, h) = (self.w, self.h);
+        spec.par_chunks_mut(h * 16).for_each(|c| self.col[1].process(c));
+        transpose(spec, h, w, dst);
+        dst[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[1].process(c));
+    }
+}
+
+/// `dst[x·h + y] = src[y·w + x]` for a row-major `w × h` `src`, in cache-sized tiles.
+fn transpose(src: &[Complex64], w: usize, h: usize, dst: &mut [Complex64]) {
+    const T: usize = 16;
+    for by in (0..h).step_by(T) {
+        for bx in (0..w).step_by(T) {
+            for x in bx..(bx + T).min(w) {
+                for y in by..(by + T).min(h) {
+                    dst[x * h + y] = src[y * w + x];
+                }
+            }
+        }
+    }
+}
+
+/// Edge mismatches of one line at `m.len()` consecutive candidates starting at sample index
+/// `base` (plus each line offset).
+fn edge_mismatch_row(edges: &[u8], line: &[u8], offsets: &[isize], base: usize, m: &mut [u32]) {
+    let n = m.len();
+    // Counted in 16 bits (more lanes per instruction), in runs short enough not to overflow.
+    let mut m16 = vec![0u16; n];
+    for (offs, bits) in offsets.chunks(u16::MAX as usize).zip(line.chunks(u16::MAX as usize)) {
+        m16.fill(0);
+        for (&off, &e1) in offs.iter().zip(bits) {
+            let b = (base as isize + off) as usize;
+            // Edge bits are 0 or 1: a mismatch is their exclusive or.
+            for (mm, &e2) in m16.iter_mut().zip(&edges[b..b + n]) {
+                *mm += u16::from(e1 ^ e2);
+            }
+        }
+        for (a, &b) in m.iter_mut().zip(&m16) {
+            *a += u32::from(b);
+        }
+    }
 }
 
 /// [`score_all`] for given lines and position ranges.
@@ -729,50 +1136,8 @@ fn score_lines(
                         }
                     }
                 } else {
-                    // Candidates in register blocks of LANES, line pixels in index order inside:
-                    // the same sums in the same order as the two-pass formula, without
-                    // round-tripping accumulators through memory for every pixel.
-                    const LANES: usize = 8;
                     let offsets: Vec<usize> = line.iter().map(|&(c, r)| ((y + r) * w + x0 + c) as usize).collect();
-                    let mut x = 0;
-                    while x < nx {
-                        let lanes = LANES.min(nx - x);
-                        let mut m2 = [[0.0f64; LANES]; 3];
-                        for l in 0..lanes {
-                            for k in 0..3 {
-                                m2[k][l] = st[x + l][2 * k];
-                            }
-                        }
-                        let mut acc = [[0.0f64; LANES]; 3];
-                        let mut mism = [0u32; LANES];
-                        for (i, &base) in offsets.iter().enumerate() {
-                            let b = base + x;
-                            for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
-                                let ci = o.centred[k][i];
-                                if lanes == LANES {
-                                    let v: &[f64; LANES] = plane[b..b + LANES].try_into().expect("lanes");
-                                    for l in 0..LANES {
-                                        acc[k][l] += ci * (v[l] - m2[k][l]);
-                                    }
-                                } else {
-                                    for l in 0..lanes {
-                                        acc[k][l] += ci * (plane[b + l] - m2[k][l]);
-                                    }
-                                }
-                            }
-                            let e1 = o.edges[i];
-                            for (m, e2) in mism[..lanes].iter_mut().zip(&prep.edges[b..b + lanes]) {
-                                *m += u32::from(e1 != *e2);
-                            }
-                        }
-                        for l in 0..lanes {
-                            for k in 0..3 {
-                                cross[k][x + l] = acc[k][l];
-                            }
-                            mismatches[x + l] = mism[l];
-                        }
-                        x += lanes;
-                    }
+                    cross_row(prep, o, st, &offsets, &mut cross, &mut mismatches);
                 }
                 let n = line.len() as f64;
                 for x in 0..nx {
@@ -805,6 +1170,54 @@ fn score_lines(
         .collect();
     let positions = rows.iter().flat_map(|&y| (0..nx as i32).map(move |dx| (x0 + dx, y))).collect();
     (positions, scores)
+}
+
+/// The linear-hue cross sums and edge mismatches of one line at `cross[k].len()` consecutive
+/// candidates (`offsets`: the line's sample indices for the first of them). Candidates in
+/// register blocks of LANES, line pixels in index order inside: the same sums in the same order
+/// as the two-pass formula, without round-tripping accumulators through memory for every pixel.
+fn cross_row(prep: &Prepared, o: &OutputLine, st: &[[f64; 6]], offsets: &[usize], cross: &mut [Vec<f64>; 3], mismatches: &mut [u32]) {
+    const LANES: usize = 8;
+    let nx = mismatches.len();
+    let mut x = 0;
+    while x < nx {
+        let lanes = LANES.min(nx - x);
+        let mut m2 = [[0.0f64; LANES]; 3];
+        for l in 0..lanes {
+            for k in 0..3 {
+                m2[k][l] = st[x + l][2 * k];
+            }
+        }
+        let mut acc = [[0.0f64; LANES]; 3];
+        let mut mism = [0u32; LANES];
+        for (i, &base) in offsets.iter().enumerate() {
+            let b = base + x;
+            for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+                let ci = o.centred[k][i];
+                if lanes == LANES {
+                    let v: &[f64; LANES] = plane[b..b + LANES].try_into().expect("lanes");
+                    for l in 0..LANES {
+                        acc[k][l] += ci * (v[l] - m2[k][l]);
+                    }
+                } else {
+                    for l in 0..lanes {
+                        acc[k][l] += ci * (plane[b + l] - m2[k][l]);
+                    }
+                }
+            }
+            let e1 = o.edges[i];
+            for (m, e2) in mism[..lanes].iter_mut().zip(&prep.edges[b..b + lanes]) {
+                *m += u32::from(e1 != *e2);
+            }
+        }
+        for l in 0..lanes {
+            for k in 0..3 {
+                cross[k][x + l] = acc[k][l];
+            }
+            mismatches[x + l] = mism[l];
+        }
+        x += lanes;
+    }
 }
 
 #[cfg(test)]
@@ -862,7 +1275,7 @@ mod tests {
         assert_eq!(Settings::of(&DoubleSeamConfig::from_params(&p).unwrap()), s);
         let planes = HsiPlanes::of(&sample);
         let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
-        let prep = Prepared { rgb: &sample, w: 96, planes, edges };
+        let prep = Prepared::new(&sample, planes, edges);
         let mut out = Canvas::new(60, 60, (96, 96), false);
         out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
         out.paste(&prep, (40, 30), (20, 0), 4, 0, 24);
@@ -902,6 +1315,59 @@ mod tests {
         let (pos, sc) = score_all(&prep, &s, hz, &st, &out2, (20, 0));
         let natural = pos.iter().position(|&p| p == (30, 10)).unwrap();
         assert!((sc[natural] - 2.0).abs() < 1e-9, "{}", sc[natural]);
+    }
+
+    #[test]
+    fn pruned_choice_equals_scoring_every_candidate() {
+        // The bound-pruned choice against the exhaustive one: same pick, set size and F_max, bit
+        // for bit, with hints that are natural continuations (so θ is high and most candidates
+        // are pruned), with misleading hints and with none, across settings.
+        let sample = structured();
+        let planes = HsiPlanes::of(&sample);
+        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
+        let prep = Prepared::new(&sample, planes, edges);
+        let mut out = Canvas::new(60, 60, (96, 96), false);
+        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
+        out.paste(&prep, (30, 5), (20, 0), 4, 0, 24);
+        out.paste(&prep, (10, 25), (0, 20), 0, 4, 24);
+        let base = Settings {
+            block: 24,
+            g: 4,
+            a: -1,
+            weights: [0.25, 0.25, 0.5],
+            mu: 2.0,
+            tau: 1.6,
+            eps: 0.05,
+            circular: false,
+            clamp: false,
+            level_penalty: 0.0,
+        };
+        let variants = [
+            Settings { ..base },
+            Settings { clamp: true, ..base },
+            Settings { level_penalty: 10.0, ..base },
+            Settings { mu: 0.0, ..base },
+            Settings { tau: 1.1, eps: 0.3, ..base },
+            Settings { a: 1, mu: 5.0, ..base },
+        ];
+        for s in &variants {
+            for (case, origin, natural) in
+                [(Case::Horizontal, (20, 0), (30, 5)), (Case::L, (20, 20), (30, 25)), (Case::Vertical, (0, 20), (10, 25))]
+            {
+                let ls = lines(case, s.block, s.g, s.a);
+                let stats = [candidate_stats(&prep, s, case, &ls[0]), candidate_stats(&prep, s, case, &ls[1])];
+                let (positions, scores) = score_all(&prep, s, case, &stats, &out, origin);
+                for seed in [1u64, 2, 3] {
+                    let want = pick(s, &positions, &scores, seed, 1, 1).unwrap();
+                    for hints in [vec![natural], vec![(3, 60), natural], vec![(50, 50)], vec![]] {
+                        let got = choose(&prep, s, &ls, admissible(&prep, s, case), &stats, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                        assert_eq!(got.0, want.0, "{case:?} {s:?} {hints:?}");
+                        assert_eq!(got.1, want.1);
+                        assert_eq!(got.2.to_bits(), want.2.to_bits());
+                    }
+                }
+            }
+        }
     }
 
     #[test]
