@@ -76,6 +76,12 @@ pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
     Ok(LoadedSample { image, native: (!plain).then_some(native), file_digest: Digest::of_bytes(&bytes), pixel_digest })
 }
 
+/// Whether a job renders from its method's placement: its sample is not 8-bit RGB, it has
+/// companions, or it writes a source map. The plan's memory estimate and execution both ask.
+pub fn needs_placement(sample: &LoadedSample, companions: usize, output: &OutputSpec) -> bool {
+    sample.native.is_some() || companions > 0 || output.source_map.is_some()
+}
+
 /// Everything a job's execution reads: the method and its inputs, resolved.
 pub struct JobInputs<'a> {
     pub method: &'a dyn Method,
@@ -91,7 +97,7 @@ impl JobInputs<'_> {
     /// Whether the output is more than the method's own 8-bit image: rendered from a sample
     /// that is not 8-bit RGB, with companions, or with a source map. Then the placement is asked for.
     pub fn needs_placement(&self) -> bool {
-        self.sample.native.is_some() || !self.companions.is_empty() || self.output.source_map.is_some()
+        needs_placement(self.sample, self.companions.len(), self.output)
     }
 
     fn request(&self) -> Request<'_> {

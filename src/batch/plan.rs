@@ -178,7 +178,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
-        let needs_placement = sample.native.is_some() || !job.companions.is_empty() || job.output.source_map.is_some();
+        let needs_placement = crate::batch::execute::needs_placement(&sample, job.companions.len(), &job.output);
         let materials =
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =

@@ -199,10 +199,9 @@ fn companion_spec(v: &serde_json::Value, sample: &Path) -> Result<Companion, Str
         "exr" => crate::image::io::Format::Exr,
         other => return Err(format!("companion format {other:?} is not png or exr")),
     };
-    let kind = match text("kind")? {
-        "normal" => crate::synth::placement::MapKind::Normal,
-        _ => crate::synth::placement::MapKind::Color,
-    };
+    let kind = text("kind")?;
+    let kind =
+        crate::synth::placement::MapKind::from_name(kind).ok_or_else(|| format!("companion kind {kind:?} is not color or normal"))?;
     let bit_depth = v.get("bit_depth").and_then(|x| x.as_u64()).ok_or("output_spec.companions[].bit_depth is missing")? as u8;
     Ok(Companion { sample: sample.to_path_buf(), path: text("path")?.to_string(), format, bit_depth, native_depth: false, kind })
 }

@@ -31,11 +31,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<Outcome, Error> {
-    let kind = match args.kind.as_str() {
-        "color" => MapKind::Color,
-        "normal" => MapKind::Normal,
-        other => return Err(Error::Usage(format!("--kind {other:?}: use color or normal"))),
-    };
+    let kind = MapKind::from_name(&args.kind).ok_or_else(|| Error::Usage(format!("--kind {:?}: use color or normal", args.kind)))?;
     let format = Format::from_path(&args.output)
         .ok_or_else(|| Error::Usage(format!("{}: the output must end in .png or .exr", args.output.display())))?;
     let bytes = std::fs::read(&args.map).map_err(|e| Error::io(&args.map, "read", e))?;

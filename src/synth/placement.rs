@@ -56,6 +56,20 @@ pub enum MapKind {
     Normal,
 }
 
+impl MapKind {
+    /// The name job files and `texsyn apply --kind` use.
+    pub fn name(self) -> &'static str {
+        match self {
+            MapKind::Color => "color",
+            MapKind::Normal => "normal",
+        }
+    }
+    /// The kind called `name`, if any.
+    pub fn from_name(name: &str) -> Option<MapKind> {
+        [MapKind::Color, MapKind::Normal].into_iter().find(|k| k.name() == name)
+    }
+}
+
 /// For each pixel of a `width × height` output, the sample pixels it is made of.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Placement {

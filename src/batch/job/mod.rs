@@ -101,10 +101,7 @@ impl Companion {
         crate::image::io::Encoding { format: self.format, bit_depth: self.bit_depth }
     }
     pub fn kind_name(&self) -> &'static str {
-        match self.kind {
-            crate::synth::placement::MapKind::Color => "color",
-            crate::synth::placement::MapKind::Normal => "normal",
-        }
+        self.kind.name()
     }
 }
 

@@ -358,13 +358,14 @@ fn read_companions(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
                     ),
                 },
                 "kind" => match v.get_ref() {
-                    DeValue::String(s) if s.as_ref() as &str == "color" => c.kind = MapKind::Color,
-                    DeValue::String(s) if s.as_ref() as &str == "normal" => c.kind = MapKind::Normal,
-                    DeValue::String(s) => ctx.err(
-                        Some(v.span()),
-                        Some(&key),
-                        format!("unknown kind `{s}`; use \"color\" (blended as is) or \"normal\" (blended normals are renormalised)"),
-                    ),
+                    DeValue::String(s) => match MapKind::from_name(s) {
+                        Some(kind) => c.kind = kind,
+                        None => ctx.err(
+                            Some(v.span()),
+                            Some(&key),
+                            format!("unknown kind `{s}`; use \"color\" (blended as is) or \"normal\" (blended normals are renormalised)"),
+                        ),
+                    },
                     other => ctx.err(Some(v.span()), Some(&key), format!("expected \"color\" or \"normal\", found {}", type_name(other))),
                 },
                 "bit_depth" => match de_int(v.get_ref()) {

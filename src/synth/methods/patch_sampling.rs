@@ -808,11 +808,7 @@ impl Method for PatchSampling {
 
 /// The torus a tileable output is made on, or why there is none.
 fn torus_of(cfg: &PatchSamplingConfig, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
-    let smaller = sample.0.min(sample.1);
-    if cfg.block > smaller {
-        return Err(format!("block {} does not fit in the {}x{} sample; use at most {smaller}", cfg.block, sample.0, sample.1));
-    }
-    TorusGrid::new("patch sampling", cfg.block, cfg.overlap_or_derived(), output.0, output.1, smaller)
+    TorusGrid::of_blocks("patch sampling", cfg.block, cfg.overlap_or_derived(), sample, output)
 }
 
 /// `SSD(sample block at (x, y), output block, Ω)` (eq. 7).

@@ -8,6 +8,7 @@
 //! last row and column of blocks are cropped.
 
 use super::Engine;
+use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
@@ -202,17 +203,12 @@ impl Method for Quilting {
             for bj in 0..layout.cols {
                 let (ox, oy) = layout.origin(bi, bj);
                 let (sx, sy) = if bi == 0 && bj == 0 {
-                    let mut s = Stream::new(req.seed, "quilt/first");
-                    let x = s.below((sample.width() - block + 1) as u64) as u32;
-                    let y = s.below((sample.height() - block + 1) as u64) as u32;
-                    (x, y)
+                    first_block(req.seed, sample, block)
                 } else {
                     let regions = layout.overlap_regions(bi, bj);
                     let c = cfg.search.candidates(&mut search, &canvas.image, (ox, oy), &regions, tolerance);
                     candidate_counts.push(c.members.len());
-                    let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
-                    let pick = c.members[s.below_usize(c.members.len())];
-                    (pick.0, pick.1)
+                    pick(req.seed, bi, bj, &c.members)
                 };
                 paste_block(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, rule);
             }
@@ -234,13 +230,24 @@ impl Method for Quilting {
     }
 }
 
+/// The first block's sample position, drawn uniformly (stream `quilt/first`).
+fn first_block(seed: u64, sample: &RgbImage, block: u32) -> (u32, u32) {
+    let mut s = Stream::new(seed, "quilt/first");
+    let x = s.below((sample.width() - block + 1) as u64) as u32;
+    let y = s.below((sample.height() - block + 1) as u64) as u32;
+    (x, y)
+}
+
+/// Block `(bi, bj)`'s pick among its tolerance set (stream `quilt/pick/bi=…/bj=…`).
+fn pick(seed: u64, bi: u32, bj: u32, members: &[(u32, u32, u64)]) -> (u32, u32) {
+    let mut s = Stream::new(seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
+    let p = members[s.below_usize(members.len())];
+    (p.0, p.1)
+}
+
 /// The torus a tileable output is made on, or why there is none.
 fn torus_of(cfg: &QuiltingConfig, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
-    let smaller = sample.0.min(sample.1);
-    if cfg.block > smaller {
-        return Err(format!("block {} does not fit in the {}x{} sample; use at most {smaller}", cfg.block, sample.0, sample.1));
-    }
-    TorusGrid::new("quilting", cfg.block, cfg.overlap_or_derived(), output.0, output.1, smaller)
+    TorusGrid::of_blocks("quilting", cfg.block, cfg.overlap_or_derived(), sample, output)
 }
 
 impl Quilting {
@@ -259,17 +266,12 @@ impl Quilting {
         for (bi, bj) in torus.raster() {
             let sides = torus.sides(&done, bi, bj);
             let (sx, sy) = if bi == 0 && bj == 0 {
-                let mut s = Stream::new(req.seed, "quilt/first");
-                let x = s.below((sample.width() - block + 1) as u64) as u32;
-                let y = s.below((sample.height() - block + 1) as u64) as u32;
-                (x, y)
+                first_block(req.seed, sample, block)
             } else {
                 let window = torus.window(&canvas.image, bi, bj);
                 let c = cfg.search.candidates(&mut search, &window, (0, 0), &torus.regions(sides), cfg.tolerance);
                 candidate_counts.push(c.members.len());
-                let mut s = Stream::new(req.seed, &format!("quilt/pick/bi={bi}/bj={bj}"));
-                let pick = c.members[s.below_usize(c.members.len())];
-                (pick.0, pick.1)
+                pick(req.seed, bi, bj, &c.members)
             };
             torus.paste(&mut canvas, sample, (sx, sy), bi, bj, sides, rule);
             done[torus.index(bi, bj)] = true;
@@ -287,7 +289,6 @@ impl Quilting {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::RgbImage;
     use crate::synth::params::resolve;
 
     fn params(given: &[(&str, ParamValue)]) -> Params {

@@ -50,6 +50,16 @@ fn nearest(len: u32, stride: u32) -> (Option<u32>, u32) {
 }
 
 impl TorusGrid {
+    /// The torus of a method that copies whole `block × block` patches of the sample (quilting,
+    /// patch sampling): [`TorusGrid::new`] once the block fits in the sample.
+    pub fn of_blocks(what: &str, block: u32, overlap: u32, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
+        let smaller = sample.0.min(sample.1);
+        if block > smaller {
+            return Err(format!("block {block} does not fit in the {}x{} sample; use at most {smaller}", sample.0, sample.1));
+        }
+        TorusGrid::new(what, block, overlap, output.0, output.1, smaller)
+    }
+
     /// The torus for a `width × height` output, or one sentence for the user saying why it cannot
     /// wrap and what would (`what` names the method; `max_block` is the largest block the sample
     /// allows, for suggesting another block size that fits the requested size).
