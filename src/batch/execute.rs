@@ -31,6 +31,9 @@ pub struct LoadedSample {
     /// Digest of the stored pixels ([`NativeImage::pixel_digest`]; for an 8-bit RGB sample the
     /// same as of `image`).
     pub pixel_digest: Digest,
+    /// The sample's half of the metrics, computed by the first job that scores against it and
+    /// shared by the others.
+    pub metrics: crate::metrics::SampleReference,
 }
 
 impl LoadedSample {
@@ -73,7 +76,13 @@ pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
     let image = imageio::native_to_rgb8(&native);
     let plain = native.channels == 3 && matches!(native.samples, Samples::U8(_));
     let pixel_digest = native.pixel_digest();
-    Ok(LoadedSample { image, native: (!plain).then_some(native), file_digest: Digest::of_bytes(&bytes), pixel_digest })
+    Ok(LoadedSample {
+        image,
+        native: (!plain).then_some(native),
+        file_digest: Digest::of_bytes(&bytes),
+        pixel_digest,
+        metrics: crate::metrics::SampleReference::new(crate::metrics::MetricParams::default()),
+    })
 }
 
 /// Whether a job renders from its method's placement: its sample is not 8-bit RGB, it has
@@ -340,8 +349,9 @@ pub fn execute(inputs: &JobInputs, metric_names: &[String], out: &OutDir) -> Res
         None
     } else {
         let names: Vec<&str> = metric_names.iter().map(String::as_str).collect();
-        let sample = &inputs.sample.image;
-        Some(crate::metrics::evaluate(&names, sample, &synthesis.image, synthesis.seams.as_ref()).map_err(JobFailure::Metrics)?)
+        let sample = inputs.sample;
+        let scored = crate::metrics::evaluate_against(&names, &sample.image, &sample.metrics, &synthesis.image, synthesis.seams.as_ref());
+        Some(scored.map_err(JobFailure::Metrics)?)
     };
     let metrics_seconds = metrics_started.elapsed().as_secs_f64();
     let mut written = Vec::new();

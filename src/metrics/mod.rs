@@ -25,6 +25,7 @@ pub mod verbatim;
 
 use std::cell::OnceCell;
 use std::collections::BTreeMap;
+use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 
@@ -35,7 +36,7 @@ pub use acf::{Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, 
 pub use histogram::{KL_EPSILON, gray_counts, gray_level, kl_divergence, kl_divergence_eps, normalise};
 pub use orientation::{StructureTensor, orientation_bin, orientation_counts, structure_tensor};
 pub use seams::{seam_visibility, wrap_visibility};
-pub use verbatim::{verbatim, verbatim_fraction};
+pub use verbatim::{SampleWindows, verbatim, verbatim_fraction};
 
 /// Every metric name [`evaluate`] accepts, in report order.
 pub const METRIC_NAMES: &[&str] = &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
@@ -259,20 +260,83 @@ pub fn evaluate_with(
     grid: Option<&SeamGrid>,
     params: &MetricParams,
 ) -> Result<BTreeMap<String, Option<f64>>, MetricError> {
+    evaluate_against(names, sample, &SampleReference::new(params.clone()), output, grid)
+}
+
+/// The sample's half of the metrics (its histograms, autocorrelations and verbatim windows),
+/// each computed the first time a metric asks for it and then kept. A batch keeps one per
+/// sample, so the hundred jobs made from one sample analyse it once instead of a hundred times;
+/// the values are the ones a fresh evaluation computes, bit for bit.
+pub struct SampleReference {
+    params: MetricParams,
+    gray_histogram: OnceLock<Vec<f64>>,
+    gray_acf: OnceLock<Option<Acf<f64>>>,
+    /// The orientation histogram and ACF, made together from one structure tensor that is then
+    /// dropped (it is a dozen times the sample's size).
+    orientation: OnceLock<(Vec<f64>, Option<Acf<f64>>)>,
+    windows: OnceLock<SampleWindows>,
+}
+
+impl SampleReference {
+    /// An empty reference for metrics with `params` (checked when it is used).
+    pub fn new(params: MetricParams) -> SampleReference {
+        SampleReference {
+            params,
+            gray_histogram: OnceLock::new(),
+            gray_acf: OnceLock::new(),
+            orientation: OnceLock::new(),
+            windows: OnceLock::new(),
+        }
+    }
+
+    fn gray_histogram(&self, sample: &RgbImage) -> &[f64] {
+        self.gray_histogram.get_or_init(|| gray_histogram(sample))
+    }
+    fn gray_acf(&self, sample: &RgbImage) -> Option<&Acf<f64>> {
+        self.gray_acf.get_or_init(|| gray_acf(sample, &self.params)).as_ref()
+    }
+    fn orientation(&self, sample: &RgbImage) -> &(Vec<f64>, Option<Acf<f64>>) {
+        self.orientation.get_or_init(|| {
+            let a = Analysis::new(sample, &self.params);
+            (a.orientation_histogram(), a.orientation_acf())
+        })
+    }
+    fn windows(&self, sample: &RgbImage) -> &SampleWindows {
+        self.windows.get_or_init(|| SampleWindows::new(sample, self.params.verbatim_window))
+    }
+}
+
+/// [`evaluate_with`] against a [`SampleReference`] of `sample` (with its parameters): `sample`
+/// must be the image every earlier use of `reference` passed.
+pub fn evaluate_against(
+    names: &[&str],
+    sample: &RgbImage,
+    reference: &SampleReference,
+    output: &RgbImage,
+    grid: Option<&SeamGrid>,
+) -> Result<BTreeMap<String, Option<f64>>, MetricError> {
     if let Some(bad) = names.iter().find(|n| !METRIC_NAMES.contains(n)) {
         return Err(MetricError::Unknown(bad.to_string()));
     }
+    let params = &reference.params;
     params.validate()?;
-    let p = Analysis::new(sample, params);
     let q = Analysis::new(output, params);
     let mut out = BTreeMap::new();
     for &name in names {
         let value = match name {
-            "kl_gray" => kl_gray_impl(&p, &q),
-            "kl_orientation" => kl_orientation_impl(&p, &q),
-            "acf_gray" => acf_gray_impl(&p, &q),
-            "acf_orientation" => acf_orientation_impl(&p, &q),
-            "verbatim" => verbatim_fraction(sample, output, params.verbatim_window),
+            "kl_gray" => defined(kl_divergence_eps(reference.gray_histogram(sample), &gray_histogram(output), params.epsilon)),
+            "kl_orientation" => defined(kl_divergence_eps(&reference.orientation(sample).0, &q.orientation_histogram(), params.epsilon)),
+            "acf_gray" => reference
+                .gray_acf(sample)
+                .zip(gray_acf(output, params))
+                .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
+            "acf_orientation" => reference
+                .orientation(sample)
+                .1
+                .as_ref()
+                .zip(q.orientation_acf())
+                .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
+            "verbatim" => reference.windows(sample).fraction(sample, output),
             "seam_visibility" => grid.and_then(|g| seam_visibility(output, g)),
             _ => unreachable!("names were checked above"),
         };

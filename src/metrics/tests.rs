@@ -252,3 +252,40 @@ fn degenerate_sizes_do_not_panic() {
     let m = evaluate(&["kl_gray", "kl_gray"], &tex, &tex, None).unwrap();
     assert_eq!(m.len(), 1);
 }
+
+#[test]
+fn a_reference_reused_across_outputs_gives_what_the_standalone_metrics_give() {
+    let sample = texture(64, 48, 3);
+    // Outputs that share windows with the sample (a crop), and ones that do not; one is constant
+    // (undefined gray ACF), one is too small for the verbatim window.
+    let crop = RgbImage::from_fn(40, 30, |x, y| sample.get(x + 5, y + 7));
+    let flat = gray_image(50, 50, |_, _| 90);
+    let outputs = [texture(80, 80, 4), crop, flat, noise(70, 60, 9), noise(5, 5, 1)];
+    let standalone: [(&str, fn(&RgbImage, &RgbImage) -> Option<f64>); 5] = [
+        ("kl_gray", kl_gray),
+        ("kl_orientation", kl_orientation),
+        ("acf_gray", acf_gray),
+        ("acf_orientation", acf_orientation),
+        ("verbatim", verbatim),
+    ];
+    let reference = SampleReference::new(MetricParams::default());
+    // Twice over the outputs, asking for the metrics in different orders, so later jobs read what
+    // earlier ones left in the reference.
+    for round in 0..2 {
+        for (i, out) in outputs.iter().enumerate() {
+            let mut names: Vec<&str> = standalone.iter().map(|s| s.0).collect();
+            if (round + i) % 2 == 1 {
+                names.reverse();
+            }
+            let got = evaluate_against(&names, &sample, &reference, out, None).unwrap();
+            for (name, f) in standalone {
+                assert_eq!(got[name].map(f64::to_bits), f(&sample, out).map(f64::to_bits), "{name}, output {i}, round {round}");
+            }
+        }
+    }
+    assert!(got_none_for_unknown(&reference, &sample));
+}
+
+fn got_none_for_unknown(reference: &SampleReference, sample: &RgbImage) -> bool {
+    evaluate_against(&["nope"], sample, reference, sample, None).is_err()
+}

@@ -81,46 +81,80 @@ pub fn verbatim_fraction(sample: &RgbImage, output: &RgbImage, k: usize) -> Opti
 
 /// [`verbatim_fraction`] with the window hashes reduced to `hash_mask` (tests force collisions).
 fn verbatim_fraction_masked(sample: &RgbImage, output: &RgbImage, k: usize, hash_mask: u64) -> Option<f64> {
-    assert!(k > 0, "window side must be positive");
-    let (ow, oh) = (output.width() as usize, output.height() as usize);
-    if ow < k || oh < k {
-        return None;
-    }
-    let (onx, ony) = (ow + 1 - k, oh + 1 - k);
-    let total = (onx * ony) as u64;
-    let (sw, sh) = (sample.width() as usize, sample.height() as usize);
-    if sw < k || sh < k {
-        return Some(0.0);
-    }
-    let (snx, sny) = (sw + 1 - k, sh + 1 - k);
+    SampleWindows::build(sample, k, hash_mask).fraction(sample, output)
+}
 
-    let srows = row_hashes(sample, k);
-    let mut table: Vec<(u64, u32, u32)> = Vec::with_capacity(snx * sny);
-    for y in 0..sny {
-        for x in 0..snx {
-            table.push((window_hash(&srows, snx, x, y, k) & hash_mask, x as u32, y as u32));
-        }
-    }
-    table.sort_unstable();
+/// Every `k × k` window of a sample, hashed and sorted: the sample's half of the verbatim metric.
+/// A batch builds it once per sample and asks it about each output made from that sample.
+pub struct SampleWindows {
+    k: usize,
+    hash_mask: u64,
+    /// `(hash, x, y)` of every window, sorted; empty when the sample is smaller than a window.
+    table: Vec<(u64, u32, u32)>,
+}
 
-    let orows = row_hashes(output, k);
-    let matches: u64 = (0..ony)
-        .into_par_iter()
-        .map(|y| {
-            let mut n = 0u64;
-            for x in 0..onx {
-                let hsh = window_hash(&orows, onx, x, y, k) & hash_mask;
-                let start = table.partition_point(|e| e.0 < hsh);
-                let found = table[start..]
-                    .iter()
-                    .take_while(|e| e.0 == hsh)
-                    .any(|e| windows_equal(output, x, y, sample, e.1 as usize, e.2 as usize, k));
-                n += found as u64;
+impl SampleWindows {
+    /// Hashes every window of `sample`. Panics if `k = 0`.
+    pub fn new(sample: &RgbImage, k: usize) -> SampleWindows {
+        SampleWindows::build(sample, k, u64::MAX)
+    }
+
+    fn build(sample: &RgbImage, k: usize, hash_mask: u64) -> SampleWindows {
+        assert!(k > 0, "window side must be positive");
+        let (sw, sh) = (sample.width() as usize, sample.height() as usize);
+        let mut table = Vec::new();
+        if sw >= k && sh >= k {
+            let (snx, sny) = (sw + 1 - k, sh + 1 - k);
+            let srows = row_hashes(sample, k);
+            table.reserve_exact(snx * sny);
+            for y in 0..sny {
+                for x in 0..snx {
+                    table.push((window_hash(&srows, snx, x, y, k) & hash_mask, x as u32, y as u32));
+                }
             }
-            n
-        })
-        .sum();
-    Some(matches as f64 / total as f64)
+            table.sort_unstable();
+        }
+        SampleWindows { k, hash_mask, table }
+    }
+
+    /// The window side.
+    pub fn window(&self) -> usize {
+        self.k
+    }
+
+    /// [`verbatim_fraction`] of `output` against `sample`, which must be the image these windows
+    /// were built from.
+    pub fn fraction(&self, sample: &RgbImage, output: &RgbImage) -> Option<f64> {
+        let k = self.k;
+        let (ow, oh) = (output.width() as usize, output.height() as usize);
+        if ow < k || oh < k {
+            return None;
+        }
+        let (onx, ony) = (ow + 1 - k, oh + 1 - k);
+        let total = (onx * ony) as u64;
+        if self.table.is_empty() {
+            return Some(0.0);
+        }
+        let table = &self.table;
+        let orows = row_hashes(output, k);
+        let matches: u64 = (0..ony)
+            .into_par_iter()
+            .map(|y| {
+                let mut n = 0u64;
+                for x in 0..onx {
+                    let hsh = window_hash(&orows, onx, x, y, k) & self.hash_mask;
+                    let start = table.partition_point(|e| e.0 < hsh);
+                    let found = table[start..]
+                        .iter()
+                        .take_while(|e| e.0 == hsh)
+                        .any(|e| windows_equal(output, x, y, sample, e.1 as usize, e.2 as usize, k));
+                    n += found as u64;
+                }
+                n
+            })
+            .sum();
+        Some(matches as f64 / total as f64)
+    }
 }
 
 /// [`verbatim_fraction`] with the 7 × 7 neighbourhood.
