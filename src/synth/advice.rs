@@ -74,9 +74,18 @@ impl Analysis {
     /// The length of the shorter lattice vector, in pixels.
     pub fn shortest_vector(&self) -> Option<f64> {
         let l = self.lattice.as_ref()?;
-        let len = |v: (i64, i64)| ((v.0 * v.0 + v.1 * v.1) as f64).sqrt();
-        Some(len(l.t1).min(len(l.t2)))
+        Some(vector_length(l.t1).min(vector_length(l.t2)))
     }
+
+    /// The length of the longer lattice vector, in pixels.
+    pub fn longest_vector(&self) -> Option<f64> {
+        let l = self.lattice.as_ref()?;
+        Some(vector_length(l.t1).max(vector_length(l.t2)))
+    }
+}
+
+fn vector_length(v: (i64, i64)) -> f64 {
+    ((v.0 * v.0 + v.1 * v.1) as f64).sqrt()
 }
 
 /// How far local orientations agree with themselves 8 to 16 pixels away: the largest value of
@@ -223,6 +232,21 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 set.push(("blend".to_string(), "cut".to_string()));
                 why.push("feathering blends misaligned edges of a structured sample into ghosts".into());
             }
+            // Quilting's exhaustive overlap search finds in-phase continuations with any block;
+            // double-seam (which judges a block by two seam lines) and patch sampling (a swarm
+            // search, then a feathered zone) keep whole texels only when a block holds one.
+            if let (true, Some(block), Some(texel)) = (method != "quilting", int(p, "block"), a.longest_vector()) {
+                let shortest = a.shortest_vector().unwrap_or(texel);
+                let room = i64::from(a.width.min(a.height)) / 2;
+                let wanted = ((texel.ceil() as i64 + 1) / 2 * 2).min(room);
+                if (block as f64) < shortest && wanted > block {
+                    set.push(("block".to_string(), wanted.to_string()));
+                    why.push(format!(
+                        "blocks of {block} px are smaller than the sample's texel (lattice vectors of {shortest:.0} and {texel:.0} px), \
+                         so they join pieces of texels out of phase"
+                    ));
+                }
+            }
             if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
         }
         "coevolution" | "tes" => {
@@ -360,6 +384,14 @@ mod tests {
         assert_eq!(warning(&a, "quilting", &params(&[("block", ParamValue::Int(12))])), None);
         let w = warning(&a, "patch-sampling", &params(&[("blend", ParamValue::Str("feather".into()))])).expect("feathering warns");
         assert!(w.contains("blend = \"cut\""), "{w}");
+        // Blocks smaller than the texel (lattice vectors (8, ±8)): the methods that cannot
+        // search their way back into phase are told a block that holds one.
+        let w = warning(&a, "double-seam", &params(&[("block", ParamValue::Int(8))])).expect("small blocks warn");
+        assert!(w.contains("set block = 12"), "{w}");
+        assert_eq!(warning(&a, "double-seam", &params(&[("block", ParamValue::Int(12))])), None);
+        let w = warning(&a, "patch-sampling", &params(&[("block", ParamValue::Int(6)), ("blend", ParamValue::Str("cut".into()))]))
+            .expect("small patches warn");
+        assert!(w.contains("set block = 12"), "{w}");
     }
 
     #[test]
