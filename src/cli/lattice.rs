@@ -48,6 +48,9 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
             l.explained,
             l.candidates
         ));
+        if let Some(view) = l.found_in {
+            say(format!("found in the sample's {view} (its plain gray shows no lattice)"));
+        }
     }
     Ok(Outcome::Success)
 }

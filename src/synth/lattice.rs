@@ -5,6 +5,12 @@
 //! the autocorrelation of the gray plane: its dominant peaks, reduced to a short basis and checked
 //! for reliability, so a stochastic sample fails loudly ("no lattice found; give t1/t2") instead of
 //! producing a meaningless lattice. Everything is integer offsets of the ACF grid, as in the paper.
+//!
+//! Real walls and floors often hide their lattice in the gray plane itself: strong grain or
+//! painted detail inside each brick, or shading across the sample, outweighs the joints in the
+//! autocorrelation. When the gray plane yields no lattice, two views that keep the joints and drop
+//! the rest are tried in turn (a band-passed gray, then the edge strength), under a stricter
+//! test. A sample the gray plane already explains never reaches them, so its lattice is unchanged.
 
 use crate::image::RgbImage;
 use crate::metrics::{AcfForm, autocorrelation, centred_gray};
@@ -79,6 +85,10 @@ pub struct Lattice {
     /// Dominant peaks considered, and how many of them the lattice explains.
     pub candidates: usize,
     pub explained: usize,
+    /// The view of the sample the lattice was read from when the gray plane gave none
+    /// ([`FallbackView::name`]); absent (and not serialised) for the gray plane itself.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub found_in: Option<&'static str>,
 }
 
 impl Lattice {
@@ -98,16 +108,146 @@ fn len(a: (i64, i64)) -> f64 {
     (dot(a, a) as f64).sqrt()
 }
 
+const NONE: &str = "no lattice found; give t1/t2";
+
+/// A view of the sample that keeps the joints between texels and suppresses what hides them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FallbackView {
+    /// The gray plane smoothed over about a pixel (grain) minus its smoothing over about
+    /// sixteen (shading across the sample): what remains is the texel-scale pattern.
+    BandPassed,
+    /// The gradient magnitude of the lightly smoothed gray plane: joints drawn as dark lines,
+    /// as embossed edges or as colour changes between bricks all become the same bright lines,
+    /// so bricks of varied colour no longer decorrelate the pattern.
+    EdgeStrength,
+}
+
+impl FallbackView {
+    /// Tried in this order when the gray plane yields no lattice.
+    pub const ALL: [FallbackView; 2] = [FallbackView::BandPassed, FallbackView::EdgeStrength];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            FallbackView::BandPassed => "band-passed gray",
+            FallbackView::EdgeStrength => "edge strength",
+        }
+    }
+
+    /// The view of the centred gray `plane` (`w × h`), itself centred.
+    pub fn of(self, plane: &[f64], w: usize, h: usize) -> Vec<f64> {
+        // Radius 1 (three passes, σ ≈ 1.4 px) removes pixel grain but not a 2-pixel joint;
+        // radius 16 (σ ≈ 16 px) is below the shortest texel this matters for, so subtracting it
+        // removes shading without flattening the texels themselves.
+        const GRAIN_RADIUS: usize = 1;
+        const SHADING_RADIUS: usize = 16;
+        let fine = smooth(plane, w, h, GRAIN_RADIUS);
+        let view: Vec<f64> = match self {
+            FallbackView::BandPassed => {
+                let coarse = smooth(plane, w, h, SHADING_RADIUS);
+                fine.iter().zip(&coarse).map(|(f, c)| f - c).collect()
+            }
+            FallbackView::EdgeStrength => {
+                let at = |x: usize, y: usize| fine[y * w + x];
+                let mut out = Vec::with_capacity(w * h);
+                for y in 0..h {
+                    for x in 0..w {
+                        let gx = (at((x + 1).min(w - 1), y) - at(x.saturating_sub(1), y)) / 2.0;
+                        let gy = (at(x, (y + 1).min(h - 1)) - at(x, y.saturating_sub(1))) / 2.0;
+                        out.push((gx * gx + gy * gy).sqrt());
+                    }
+                }
+                out
+            }
+        };
+        let mean = view.iter().sum::<f64>() / view.len() as f64;
+        view.into_iter().map(|v| v - mean).collect()
+    }
+}
+
+/// Three passes of a `(2·radius + 1)`-pixel box mean along rows, then along columns, with the
+/// border pixels repeated: close to a Gaussian, and as cheap for a wide radius as a narrow one.
+fn smooth(plane: &[f64], w: usize, h: usize, radius: usize) -> Vec<f64> {
+    let mut out = plane.to_vec();
+    let mut line = Vec::new();
+    for _ in 0..3 {
+        for y in 0..h {
+            line.clear();
+            line.extend((0..w).map(|x| out[y * w + x]));
+            box_mean(&line, radius, |x, v| out[y * w + x] = v);
+        }
+        for x in 0..w {
+            line.clear();
+            line.extend((0..h).map(|y| out[y * w + x]));
+            box_mean(&line, radius, |y, v| out[y * w + x] = v);
+        }
+    }
+    out
+}
+
+/// The running mean of `line` over `i − radius ..= i + radius` (indices clamped to the line),
+/// handed to `put(i, mean)` in order.
+fn box_mean(line: &[f64], radius: usize, mut put: impl FnMut(usize, f64)) {
+    let n = line.len() as i64;
+    let r = radius as i64;
+    let at = |i: i64| line[i.clamp(0, n - 1) as usize];
+    let mut sum: f64 = (-r..=r).map(at).sum();
+    let width = (2 * r + 1) as f64;
+    for i in 0..n {
+        put(i as usize, sum / width);
+        sum += at(i + r + 1) - at(i - r);
+    }
+}
+
 /// Finds `t1, t2`; `Err` explains why the sample is not near-regular enough.
+///
+/// The gray plane is tried first, and its reason is the one reported when every view fails. The
+/// fallback views (see the module comment) lower the bar for a weak pattern, so they must also
+/// show it at least three times across the sample: both vectors at most a third of its smaller
+/// side. A single feature (a window, two big tiles filling the sample) then cannot pass for a
+/// lattice.
 pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthError> {
-    const NONE: &str = "no lattice found; give t1/t2";
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w < 8 || h < 8 {
         return Err(SynthError::Sample(format!("{NONE} (the sample is too small to show a period)")));
     }
     let plane = centred_gray(img);
+    let by_distance = offsets_by_distance(w, h);
+    let gray_reason = match extract_from(&plane, w, h, opts, &by_distance, None) {
+        Ok(l) => return Ok(l),
+        Err(e) => e,
+    };
+    let longest = w.min(h) as f64 / 3.0;
+    for view in FallbackView::ALL {
+        let viewed = view.of(&plane, w, h);
+        if let Ok(l) = extract_from(&viewed, w, h, opts, &by_distance, Some(longest)) {
+            return Ok(Lattice { found_in: Some(view.name()), ..l });
+        }
+    }
+    Err(gray_reason)
+}
+
+/// Every offset that can separate two points of the ACF window of a `w × h` plane, as
+/// `(squared length, dx, dy)`, nearest first (ties in a fixed order).
+fn offsets_by_distance(w: usize, h: usize) -> Vec<(i64, i64, i64)> {
+    let (rx, ry) = ((w / 2) as i64, (h / 2) as i64);
+    let mut by_distance: Vec<(i64, i64, i64)> =
+        (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
+    by_distance.sort_unstable();
+    by_distance
+}
+
+/// Steps 3–9 on one centred plane (`w × h`); `by_distance` is [`offsets_by_distance`] (sorted
+/// once for all the views), `longest` bounds both vectors' lengths.
+fn extract_from(
+    plane: &[f64],
+    w: usize,
+    h: usize,
+    opts: &LatticeOptions,
+    by_distance: &[(i64, i64, i64)],
+    longest: Option<f64>,
+) -> Result<Lattice, SynthError> {
     let (rx, ry) = (w / 2, h / 2);
-    let acf = autocorrelation(&plane, w, h, rx, ry, AcfForm::Biased)
+    let acf = autocorrelation(plane, w, h, rx, ry, AcfForm::Biased)
         .map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
     let (rx, ry) = (rx as i64, ry as i64);
     let a = |dx: i64, dy: i64| acf.get(dx, dy);
@@ -146,9 +286,6 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
     // first, so the first higher value found is the nearest: a noisy sample has thousands of
     // peaks, each with a higher neighbour a few pixels away, and scanning the whole window for
     // every one of them made extraction take most of a second.
-    let mut by_distance: Vec<(i64, i64, i64)> =
-        (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
-    by_distance.sort_unstable();
     let mut ranked: Vec<((i64, i64), f64, f64)> = peaks
         .iter()
         .map(|&(dx, dy)| {
@@ -227,8 +364,16 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
             c.len()
         )));
     }
+    if let Some(longest) = longest
+        && len(t1).max(len(t2)) > longest
+    {
+        return Err(SynthError::Sample(format!(
+            "{NONE} (the lattice ({}, {}), ({}, {}) repeats fewer than three times across the sample)",
+            t1.0, t1.1, t2.0, t2.1
+        )));
+    }
     let (t1, t2) = canonical(t1, t2);
-    Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained })
+    Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained, found_in: None })
 }
 
 /// Step 9: `t1` the more horizontal vector, pointing right (or down), `cross(t1, t2) > 0`.
@@ -335,6 +480,43 @@ mod tests {
         assert!(extract(&noise, &LatticeOptions::default()).unwrap_err().to_string().contains("no lattice found; give t1/t2"));
         let flat = RgbImage::from_fn(64, 64, |_, _| [9, 9, 9]);
         assert!(extract(&flat, &LatticeOptions::default()).unwrap_err().to_string().contains("no lattice found"));
+    }
+
+    #[test]
+    fn smoothing_keeps_a_constant_and_spreads_an_impulse_symmetrically() {
+        let (w, h) = (21, 17);
+        assert!(smooth(&vec![0.25; w * h], w, h, 3).iter().all(|&v| (v - 0.25).abs() < 1e-12));
+        let mut impulse = vec![0.0; w * h];
+        impulse[8 * w + 10] = 1.0;
+        let s = smooth(&impulse, w, h, 1);
+        let at = |x: usize, y: usize| s[y * w + x];
+        assert!((at(9, 8) - at(11, 8)).abs() < 1e-12 && (at(10, 7) - at(10, 9)).abs() < 1e-12);
+        assert!(at(10, 8) > at(11, 8) && at(11, 8) > at(13, 8) && at(14, 8) == 0.0, "three passes of radius 1 reach 3 px");
+        assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-12, "away from the border nothing is lost");
+    }
+
+    #[test]
+    fn fallback_views_are_centred_and_the_gray_plane_keeps_its_json() {
+        let img = periodic(96, 80, (16, 0), (0, 20));
+        let plane = centred_gray(&img);
+        for view in FallbackView::ALL {
+            let v = view.of(&plane, 96, 80);
+            assert!(v.iter().sum::<f64>().abs() < 1e-9 && v.iter().any(|&x| x != 0.0), "{view:?}");
+        }
+        let l = extract(&img, &LatticeOptions::default()).unwrap();
+        assert_eq!(l.found_in, None);
+        assert!(serde_json::to_value(&l).unwrap().get("found_in").is_none(), "absent, so existing output is unchanged");
+    }
+
+    #[test]
+    fn a_fallback_lattice_longer_than_allowed_is_refused() {
+        let img = periodic(160, 160, (20, 0), (0, 16));
+        let plane = centred_gray(&img);
+        let opts = LatticeOptions::default();
+        let by_distance = offsets_by_distance(160, 160);
+        assert!(extract_from(&plane, 160, 160, &opts, &by_distance, Some(20.0)).is_ok());
+        let err = extract_from(&plane, 160, 160, &opts, &by_distance, Some(19.0)).unwrap_err().to_string();
+        assert!(err.contains("repeats fewer than three times"), "{err}");
     }
 
     #[test]
