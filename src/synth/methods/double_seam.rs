@@ -241,13 +241,207 @@ struct Prepared<'a> {
     edges: Vec<u8>,
     /// The planes' spectra, for [`fft_bounds`].
     spectra: Spectra,
+    /// Run sums of the planes, for [`BoundStats`].
+    prefixes: Prefixes,
+    /// [`fft_bounds`]' buffers, kept from one grid position to the next.
+    fft_buffers: std::sync::Mutex<Vec<Vec<Complex64>>>,
 }
 
 impl<'a> Prepared<'a> {
     fn new(rgb: &'a RgbImage, planes: HsiPlanes, edges: Vec<u8>) -> Prepared<'a> {
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let spectra = Spectra::new(&planes, w, h);
-        Prepared { rgb, w, planes, edges, spectra }
+        let prefixes = Prefixes::new(&planes, w, h);
+        Prepared { rgb, w, planes, edges, spectra, prefixes, fft_buffers: std::sync::Mutex::new(Vec::new()) }
+    }
+}
+
+/// Row and column prefix sums of the sample's H, S and I planes and of their squares: the sum of
+/// any quantity over a run of a line is two lookups, so the bounds' candidate statistics
+/// ([`BoundStats`]) cost a few operations per candidate instead of a pass over the line.
+struct Prefixes {
+    w: usize,
+    h: usize,
+    /// `rows[q][y·(w+1) + x]`: the sum of quantity `q` (H, S, I, H², S², I²) over row `y`, columns `0..x`.
+    rows: [Vec<f64>; 6],
+    /// `cols[q][x·(h+1) + y]`: the sum over column `x`, rows `0..y`.
+    cols: [Vec<f64>; 6],
+}
+
+impl Prefixes {
+    fn new(planes: &HsiPlanes, w: usize, h: usize) -> Prefixes {
+        let value = |q: usize, i: usize| {
+            let v = [&planes.h, &planes.s, &planes.i][q % 3][i];
+            if q < 3 { v } else { v * v }
+        };
+        let rows = std::array::from_fn(|q| {
+            let mut p = vec![0.0; (w + 1) * h];
+            for y in 0..h {
+                for x in 0..w {
+                    p[y * (w + 1) + x + 1] = p[y * (w + 1) + x] + value(q, y * w + x);
+                }
+            }
+            p
+        });
+        let cols = std::array::from_fn(|q| {
+            let mut p = vec![0.0; (h + 1) * w];
+            for x in 0..w {
+                for y in 0..h {
+                    p[x * (h + 1) + y + 1] = p[x * (h + 1) + y] + value(q, y * w + x);
+                }
+            }
+            p
+        });
+        Prefixes { w, h, rows, cols }
+    }
+
+    /// The sum of quantity `q` over `run` placed at candidate `(x, y)`.
+    fn run_sum(&self, q: usize, run: &Run, x: i32, y: i32) -> f64 {
+        let (c, r) = ((x + run.c) as usize, (y + run.r) as usize);
+        let len = run.len as usize;
+        if run.horizontal {
+            let row = &self.rows[q][r * (self.w + 1)..];
+            row[c + len] - row[c]
+        } else {
+            let col = &self.cols[q][c * (self.h + 1)..];
+            col[r + len] - col[r]
+        }
+    }
+
+    /// A bound of the absolute error of a sum of `runs` run sums of any quantity (every value is in
+    /// `[0, 1]`): each prefix is a recursive sum of at most `L = max(w, h)` terms, so its error is
+    /// at most `L²·u` (`u` the unit roundoff); a run sum is a difference of two, and the runs'
+    /// sums are added up, each step rounding once more. Doubled for safety.
+    fn error(&self, runs: usize, n: usize) -> f64 {
+        let l = self.w.max(self.h) as f64;
+        2.0 * f64::EPSILON * (runs as f64 * (2.0 * l * l + l) + n as f64)
+    }
+}
+
+/// A straight piece of a line: `len` pixels from window offset `(c, r)`, along the row
+/// (`horizontal`) or down the column.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Run {
+    c: i32,
+    r: i32,
+    len: i32,
+    horizontal: bool,
+}
+
+/// A line's pixels as maximal runs in line order (a lone pixel is a horizontal run of one).
+fn runs_of(line: &[(i32, i32)]) -> Vec<Run> {
+    let mut runs = Vec::new();
+    let mut i = 0;
+    while i < line.len() {
+        let (c, r) = line[i];
+        let along = |step: (i32, i32)| {
+            let mut j = i;
+            while j + 1 < line.len() && line[j + 1] == (line[j].0 + step.0, line[j].1 + step.1) {
+                j += 1;
+            }
+            j - i + 1
+        };
+        let (across, down) = (along((1, 0)), along((0, 1)));
+        let (len, horizontal) = if down > across { (down, false) } else { (across, true) };
+        runs.push(Run { c, r, len: len as i32, horizontal });
+        i += len;
+    }
+    runs
+}
+
+/// Per candidate and line, what [`fft_bounds`] needs of the candidate side: per channel the
+/// line's mean and an interval of `1/sqrt(centred sum of squares)`, from run sums (so not the
+/// exact two-pass values the scores use, but within a proven error). `[m, inv_hi, inv_lo]` per
+/// channel; `inv_hi = ∞` marks a line whose sum of squares may be too small to tell from flat.
+struct BoundStats {
+    lines: [Vec<[f64; 9]>; 2],
+}
+
+impl BoundStats {
+    fn new(prep: &Prepared, ls: &[Vec<(i32, i32)>; 2], (xs, ys): Ranges) -> BoundStats {
+        let pre = &prep.prefixes;
+        let ys: Vec<i32> = ys.collect();
+        let lines = [0, 1].map(|li| {
+            let runs = runs_of(&ls[li]);
+            let n = ls[li].len() as f64;
+            let err = pre.error(runs.len(), ls[li].len());
+            // The mean's error is err / n; the centred sum of squares S2 − S1²/n then errs by at
+            // most err (S2) + 3·err (S1 ≤ n) plus its own roundings (relative, 1e-9 is far above).
+            let err_ss = 4.0 * err;
+            // Below this a line may be flat (pearson's FLAT) or too close to it for the interval to be tight.
+            let floor = (1e3 * err_ss).max(1e-9);
+            ys.par_iter()
+                .flat_map_iter(|&y| {
+                    let runs = &runs;
+                    xs.clone().map(move |x| {
+                        let mut st = [0.0; 9];
+                        for k in 0..3 {
+                            let (mut s1, mut s2) = (0.0, 0.0);
+                            for run in runs {
+                                s1 += pre.run_sum(k, run, x, y);
+                                s2 += pre.run_sum(k + 3, run, x, y);
+                            }
+                            let ss = s2 - s1 * s1 / n;
+                            let (lo, hi) = (ss * (1.0 - 1e-9) - err_ss, ss * (1.0 + 1e-9) + err_ss);
+                            st[3 * k] = s1 / n;
+                            if lo <= floor {
+                                st[3 * k + 1] = f64::INFINITY;
+                            } else {
+                                st[3 * k + 1] = 1.0 / lo.sqrt();
+                                st[3 * k + 2] = 1.0 / hi.sqrt();
+                            }
+                        }
+                        st
+                    })
+                })
+                .collect()
+        });
+        BoundStats { lines }
+    }
+}
+
+/// The exact candidate-side statistics of one line (linear hue) at the candidate whose line pixels
+/// are `base + offsets`: the same sums in the same order as [`candidate_stats_in`], so the same bits.
+fn exact_line_stats(prep: &Prepared, offsets: &[isize], base: isize) -> [f64; 6] {
+    let n = offsets.len() as f64;
+    let mut st = [0.0; 6];
+    for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
+        let mut sum = 0.0;
+        for &off in offsets {
+            sum += plane[(base + off) as usize];
+        }
+        let m = sum / n;
+        let mut ss = 0.0;
+        for &off in offsets {
+            let d = plane[(base + off) as usize] - m;
+            ss += d * d;
+        }
+        st[2 * k] = m;
+        st[2 * k + 1] = ss;
+    }
+    st
+}
+
+/// One kind of grid position's lines and candidates (a case of the plain grid, a ring shape of the
+/// torus), with the candidate-side data its searches share: the bounds' statistics, and the exact
+/// statistics of every candidate only when a search scores every candidate.
+struct Shape {
+    ls: [Vec<(i32, i32)>; 2],
+    ranges: Ranges,
+    bounds: BoundStats,
+    exact: std::sync::OnceLock<[LineStats; 2]>,
+}
+
+impl Shape {
+    fn new(prep: &Prepared, ls: [Vec<(i32, i32)>; 2], ranges: Ranges) -> Shape {
+        let bounds = BoundStats::new(prep, &ls, ranges.clone());
+        Shape { ls, ranges, bounds, exact: std::sync::OnceLock::new() }
+    }
+
+    fn exact(&self, prep: &Prepared, s: &Settings) -> &[LineStats; 2] {
+        self.exact.get_or_init(|| {
+            [candidate_stats_in(prep, s, self.ranges.clone(), &self.ls[0]), candidate_stats_in(prep, s, self.ranges.clone(), &self.ls[1])]
+        })
     }
 }
 
@@ -362,7 +556,7 @@ impl Method for DoubleSeam {
         let (stride, cols, rows) = (grid.stride(), grid.cols, grid.rows);
         let (cw, ch) = grid.canvas();
         let mut out = Canvas::new(cw, ch, sample.dimensions(), req.placement);
-        let mut stats: Vec<(Case, [LineStats; 2])> = Vec::new();
+        let mut shapes: Vec<(Case, Shape)> = Vec::new();
         let mut picks = vec![(0i32, 0i32); (rows * cols) as usize];
         let mut set_sizes = Vec::new();
         let mut f_max_sum = 0.0;
@@ -382,14 +576,10 @@ impl Method for DoubleSeam {
                     } else {
                         Case::L
                     };
-                    if !stats.iter().any(|(c, _)| *c == case) {
-                        let ls = lines(case, s.block, s.g, s.a);
-                        let computed = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
-                        stats.push((case, computed));
+                    if !shapes.iter().any(|(c, _)| *c == case) {
+                        shapes.push((case, Shape::new(&prep, lines(case, s.block, s.g, s.a), admissible(&prep, &s, case))));
                     }
-                    let st = &stats.iter().find(|(c, _)| *c == case).expect("computed").1;
-                    let ls = lines(case, s.block, s.g, s.a);
-                    let ranges = admissible(&prep, &s, case);
+                    let shape = &shapes.iter().find(|(c, _)| *c == case).expect("computed").1;
                     // The natural continuations of the left and the upper neighbour.
                     let mut hints = Vec::new();
                     if bj > 0 {
@@ -401,7 +591,7 @@ impl Method for DoubleSeam {
                         hints.push((px, py + stride as i32));
                     }
                     let origin = (ox as i32, oy as i32);
-                    let (pick, size, f_max) = choose(&prep, &s, &ls, ranges, st, &out, origin, &hints, (req.seed, bi, bj))?;
+                    let (pick, size, f_max) = choose(&prep, &s, shape, &out, origin, &hints, (req.seed, bi, bj))?;
                     set_sizes.push(size);
                     f_max_sum += f_max;
                     pick
@@ -509,7 +699,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
     let mut picks = vec![(0i32, 0i32); done.len()];
     // Line statistics per line shape: a handful of shapes per job (first row, interior, last
     // column, last row, ...).
-    let mut stats: Vec<([Vec<(i32, i32)>; 2], Ranges, [LineStats; 2])> = Vec::new();
+    let mut shapes: Vec<Shape> = Vec::new();
     let mut set_sizes = Vec::new();
     let mut f_max_sum = 0.0;
     for (bi, bj) in torus.raster() {
@@ -521,17 +711,15 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
             (x, y)
         } else {
             let ls = torus_lines(&torus, &done, s, bi, bj);
-            let k = match stats.iter().position(|(l, _, _)| *l == ls) {
+            let k = match shapes.iter().position(|shape| shape.ls == ls) {
                 Some(k) => k,
                 None => {
                     let ranges = line_ranges(prep, s, &ls);
-                    let computed =
-                        [candidate_stats_in(prep, s, ranges.clone(), &ls[0]), candidate_stats_in(prep, s, ranges.clone(), &ls[1])];
-                    stats.push((ls, ranges, computed));
-                    stats.len() - 1
+                    shapes.push(Shape::new(prep, ls, ranges));
+                    shapes.len() - 1
                 }
             };
-            let (ls, ranges, st) = &stats[k];
+            let shape = &shapes[k];
             // The natural continuations of the neighbours already there (through the wrap too).
             let st_i = stride as i32;
             let (r, c) = (torus.rows, torus.cols);
@@ -548,7 +736,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
                 }
             }
             let origin = (ox as i32, oy as i32);
-            let (pick, size, f_max) = choose(prep, s, ls, ranges.clone(), st, &out, origin, &hints, (req.seed, bi, bj))?;
+            let (pick, size, f_max) = choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj))?;
             set_sizes.push(size);
             f_max_sum += f_max;
             pick
@@ -648,6 +836,7 @@ fn admissible(prep: &Prepared, s: &Settings, case: Case) -> Ranges {
 }
 
 /// Candidate-side statistics of one line at every admissible position (row-major).
+#[cfg(test)]
 fn candidate_stats(prep: &Prepared, s: &Settings, case: Case, line: &[(i32, i32)]) -> LineStats {
     candidate_stats_in(prep, s, admissible(prep, s, case), line)
 }
@@ -773,23 +962,24 @@ fn may_reach(bound: f64, theta: f64) -> bool {
 /// bounds each line's `F_i` by the edge term alone, from the edge mismatches (exact integers):
 /// every candidate whose bound (plus [`BOUND_SLACK`]) stays under that `θ` is out (its `F` is
 /// below `θ`, so it is neither a member nor the maximum), and the rest are scored in full. When
-/// the bound rules out too few, every candidate is scored as before. Every full score is
+/// the bound rules out too few, [`fft_bounds`] bounds every candidate. Every full score is
 /// computed with the same operations in the same order as [`score_lines`] (per channel the cross
-/// sums are independent sums in line order), so `F_max`, `θ` and the set are bit for bit the same.
-#[allow(clippy::too_many_arguments)]
+/// sums are independent sums in line order; the candidate's statistics come from the shape's
+/// table or [`exact_line_stats`], the same bits), so `F_max`, `θ` and the set are bit for bit the
+/// same. The table of every candidate's statistics is built only once some search has many
+/// survivors: most searches score a handful.
 fn choose(
     prep: &Prepared,
     s: &Settings,
-    ls: &[Vec<(i32, i32)>; 2],
-    (xs, ys): Ranges,
-    stats: &[LineStats; 2],
+    shape: &Shape,
     out: &Canvas,
     origin: (i32, i32),
     hints: &[(i32, i32)],
     (seed, bi, bj): (u64, u32, u32),
 ) -> Result<((i32, i32), usize, f64), SynthError> {
+    let (ls, (xs, ys)) = (&shape.ls, shape.ranges.clone());
     let everything = || -> Result<((i32, i32), usize, f64), SynthError> {
-        let (positions, scores) = score_lines(prep, s, ls, (xs.clone(), ys.clone()), stats, out, origin);
+        let (positions, scores) = score_lines(prep, s, ls, (xs.clone(), ys.clone()), shape.exact(prep, s), out, origin);
         pick(s, &positions, &scores, seed, bi, bj)
     };
     if s.circular {
@@ -815,7 +1005,11 @@ fn choose(
         let mut f = 0.0;
         for li in 0..2 {
             let o = &outs[li];
-            let stx = &stats[li][k];
+            // The shape's table when a search has needed it, else the same values computed here.
+            let stx = &match shape.exact.get() {
+                Some(table) => table[li][k],
+                None => exact_line_stats(prep, &offsets[li], base),
+            };
             let mut d = 0.0;
             for (kk, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
                 let m2 = stx[2 * kk];
@@ -876,11 +1070,15 @@ fn choose(
     }
     if survivors.is_empty() || survivors.len() * 4 > mism.len() {
         // The bound from approximate scores: every cross sum by FFT, within a rigorous margin.
-        let u = fft_bounds(prep, s, ls, &outs, stats, (x0, y0, nx, ny), &mism);
+        let u = fft_bounds(prep, s, ls, &outs, &shape.bounds, (x0, y0, nx, ny), &mism);
         let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
         f_low = f_low.max(full(best, mism[best]));
         let theta_low = s.tau.min(f_low - s.eps);
         survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
+    }
+    if survivors.len() > mism.len() / 64 {
+        // Cheaper than the survivors' statistics one by one, here and in later searches.
+        shape.exact(prep, s);
     }
     let scores: Vec<f64> = survivors.par_iter().map(|&k| full(k, mism[k])).collect();
     let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -904,7 +1102,7 @@ fn fft_bounds(
     s: &Settings,
     ls: &[Vec<(i32, i32)>; 2],
     outs: &[OutputLine; 2],
-    stats: &[LineStats; 2],
+    bounds: &BoundStats,
     (x0, y0, nx, ny): (i32, i32, usize, usize),
     mism: &[[u32; 2]],
 ) -> Vec<f64> {
@@ -913,8 +1111,18 @@ fn fft_bounds(
     let cmin = ls.iter().flatten().map(|p| p.0).min().unwrap_or(0);
     let rmin = ls.iter().flatten().map(|p| p.1).min().unwrap_or(0);
     let zero = Complex64::new(0.0, 0.0);
-    // Kernels: line 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1.
-    let mut z = [vec![zero; w * h], vec![zero; w * h], vec![zero; w * h]];
+    let rmax = ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
+    let kernel_rows = 0..(rmax - rmin + 1) as usize;
+    // The job's six plane-sized buffers, reused from block to block.
+    let mut buffers = std::mem::take(&mut *prep.fft_buffers.lock().expect("buffers"));
+    if buffers.len() != 6 {
+        buffers = (0..6).map(|_| vec![zero; w * h]).collect();
+    }
+    let (z, spec) = buffers.split_at_mut(3);
+    // Kernels: line 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1 (only their rows are read).
+    for zz in z.iter_mut() {
+        zz[..kernel_rows.end * w].fill(zero);
+    }
     for li in 0..2 {
         for (i, &(c, r)) in ls[li].iter().enumerate() {
             let at = (r - rmin) as usize * w + (c - cmin) as usize;
@@ -927,24 +1135,22 @@ fn fft_bounds(
             }
         }
     }
-    let rmax = ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
-    let mut spec: [Vec<Complex64>; 3] = [vec![zero; w * h], vec![zero; w * h], vec![zero; w * h]];
     for (zz, sz) in z.iter_mut().zip(spec.iter_mut()) {
-        sp.forward(zz, 0..(rmax - rmin + 1) as usize, sz);
+        sp.forward(zz, kernel_rows.clone(), sz);
     }
     // Unpack the two real kernels' spectra of each plane and multiply with the sample's (into the
     // kernel planes, free now: every entry is written).
     let half = Complex64::new(0.5, 0.0);
     let minus_half_i = Complex64::new(0.0, -0.5);
     let i1 = Complex64::new(0.0, 1.0);
-    let mut p = z;
+    let p = z;
     // Spectra are transposed: frequency (u, v) at u·h + v.
     for u in 0..w {
         for v in 0..h {
             let f = u * h + v;
             let nf = ((w - u) % w) * h + (h - v) % h;
             let [sh, ss, si] = [sp.planes[0][f], sp.planes[1][f], sp.planes[2][f]];
-            let pair = |x: &Vec<Complex64>| -> (Complex64, Complex64) {
+            let pair = |x: &[Complex64]| -> (Complex64, Complex64) {
                 let (a, b) = (x[f], x[nf].conj());
                 ((a + b) * half, (a - b) * minus_half_i)
             };
@@ -958,7 +1164,7 @@ fn fft_bounds(
     for (pp, out) in p.iter_mut().zip(spec.iter_mut()) {
         sp.inverse(pp, (y0 + rmin) as usize..(y0 + rmin) as usize + ny, out);
     }
-    let p = spec;
+    let p = &*spec;
     let scale = 1.0 / (w * h) as f64;
     let log = ((w * h) as f64).log2().max(1.0);
     // Per line and channel: Σ centred, Σ |centred|, and the error margin of the cross sum.
@@ -973,15 +1179,19 @@ fn fft_bounds(
         }
     }
     let cap = 1.0 + 1e-9;
-    (0..ny * nx)
+    // Per line and channel 1/sqrt of the output side's sum of squares (0: a flat output line).
+    let inv_out = [0, 1].map(|li| outs[li].ss.map(|v| if v >= FLAT { 1.0 / v.sqrt() } else { 0.0 }));
+    // The edge factor 1/(1 + μ·m/n) of every mismatch count m.
+    let edge_factor: [Vec<f64>; 2] =
+        [0, 1].map(|li| (0..=ls[li].len()).map(|m| 1.0 / (1.0 + s.mu * (m as f64 / ls[li].len() as f64))).collect());
+    let bounds = (0..ny * nx)
         .into_par_iter()
         .map(|kidx| {
             let (x, y) = (x0 + (kidx % nx) as i32, y0 + (kidx / nx) as i32);
             let at = (y + rmin) as usize * w + (x + cmin) as usize;
             let mut u = 0.0;
             for li in 0..2 {
-                let o = &outs[li];
-                let stx = &stats[li][kidx];
+                let bx = &bounds.lines[li][kidx];
                 let corr = [
                     if li == 0 { p[0][at].re } else { p[1][at].re },
                     if li == 0 { p[0][at].im } else { p[1][at].im },
@@ -989,23 +1199,29 @@ fn fft_bounds(
                 ];
                 let mut d = 0.0;
                 for k in 0..3 {
-                    let (v1, v2) = (o.ss[k], stx[2 * k + 1]);
-                    let c = corr[k] * scale - stx[2 * k] * sum_c[li][k];
-                    let rho = if v1 >= FLAT && v2 >= FLAT {
-                        ((c + margin[li][k]) / (v1 * v2).sqrt()).min(cap)
+                    let (m2, inv_hi, inv_lo) = (bx[3 * k], bx[3 * k + 1], bx[3 * k + 2]);
+                    // ρ is 1 for two flat lines with close means and 0 for one flat line (B8);
+                    // otherwise c/sqrt(v1·v2), at most 1.
+                    let rho = if inv_hi == f64::INFINITY {
+                        cap
+                    } else if inv_out[li][k] == 0.0 {
+                        0.0
                     } else {
-                        pearson_from(o.mean[k], v1, stx[2 * k], v2, c)
+                        let c = corr[k] * scale - m2 * sum_c[li][k] + margin[li][k];
+                        (c * inv_out[li][k] * if c >= 0.0 { inv_hi } else { inv_lo }).min(cap)
                     };
                     d += s.weights[k] * rho;
                 }
                 if s.clamp {
                     d = d.max(0.0);
                 }
-                u += d / (1.0 + s.mu * (mism[kidx][li] as f64 / ls[li].len() as f64));
+                u += d * edge_factor[li][mism[kidx][li] as usize];
             }
             u
         })
-        .collect()
+        .collect();
+    *prep.fft_buffers.lock().expect("buffers") = buffers;
+    bounds
 }
 
 /// The sample's H, S and I planes as 2-D spectra (transposed, see [`Spectra::forward`]), with the plans.
@@ -1040,12 +1256,13 @@ impl Spectra {
         sp
     }
 
-    /// Forward 2-D FFT (unnormalised) of a row-major `w × h` plane whose rows outside `rows`
-    /// are zero; the spectrum is left transposed (`dst[u·h + v]`, `u` the column frequency).
+    /// Forward 2-D FFT (unnormalised) of a row-major `w × h` plane that is zero outside `rows`
+    /// (which are all it reads); the spectrum is left transposed (`dst[u·h + v]`, `u` the column
+    /// frequency).
     fn forward(&self, data: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
         let (w, h) = (self.w, self.h);
         data[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[0].process(c));
-        transpose(data, w, h, dst);
+        transpose_rows(data, w, h, rows, dst);
         dst.par_chunks_mut(h * 16).for_each(|c| self.col[0].process(c));
     }
 
@@ -1056,6 +1273,25 @@ impl Spectra {
         spec.par_chunks_mut(h * 16).for_each(|c| self.col[1].process(c));
         transpose(spec, h, w, dst);
         dst[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[1].process(c));
+    }
+}
+
+/// `dst[x·h + y] = src[y·w + x]` for the rows `rows` of a row-major `w × h` `src`, zero for the
+/// other rows.
+fn transpose_rows(src: &[Complex64], w: usize, h: usize, rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
+    const T: usize = 16;
+    for x0 in (0..w).step_by(T) {
+        for y0 in (rows.start..rows.end).step_by(T) {
+            for x in x0..(x0 + T).min(w) {
+                for y in y0..(y0 + T).min(rows.end) {
+                    dst[x * h + y] = src[y * w + x];
+                }
+            }
+        }
+    }
+    for column in dst.chunks_exact_mut(h) {
+        column[..rows.start].fill(Complex64::new(0.0, 0.0));
+        column[rows.end..].fill(Complex64::new(0.0, 0.0));
     }
 }
 
@@ -1357,10 +1593,11 @@ mod tests {
                 let ls = lines(case, s.block, s.g, s.a);
                 let stats = [candidate_stats(&prep, s, case, &ls[0]), candidate_stats(&prep, s, case, &ls[1])];
                 let (positions, scores) = score_all(&prep, s, case, &stats, &out, origin);
+                let shape = Shape::new(&prep, ls, admissible(&prep, s, case));
                 for seed in [1u64, 2, 3] {
                     let want = pick(s, &positions, &scores, seed, 1, 1).unwrap();
                     for hints in [vec![natural], vec![(3, 60), natural], vec![(50, 50)], vec![]] {
-                        let got = choose(&prep, s, &ls, admissible(&prep, s, case), &stats, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                        let got = choose(&prep, s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
                         assert_eq!(got.0, want.0, "{case:?} {s:?} {hints:?}");
                         assert_eq!(got.1, want.1);
                         assert_eq!(got.2.to_bits(), want.2.to_bits());
@@ -1368,6 +1605,65 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn runs_cover_a_line_in_order() {
+        for line in [
+            lines(Case::L, 24, 4, -1)[0].clone(),
+            lines(Case::L, 24, 4, -1)[1].clone(),
+            lines(Case::Vertical, 10, 3, 1)[1].clone(),
+            vec![(0, 0), (5, 5), (6, 5), (7, 5), (7, 6), (7, 7), (2, 9)],
+        ] {
+            let runs = runs_of(&line);
+            let expanded: Vec<(i32, i32)> =
+                runs.iter().flat_map(|r| (0..r.len).map(move |j| if r.horizontal { (r.c + j, r.r) } else { (r.c, r.r + j) })).collect();
+            assert_eq!(expanded, line);
+        }
+        assert_eq!(runs_of(&lines(Case::L, 24, 4, -1)[0]).len(), 2);
+    }
+
+    #[test]
+    fn lazy_exact_statistics_and_bound_intervals_hold_the_exact_values() {
+        // The per-candidate exact statistics must be candidate_stats' bits; the bounds' run-sum
+        // statistics must hold them: the mean within a tiny error, 1/sqrt(sum of squares) inside
+        // its interval, and every line that is flat or nearly so marked (the sample's mortar is flat).
+        let sample = structured();
+        let planes = HsiPlanes::of(&sample);
+        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
+        let prep = Prepared::new(&sample, planes, edges);
+        let s = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
+        let mut flat_lines = 0;
+        for case in [Case::Horizontal, Case::Vertical, Case::L] {
+            let ls = lines(case, s.block, s.g, s.a);
+            let ranges = admissible(&prep, &s, case);
+            let exact = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
+            let bounds = BoundStats::new(&prep, &ls, ranges.clone());
+            let (x0, y0) = (*ranges.0.start(), *ranges.1.start());
+            let nx = (ranges.0.end() - x0 + 1) as usize;
+            for li in 0..2 {
+                let offsets: Vec<isize> = ls[li].iter().map(|&(c, r)| (r * 96 + c) as isize).collect();
+                assert_eq!(exact[li].len(), bounds.lines[li].len());
+                for (k, (e, b)) in exact[li].iter().zip(&bounds.lines[li]).enumerate() {
+                    let base = ((y0 + (k / nx) as i32) * 96 + x0 + (k % nx) as i32) as isize;
+                    let lazy = exact_line_stats(&prep, &offsets, base);
+                    assert_eq!(lazy.map(f64::to_bits), e.map(f64::to_bits), "{case:?} line {li} candidate {k}");
+                    for ch in 0..3 {
+                        assert!((b[3 * ch] - e[2 * ch]).abs() < 1e-12, "mean");
+                        let v = e[2 * ch + 1];
+                        if b[3 * ch + 1] == f64::INFINITY {
+                            flat_lines += 1;
+                        } else {
+                            assert!(v >= FLAT, "a flat line not marked");
+                            let inv = 1.0 / v.sqrt();
+                            assert!(b[3 * ch + 2] <= inv && inv <= b[3 * ch + 1], "{} {inv} {}", b[3 * ch + 2], b[3 * ch + 1]);
+                            assert!(b[3 * ch + 1] - b[3 * ch + 2] <= 2e-3 * inv, "interval too wide");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(flat_lines > 0, "the test should meet flat lines");
     }
 
     #[test]
