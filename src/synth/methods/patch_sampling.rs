@@ -55,6 +55,7 @@ use crate::synth::primitives::overlap::{Rect, rect_ssd};
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
 use crate::synth::primitives::pso::{self, ChaosParams, Outcome, SwarmParams};
 use crate::synth::primitives::torus::{Sides, TorusGrid};
+use crate::synth::primitives::zone_ssd::{PackedZone, SampleLines};
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -703,6 +704,7 @@ impl Method for PatchSampling {
         };
         let needs_exhaustive = settings.search == Search::Exhaustive || settings.optimum;
         let mut search = needs_exhaustive.then(|| OverlapSearch::new(sample, block, block));
+        let lines = (settings.search != Search::Exhaustive).then(|| SampleLines::new(sample));
         let (cols, rows) = torus.map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
         let mut results: Vec<BlockResult> = Vec::with_capacity((rows * cols) as usize);
         let mut done = vec![false; (rows * cols) as usize];
@@ -753,10 +755,11 @@ impl Method for PatchSampling {
                 wave.iter().zip(&zones).map(|(&(bi, bj), zone)| exhaustive_block(s, sample, zone, bi, bj, &settings, req.seed)).collect()
             } else {
                 let settings = &settings;
+                let lines = lines.as_ref().expect("sample lines prepared");
                 wave.par_iter()
                     .zip(zones.par_iter())
                     .with_max_len(1)
-                    .map(|(&(bi, bj), zone)| swarm_block(sample, zone, bi, bj, settings, req.seed))
+                    .map(|(&(bi, bj), zone)| swarm_block(sample, lines, zone, bi, bj, settings, req.seed))
                     .collect()
             };
             if settings.optimum {
@@ -811,7 +814,9 @@ fn torus_of(cfg: &PatchSamplingConfig, sample: (u32, u32), output: (u32, u32)) -
     TorusGrid::of_blocks("patch sampling", cfg.block, cfg.overlap_or_derived(), sample, output)
 }
 
-/// `SSD(sample block at (x, y), output block, Ω)` (eq. 7).
+/// `SSD(sample block at (x, y), output block, Ω)` (eq. 7), rectangle by rectangle: the reference
+/// the swarms' packed evaluation ([`PackedZone::ssd`]) is checked against.
+#[cfg(test)]
 fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: (u32, u32), regions: &[Rect]) -> u64 {
     regions.iter().map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
 }
@@ -828,9 +833,28 @@ struct Zone<'a> {
 }
 
 /// The swarm search of one block (§4.2 step 5, §4.3).
-fn swarm_block(sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
-    let (canvas, origin, regions) = (&*zone.target, zone.origin, &zone.regions);
-    let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
+fn swarm_block(sample: &RgbImage, lines: &SampleLines, zone: &Zone, bi: u32, bj: u32, settings: &Settings, seed: u64) -> BlockResult {
+    // A thread searches one block at a time and the search starts no parallel work, so the
+    // thread's memo is never borrowed twice; should that change, a fresh memo is still correct.
+    MEMO.with(|m| match m.try_borrow_mut() {
+        Ok(mut memo) => swarm_search(sample, lines, zone, bi, bj, settings, seed, &mut memo),
+        Err(_) => swarm_search(sample, lines, zone, bi, bj, settings, seed, &mut Memo::default()),
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn swarm_search(
+    sample: &RgbImage,
+    lines: &SampleLines,
+    zone: &Zone,
+    bi: u32,
+    bj: u32,
+    settings: &Settings,
+    seed: u64,
+    memo: &mut Memo,
+) -> BlockResult {
+    let packed = PackedZone::new(&zone.target, zone.origin, &zone.regions);
+    let zone_pixels: u64 = zone.regions.iter().map(|r| r.area()).sum();
     let (nx, ny) = (sample.width() - zone.block + 1, sample.height() - zone.block + 1);
     let hi = [(nx - 1) as f64, (ny - 1) as f64];
     let mut params = settings.swarm;
@@ -839,17 +863,11 @@ fn swarm_block(sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Sett
     }
     // The fitness at a position is a pure function of the rounded position: memoise it. This
     // changes nothing but the time (the swarm often revisits positions once it has converged).
-    let mut memo = vec![u64::MAX; nx as usize * ny as usize];
+    memo.start(nx as usize * ny as usize);
+    let mut error_at = |pos: (u32, u32)| memo.get_or_insert(pos.1 as usize * nx as usize + pos.0 as usize, || packed.ssd(lines, pos));
     let mut swarm = Stream::new(seed, &format!("cpso/swarm/bi={bi}/bj={bj}"));
     let mut chaos = Stream::new(seed, &format!("cpso/chaos/bi={bi}/bj={bj}"));
-    let outcome = pso::optimise(&[0.0, 0.0], &hi, &params, &mut swarm, &mut chaos, |x| {
-        let pos = round_position(x, hi);
-        let i = pos.1 as usize * nx as usize + pos.0 as usize;
-        if memo[i] == u64::MAX {
-            memo[i] = zone_error(sample, canvas, pos, origin, regions);
-        }
-        memo[i] as f64
-    });
+    let outcome = pso::optimise(&[0.0, 0.0], &hi, &params, &mut swarm, &mut chaos, |x| error_at(round_position(x, hi)) as f64);
     let mut pos = round_position(&outcome.best, hi);
     let mut error = outcome.best_fitness as u64;
     let r = settings.polish_radius;
@@ -859,12 +877,9 @@ fn swarm_block(sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Sett
         let (x1, y1) = ((pos.0 + r).min(nx - 1), (pos.1 + r).min(ny - 1));
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let i = y as usize * nx as usize + x as usize;
-                if memo[i] == u64::MAX {
-                    memo[i] = zone_error(sample, canvas, (x, y), origin, regions);
-                }
-                if memo[i] < error {
-                    error = memo[i];
+                let e = error_at((x, y));
+                if e < error {
+                    error = e;
                     pos = (x, y);
                 }
             }
@@ -873,9 +888,54 @@ fn swarm_block(sample: &RgbImage, zone: &Zone, bi: u32, bj: u32, settings: &Sett
     BlockResult { bi, bj, pos, error, zone_pixels, swarm: Some(outcome), candidates: None, optimum: None, near_optimum: None }
 }
 
-/// A particle's patch: its position rounded half away from zero, clamped to the box.
+thread_local! {
+    /// Each thread's memo of zone errors, reused from block to block.
+    static MEMO: std::cell::RefCell<Memo> = std::cell::RefCell::default();
+}
+
+/// Zone errors of one block by position index, kept across blocks so that a block neither
+/// allocates nor clears a table the size of the search box: only a bit per position, "known in
+/// this block", is cleared. The bits are small enough to stay in the nearest cache, so a first
+/// visit learns that it must compute without waiting for the value's cache line.
+#[derive(Default)]
+struct Memo {
+    known: Vec<u64>,
+    values: Vec<u64>,
+}
+
+impl Memo {
+    /// Forgets the previous block; `positions` entries.
+    fn start(&mut self, positions: usize) {
+        self.known.clear();
+        self.known.resize(positions.div_ceil(64), 0);
+        if self.values.len() < positions {
+            self.values.resize(positions, 0);
+        }
+    }
+
+    fn get_or_insert(&mut self, index: usize, compute: impl FnOnce() -> u64) -> u64 {
+        let (word, bit) = (index / 64, 1u64 << (index % 64));
+        if self.known[word] & bit != 0 {
+            return self.values[index];
+        }
+        let value = compute();
+        self.known[word] |= bit;
+        self.values[index] = value;
+        value
+    }
+}
+
+/// A particle's patch: its position rounded half away from zero, clamped to the box. The same
+/// positions as `v.round().clamp(0.0, h)`, without a call to the C library's `round`: clamping
+/// first changes nothing (`h` is an integer), and for `0 ≤ c ≤ h`, `t = trunc(c)` and `c − t` are
+/// exact, so `c − t ≥ 0.5` is exactly where `round` goes up, and then `t + 1 ≤ h` (NaN gives 0
+/// either way).
 fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
-    let r = |v: f64, h: f64| v.round().clamp(0.0, h) as u32;
+    let r = |v: f64, h: f64| {
+        let c = v.clamp(0.0, h);
+        let t = c as u32;
+        if c - f64::from(t) >= 0.5 { t + 1 } else { t }
+    };
     (r(x[0], hi[0]), r(x[1], hi[1]))
 }
 
@@ -1082,6 +1142,25 @@ mod tests {
 
     fn run(sample: &RgbImage, w: u32, h: u32, p: &Params, seed: u64) -> Synthesis {
         PatchSampling.synthesize(&Request { sample, width: w, height: h, params: p, seed, placement: false, tileable: false }).unwrap()
+    }
+
+    #[test]
+    fn round_position_is_round_then_clamp() {
+        let hi = [226.0, 100.0];
+        let reference = |v: f64, h: f64| v.round().clamp(0.0, h) as u32;
+        let mut values = vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0, 0.0, -0.5, -0.49999999999999994, 0.49999999999999994];
+        for k in -4..=240 {
+            let v = f64::from(k);
+            values.extend([v, v + 0.5, v - 0.5, v + 0.25, v + 0.5 - 1e-13, v + 0.5 + 1e-13, v.next_up(), v.next_down()]);
+            values.extend([(v + 0.5).next_down(), (v + 0.5).next_up()]);
+        }
+        let mut s = Stream::new(1, "test/round");
+        values.extend((0..10_000).map(|_| s.uniform_range(-3.0, 230.0)));
+        for &a in &values {
+            for &b in &values[..40] {
+                assert_eq!(round_position(&[a, b], hi), (reference(a, hi[0]), reference(b, hi[1])), "({a}, {b})");
+            }
+        }
     }
 
     #[test]

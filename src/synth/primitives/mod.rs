@@ -12,3 +12,4 @@ pub mod overlap_search;
 pub mod pso;
 pub mod shortest_path;
 pub mod torus;
+pub mod zone_ssd;

@@ -337,16 +337,21 @@ fn argmin(values: &[f64]) -> usize {
 }
 
 /// The premature-convergence test (eqs. 3–5): mean particle distance relative to the box
-/// diagonal below `T` and normalised fitness variance below `S`.
+/// diagonal below `T` and normalised fitness variance below `S`. The variance is decided first:
+/// it is cheap and, until the whole swarm has the same fitness, at least 1, so the distance is
+/// rarely needed (the conjunction is the same either way).
 pub fn premature(x: &[f64], f: &[f64], d: usize, diagonal: f64, cp: &ChaosParams) -> bool {
-    let (dis, var) = convergence_measures(x, f, d, diagonal);
-    dis < cp.distance_threshold && var < cp.variance_threshold
+    normalised_variance(f) < cp.variance_threshold && mean_distance(x, f.len(), d, diagonal) < cp.distance_threshold
 }
 
 /// `(dis, σ²)` of eqs. 3–5 for the positions `x` (`M × D`, particle-major) and fitness values `f`.
 /// A box of zero diagonal (a single point) has `dis = 0`.
 pub fn convergence_measures(x: &[f64], f: &[f64], d: usize, diagonal: f64) -> (f64, f64) {
-    let m = f.len();
+    (mean_distance(x, f.len(), d, diagonal), normalised_variance(f))
+}
+
+/// `dis` of eq. 3: the mean distance of the `m` particles from their centroid over the diagonal.
+fn mean_distance(x: &[f64], m: usize, d: usize, diagonal: f64) -> f64 {
     let mut mean = vec![0.0; d];
     for i in 0..m {
         for k in 0..d {
@@ -365,12 +370,16 @@ pub fn convergence_measures(x: &[f64], f: &[f64], d: usize, diagonal: f64) -> (f
         }
         total += s.sqrt();
     }
-    let dis = if diagonal > 0.0 { total / (m as f64 * diagonal) } else { 0.0 };
+    if diagonal > 0.0 { total / (m as f64 * diagonal) } else { 0.0 }
+}
+
+/// `σ²` of eqs. 4–5: the fitness variance normalised by the largest deviation (at least 1).
+fn normalised_variance(f: &[f64]) -> f64 {
+    let m = f.len();
     let favg = f.iter().sum::<f64>() / m as f64;
     let spread = f.iter().map(|fi| (fi - favg).abs()).fold(0.0, f64::max);
     let fs = if spread > 1.0 { spread } else { 1.0 };
-    let var = f.iter().map(|fi| ((fi - favg) / fs) * ((fi - favg) / fs)).sum::<f64>();
-    (dis, var)
+    f.iter().map(|fi| ((fi - favg) / fs) * ((fi - favg) / fs)).sum::<f64>()
 }
 
 #[cfg(test)]
