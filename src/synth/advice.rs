@@ -138,6 +138,13 @@ pub fn analyse(img: &RgbImage) -> Analysis {
 /// vectors: a phase residual above this fraction of the shorter lattice vector cuts texels apart.
 pub const PHASE_TOLERANCE: f64 = crate::synth::methods::tiles::align::PHASE_TOLERANCE;
 
+/// Texels (lattice cells, by area) a tile must hold for an aligned tiling to keep the sample's
+/// variety. Seen at 384² from 256²: tiles of about one texel repeat a few texels in a regular
+/// pattern (a slate roof, terracotta and red bricks whose texels differ in tone, split along the
+/// tiles' cuts); from about two texels on (terracotta and red bricks with rw-tiles, tread plate,
+/// a brick road) they look right.
+pub const MIN_TEXELS_PER_TILE: f64 = 1.5;
+
 /// A tile job's phase on the sample's lattice ([`tile_phase`]).
 struct TilePhase {
     /// The tile size the job uses: its `tile`, or what `tile = "auto"` chooses on this sample.
@@ -150,6 +157,8 @@ struct TilePhase {
     best: (i64, f64),
     /// What `tile = "auto"` chooses on this sample, when it finds a size in phase.
     auto_pick: Option<i64>,
+    /// How many texels one tile holds (its area over the lattice cell's).
+    texels: f64,
 }
 
 /// For a tile method with alignment on (`auto` or `lattice`) and the sample's lattice: the tile
@@ -178,7 +187,9 @@ fn tile_phase(a: &Analysis, method: &str, p: &Params) -> Option<TilePhase> {
     };
     let now = align::residual_px(&al, vectors(tile));
     let best = *align::suggest(&al, sizes.into_iter(), vectors, tile, 1).first()?;
-    Some(TilePhase { tile, auto, now, best, auto_pick })
+    let [u, v] = vectors(tile);
+    let texels = ((u.0 * v.1 - u.1 * v.0).abs() as f64) / l.determinant().abs().max(1) as f64;
+    Some(TilePhase { tile, auto, now, best, auto_pick, texels })
 }
 
 /// A method's fit to a sample.
@@ -292,6 +303,17 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                         ),
                     }
                 }
+                // In phase, but about one texel per tile (`auto` found no size spanning more in
+                // phase in this sample): the tiling repeats a handful of texels in a regular
+                // pattern, and where texels differ in tone the tiles' cuts split them visibly.
+                Some(ph) if ph.texels < MIN_TEXELS_PER_TILE => Fit::NotFor {
+                    because: format!(
+                        "tiles of {} px hold only {:.1} texels, and no larger size in phase with the lattice fits this {}×{} sample, \
+                         so the tiling repeats a few texels in a regular pattern",
+                        ph.tile, ph.texels, a.width, a.height
+                    ),
+                    instead: "quilting",
+                },
                 _ => Fit::Fits,
             },
             Kind::Oriented => Fit::NotFor {
@@ -392,6 +414,25 @@ mod tests {
         let w = warning(&a, "patch-sampling", &params(&[("block", ParamValue::Int(6)), ("blend", ParamValue::Str("cut".into()))]))
             .expect("small patches warn");
         assert!(w.contains("set block = 12"), "{w}");
+    }
+
+    #[test]
+    fn tiles_of_about_one_texel_are_advised_against() {
+        // 36 px tiles with dark grout in a 112 px sample: no tile of two texels fits with a cell to
+        // spare, so aligned tiles hold one texel each.
+        let big = RgbImage::from_fn(112, 112, |x, y| {
+            let grain = (x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503).wrapping_mul(2654435761)) >> 27;
+            if x % 36 < 3 || y % 36 < 3 { [30, 30, 30] } else { [150 + grain as u8, 90, 40] }
+        });
+        let a = analyse(&big);
+        assert_eq!(a.kind, Kind::NearRegular, "{}", a.describe());
+        let auto =
+            params(&[("align", ParamValue::Str("auto".into())), ("tile", ParamValue::Str("auto".into())), ("overlap", ParamValue::Int(8))]);
+        let w = warning(&a, "wang-tiles", &auto).expect("one texel per tile warns");
+        assert!(w.contains("hold only 1.0 texels") && w.contains("use quilting"), "{w}");
+        // The bricks' 128 px² texels fit many times into a 64 px tile: nothing to say.
+        let bricks = analyse(&bricks());
+        assert_eq!(warning(&bricks, "wang-tiles", &auto), None);
     }
 
     #[test]

@@ -362,6 +362,12 @@ pub const FALLBACK_TILE: i64 = 64;
 /// the tiling's variety (a 26 px tile in phase with a 26 px lattice is one texel per tile).
 pub const AUTO_MIN_TILE: i64 = 32;
 
+/// How many texels (the longer lattice vector) a tile's shorter translation should span when the
+/// sample has room for such tiles. At about one texel per tile an aligned tiling repeats a few
+/// texels in a visibly regular pattern (a roof of identical slates, a brick road of one motif);
+/// from two on it keeps the sample's variety.
+pub const AUTO_MIN_TEXELS: f64 = 2.0;
+
 /// Aligned tiles look right only when the tiles' translation vectors are (nearly) lattice
 /// vectors: a phase residual above this fraction of the shorter lattice vector cuts texels apart
 /// (`texsyn advise` warns; `tile = "auto"` does not pick such a size).
@@ -389,7 +395,8 @@ pub struct TileChoice {
 /// `patch(t)` the side of the square of sample pixels one patch of a size-`t` tile reads, and
 /// `vectors(t)` its tile translation vectors. With a lattice, the candidates are the sizes from
 /// [`AUTO_MIN_TILE`] whose patch fits in the sample with a lattice cell to spare (so every patch
-/// has lattice translates to be placed at), and the choice is [`suggest`]'s first (the smallest
+/// has lattice translates to be placed at), narrowed to those whose translations span
+/// [`AUTO_MIN_TEXELS`] texels when any of these is in phase, and the choice is [`suggest`]'s first (the smallest
 /// phase residual, ties to the size nearest [`FALLBACK_TILE`]) — the size `texsyn advise` and
 /// `diagnostics.align.suggested_tiles` name, within these bounds — when it is in phase (residual at
 /// most [`in_phase_px`]). Without a lattice, or when no candidate fits or is in phase, it is
@@ -413,8 +420,15 @@ pub fn auto_tile(
         let (a, b) = al.reduced;
         let (mx, my) = (a.0.abs() + b.0.abs(), a.1.abs() + b.1.abs());
         let fit: Vec<i64> = sizes.iter().copied().filter(|&t| patch(t) + mx <= sw && patch(t) + my <= sh).collect();
-        let best = suggest(al, fit.into_iter(), vectors, FALLBACK_TILE, 1).first().copied();
-        if let Some((tile, residual)) = best.filter(|b| b.1 <= in_phase_px(al)) {
+        // Prefer tiles that span a few texels: when the sample has room for them, smaller sizes
+        // are left out even if they are in phase.
+        let texel = norm(a).max(norm(b));
+        let spans = |t: i64| vectors(t).iter().map(|&v| norm(v)).fold(f64::INFINITY, f64::min) >= AUTO_MIN_TEXELS * texel;
+        let roomy: Vec<i64> = fit.iter().copied().filter(|&t| spans(t)).collect();
+        let in_phase =
+            |c: &[i64]| suggest(al, c.iter().copied(), vectors, FALLBACK_TILE, 1).first().copied().filter(|b| b.1 <= in_phase_px(al));
+        let best = in_phase(&roomy).or_else(|| in_phase(&fit));
+        if let Some((tile, residual)) = best {
             let fallback = residual_px(al, vectors(FALLBACK_TILE));
             let how = format!(
                 "auto: {tile}, the size{wrapping} that misses the lattice t1 = {:?}, t2 = {:?} least ({:.1} px; {FALLBACK_TILE} would miss it by {:.1} px)",
