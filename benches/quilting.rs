@@ -65,16 +65,16 @@ fn run(dir: &Path, threads: usize, reps: usize) -> (f64, f64) {
     for _ in 0..reps {
         let out = dir.join("out");
         let t = Instant::now();
-        let status = Command::new(env!("CARGO_BIN_EXE_texsyn"))
+        let done = Command::new(env!("CARGO_BIN_EXE_texsyn"))
             .arg("run")
             .arg(dir)
             .arg("-o")
             .arg(&out)
             .args(["-j", &threads.to_string(), "-q", "--force"])
-            .status()
+            .output()
             .expect("texsyn runs");
         wall.push(t.elapsed().as_secs_f64());
-        assert!(status.success(), "texsyn run failed");
+        assert!(done.status.success(), "texsyn run failed: {}", String::from_utf8_lossy(&done.stderr));
         let manifest: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).expect("manifest")).expect("manifest is JSON");
         synthesis.push(manifest["jobs"][0]["timing"]["synthesis_seconds"].as_f64().expect("synthesis seconds"));

@@ -100,6 +100,39 @@ pub enum OverlapRule {
     Overwrite,
 }
 
+/// Where a pasted block starts to show over its overlap: for each row, the first column taken
+/// from the new block; for each column, the first row (all zero without a cut).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BlockCuts {
+    first_col: Vec<usize>,
+    first_row: Vec<usize>,
+}
+
+/// The cuts of the `block × block` sample patch at `src` pasted at `dst` of `image`. They read
+/// only `image` under the block, so blocks that do not meet can have theirs found concurrently.
+#[allow(clippy::too_many_arguments)]
+pub fn block_cuts(
+    image: &RgbImage,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    rule: OverlapRule,
+) -> BlockCuts {
+    let (b, ov) = (block as usize, overlap as usize);
+    let mut cuts = BlockCuts { first_col: vec![0usize; b], first_row: vec![0usize; b] };
+    if rule == OverlapRule::Cut && left {
+        cuts.first_col = vertical_cut(&error_surface(sample, src, image, dst, overlap, block), b, ov);
+    }
+    if rule == OverlapRule::Cut && top {
+        cuts.first_row = horizontal_cut(&error_surface(sample, src, image, dst, block, overlap), ov, b);
+    }
+    cuts
+}
+
 /// Pastes the `block × block` sample patch at `src` onto the canvas at `dst`; `left`/`top` say
 /// which overlaps exist.
 #[allow(clippy::too_many_arguments)]
@@ -114,16 +147,25 @@ pub fn paste_block(
     top: bool,
     rule: OverlapRule,
 ) {
-    let (b, ov) = (block as usize, overlap as usize);
-    // With a cut: for each row, the first column taken from the new block; for each column, the first row.
-    let mut first_col = vec![0usize; b];
-    let mut first_row = vec![0usize; b];
-    if rule == OverlapRule::Cut && left {
-        first_col = vertical_cut(&error_surface(sample, src, &canvas.image, dst, overlap, block), b, ov);
-    }
-    if rule == OverlapRule::Cut && top {
-        first_row = horizontal_cut(&error_surface(sample, src, &canvas.image, dst, block, overlap), ov, b);
-    }
+    let cuts = block_cuts(&canvas.image, sample, src, dst, block, overlap, left, top, rule);
+    paste_with_cuts(canvas, sample, src, dst, block, overlap, left, top, rule, &cuts);
+}
+
+/// [`paste_block`] with its cuts already found by [`block_cuts`] on the same canvas.
+#[allow(clippy::too_many_arguments)]
+pub fn paste_with_cuts(
+    canvas: &mut Canvas,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    rule: OverlapRule,
+    cuts: &BlockCuts,
+) {
+    let (first_col, first_row) = (&cuts.first_col, &cuts.first_row);
     for y in 0..block {
         for x in 0..block {
             let (sx, sy) = (src.0 + x, src.1 + y);
