@@ -12,11 +12,13 @@ use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
-use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
+use crate::synth::primitives::block_grid::{BlockCuts, BlockGrid, OverlapRule, block_cuts, paste_with_cuts};
 use crate::synth::primitives::canvas::Canvas;
+use crate::synth::primitives::overlap::Rect;
 use crate::synth::primitives::overlap_search::OverlapSearch;
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
+use rayon::prelude::*;
 
 pub struct Quilting;
 
@@ -199,18 +201,38 @@ impl Method for Quilting {
         let mut search = OverlapSearch::new(sample, block, block);
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
-        for bi in 0..layout.rows {
-            for bj in 0..layout.cols {
-                let (ox, oy) = layout.origin(bi, bj);
-                let (sx, sy) = if bi == 0 && bj == 0 {
-                    first_block(req.seed, sample, block)
-                } else {
-                    let regions = layout.overlap_regions(bi, bj);
-                    let c = cfg.search.candidates(&mut search, &canvas.image, (ox, oy), &regions, tolerance);
-                    candidate_counts.push(c.members.len());
-                    pick(req.seed, bi, bj, &c.members)
-                };
-                paste_block(&mut canvas, sample, (sx, sy), (ox, oy), block, overlap, bj > 0, bi > 0, rule);
+        // Raster order, but the blocks of one front are searched together: what each one reads
+        // was pasted by earlier fronts (`BlockGrid::fronts`), and each pick has its own stream.
+        for front in layout.fronts() {
+            let queries: Vec<((u32, u32), Vec<Rect>)> =
+                front.iter().filter(|&&b| b != (0, 0)).map(|&(bi, bj)| (layout.origin(bi, bj), layout.overlap_regions(bi, bj))).collect();
+            let found = match cfg.search {
+                Engine::Fft => search.candidates_many(&canvas.image, &queries, tolerance),
+                Engine::Direct => queries.iter().map(|(o, r)| search.candidates_direct(&canvas.image, *o, r, tolerance)).collect(),
+            };
+            let mut found = found.into_iter();
+            let placed: Vec<((u32, u32), (u32, u32))> = front
+                .iter()
+                .map(|&(bi, bj)| {
+                    let src = if bi == 0 && bj == 0 {
+                        first_block(req.seed, sample, block)
+                    } else {
+                        let c = found.next().expect("one candidate set per searched block");
+                        candidate_counts.push(c.members.len());
+                        pick(req.seed, bi, bj, &c.members)
+                    };
+                    ((bi, bj), src)
+                })
+                .collect();
+            // The cuts read only the canvas under their own block, which no block of this front
+            // touches: they are found together, then the blocks pasted in raster order.
+            let image = &canvas.image;
+            let cuts: Vec<BlockCuts> = placed
+                .par_iter()
+                .map(|&((bi, bj), src)| block_cuts(image, sample, src, layout.origin(bi, bj), block, overlap, bj > 0, bi > 0, rule))
+                .collect();
+            for (&((bi, bj), src), cut) in placed.iter().zip(&cuts) {
+                paste_with_cuts(&mut canvas, sample, src, layout.origin(bi, bj), block, overlap, bj > 0, bi > 0, rule, cut);
             }
         }
         let (image, placement) = canvas.into_top_left(req.width, req.height).finish();

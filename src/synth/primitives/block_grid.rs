@@ -55,6 +55,27 @@ impl BlockGrid {
         regions
     }
 
+    /// The blocks in fronts that may be searched together: every block a block's search reads
+    /// (the earlier blocks over its area) lies in an earlier front, and blocks of one front never
+    /// overlap, so searching a front at once and pasting it in any order gives exactly the raster
+    /// order's canvas. Block `(bi, bj)` goes to front `bj + 2·bi`: its upper-right neighbour
+    /// `(bi − 1, bj + 1)` reaches into its top overlap, so one front per anti-diagonal would not
+    /// do. Needs `overlap ≤ block / 2` (blocks two strides apart do not meet); otherwise each
+    /// block is its own front, in raster order.
+    pub fn fronts(&self) -> Vec<Vec<(u32, u32)>> {
+        if 2 * self.overlap > self.block {
+            return (0..self.rows).flat_map(|bi| (0..self.cols).map(move |bj| vec![(bi, bj)])).collect();
+        }
+        let mut fronts = vec![Vec::new(); (self.cols + 2 * self.rows - 2) as usize];
+        for bi in 0..self.rows {
+            for bj in 0..self.cols {
+                fronts[(bj + 2 * bi) as usize].push((bi, bj));
+            }
+        }
+        fronts.retain(|f| !f.is_empty());
+        fronts
+    }
+
     /// Seam bands of the cropped `width × height` output: each overlap band, boundaries included.
     pub fn seam_grid(&self, width: u32, height: u32) -> SeamGrid {
         let bands = |count: u32, limit: u32| -> Vec<SeamBand> {
@@ -79,6 +100,39 @@ pub enum OverlapRule {
     Overwrite,
 }
 
+/// Where a pasted block starts to show over its overlap: for each row, the first column taken
+/// from the new block; for each column, the first row (all zero without a cut).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BlockCuts {
+    first_col: Vec<usize>,
+    first_row: Vec<usize>,
+}
+
+/// The cuts of the `block × block` sample patch at `src` pasted at `dst` of `image`. They read
+/// only `image` under the block, so blocks that do not meet can have theirs found concurrently.
+#[allow(clippy::too_many_arguments)]
+pub fn block_cuts(
+    image: &RgbImage,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    rule: OverlapRule,
+) -> BlockCuts {
+    let (b, ov) = (block as usize, overlap as usize);
+    let mut cuts = BlockCuts { first_col: vec![0usize; b], first_row: vec![0usize; b] };
+    if rule == OverlapRule::Cut && left {
+        cuts.first_col = vertical_cut(&error_surface(sample, src, image, dst, overlap, block), b, ov);
+    }
+    if rule == OverlapRule::Cut && top {
+        cuts.first_row = horizontal_cut(&error_surface(sample, src, image, dst, block, overlap), ov, b);
+    }
+    cuts
+}
+
 /// Pastes the `block × block` sample patch at `src` onto the canvas at `dst`; `left`/`top` say
 /// which overlaps exist.
 #[allow(clippy::too_many_arguments)]
@@ -93,16 +147,25 @@ pub fn paste_block(
     top: bool,
     rule: OverlapRule,
 ) {
-    let (b, ov) = (block as usize, overlap as usize);
-    // With a cut: for each row, the first column taken from the new block; for each column, the first row.
-    let mut first_col = vec![0usize; b];
-    let mut first_row = vec![0usize; b];
-    if rule == OverlapRule::Cut && left {
-        first_col = vertical_cut(&error_surface(sample, src, &canvas.image, dst, overlap, block), b, ov);
-    }
-    if rule == OverlapRule::Cut && top {
-        first_row = horizontal_cut(&error_surface(sample, src, &canvas.image, dst, block, overlap), ov, b);
-    }
+    let cuts = block_cuts(&canvas.image, sample, src, dst, block, overlap, left, top, rule);
+    paste_with_cuts(canvas, sample, src, dst, block, overlap, left, top, rule, &cuts);
+}
+
+/// [`paste_block`] with its cuts already found by [`block_cuts`] on the same canvas.
+#[allow(clippy::too_many_arguments)]
+pub fn paste_with_cuts(
+    canvas: &mut Canvas,
+    sample: &RgbImage,
+    src: (u32, u32),
+    dst: (u32, u32),
+    block: u32,
+    overlap: u32,
+    left: bool,
+    top: bool,
+    rule: OverlapRule,
+    cuts: &BlockCuts,
+) {
+    let (first_col, first_row) = (&cuts.first_col, &cuts.first_row);
     for y in 0..block {
         for x in 0..block {
             let (sx, sy) = (src.0 + x, src.1 + y);
@@ -131,6 +194,28 @@ pub fn paste_block(
 mod tests {
     use super::*;
     use crate::synth::primitives::feather;
+
+    #[test]
+    fn fronts_keep_the_raster_order_of_every_overlapping_pair() {
+        for (block, overlap, w, h) in [(40, 10, 512, 512), (50, 8, 300, 120), (20, 10, 90, 70), (21, 11, 80, 80), (30, 5, 30, 200)] {
+            let g = BlockGrid::new(block, overlap, w, h);
+            let front_of: std::collections::HashMap<(u32, u32), usize> =
+                g.fronts().iter().enumerate().flat_map(|(f, blocks)| blocks.iter().map(move |&b| (b, f))).collect();
+            assert_eq!(front_of.len(), (g.rows * g.cols) as usize);
+            let blocks: Vec<(u32, u32)> = (0..g.rows).flat_map(|bi| (0..g.cols).map(move |bj| (bi, bj))).collect();
+            for (k, &a) in blocks.iter().enumerate() {
+                for &b in &blocks[k + 1..] {
+                    let (oa, ob) = (g.origin(a.0, a.1), g.origin(b.0, b.1));
+                    let meet = oa.0.abs_diff(ob.0) < block && oa.1.abs_diff(ob.1) < block;
+                    if meet {
+                        assert!(front_of[&a] < front_of[&b], "{block}/{overlap}: {a:?} and {b:?}");
+                    }
+                }
+            }
+        }
+        // Fronts hold several blocks when they can.
+        assert!(BlockGrid::new(40, 10, 512, 512).fronts().iter().any(|f| f.len() > 4));
+    }
 
     #[test]
     fn grid_covers_the_output_with_the_fewest_blocks() {

@@ -4,8 +4,9 @@
 //!
 //! Why it is fast: `SSD(p) = ΣS²(p) − 2·Σ S(p+q)·T(q) + ΣT²`. The first term comes exactly from an
 //! integral image, the last is a constant, and the cross term for all positions at once is one
-//! correlation, computed with FFTs (the sample's spectrum once per job, two forward and one
-//! inverse 2-D FFT per block). Why it is still exact (docs/methods.md §6): the FFT values are only
+//! correlation, computed with FFTs: the sample's three channel spectra once per job; per block,
+//! the template's three real channels forward and one real inverse. Every plane is real, so only
+//! half of each spectrum is kept (`kx ≤ W/2`), and two real rows share one complex row transform. Why it is still exact (docs/methods.md §6): the FFT values are only
 //! used to find a small superset of the answer with a rigorous error margin; every member of that
 //! superset is then re-scored with integer arithmetic (B1), and the minimum and the tolerance set
 //! are decided on those exact integers. So the result is identical to brute force on every machine,
@@ -37,10 +38,8 @@ pub struct OverlapSearch<'a> {
     sample: &'a RgbImage,
     block_w: u32,
     block_h: u32,
-    /// Spectrum of the complex plane R + iG, stored transposed (see `fft2`).
-    spec_rg: Vec<Complex64>,
-    /// Spectrum of the B plane, transposed.
-    spec_b: Vec<Complex64>,
+    /// Half spectra of the R, G and B planes, laid out as `forward_real` leaves them.
+    spec: Vec<Complex64>,
     /// Integral image of ΣR²+G²+B², `(W+1) × (H+1)`.
     integral_sq: Vec<u64>,
     /// √ of the sample's total energy, for the FFT error margin.
@@ -51,21 +50,27 @@ pub struct OverlapSearch<'a> {
     ifft_col: Arc<dyn Fft<f64>>,
     /// Reused buffers: allocating megabytes per block costs more than the FFTs.
     work: Workspace,
+    /// One more workspace per concurrent task of `candidates_many`, kept between calls.
+    spare_work: Vec<Workspace>,
     /// ΣS² over each region set seen so far, per candidate position (exact integers as f64).
     sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
 }
 
 #[derive(Default)]
 struct Workspace {
-    /// Template planes, only the first `block_h` rows (the rest of the plane is zero).
-    rows_rg: Vec<Complex64>,
-    rows_b: Vec<Complex64>,
-    /// Transposed spectra of the templates (entries `block_h..H` of every row are the zero rows).
-    spec_rg: Vec<Complex64>,
-    spec_b: Vec<Complex64>,
-    /// Product spectrum, then the correlation in row-major layout.
+    /// The template's R, G and B planes, only the first `block_h` rows (the rest is zero).
+    planes: Vec<f64>,
+    /// Template row pairs packed as one complex row each, for the forward row transforms, and
+    /// their transpose.
+    pairs: Vec<Complex64>,
+    by_frequency: Vec<Complex64>,
+    /// Output row pairs, likewise, for the inverse row transforms.
+    rows: Vec<Complex64>,
+    /// The summed cross-correlation's half spectrum, transformed back along columns.
     product: Vec<Complex64>,
-    plane: Vec<Complex64>,
+    /// One template column and the column transforms' scratch.
+    column: Vec<Complex64>,
+    fft_scratch: Vec<Complex64>,
     approx: Vec<f64>,
 }
 
@@ -79,20 +84,18 @@ impl<'a> OverlapSearch<'a> {
         let fft_col = planner.plan_fft_forward(h as usize);
         let ifft_row = planner.plan_fft_inverse(w as usize);
         let ifft_col = planner.plan_fft_inverse(h as usize);
-        let n = w as usize * h as usize;
-        let raw = sample.as_raw();
-        let mut rg = Vec::with_capacity(n);
-        let mut b = Vec::with_capacity(n);
-        for p in raw.chunks_exact(3) {
-            rg.push(Complex64::new(p[0] as f64, p[1] as f64));
-            b.push(Complex64::new(p[2] as f64, 0.0));
+        let (wu, hu) = (w as usize, h as usize);
+        let mut planes = vec![0.0; 3 * wu * hu];
+        for (i, p) in sample.as_raw().chunks_exact(3).enumerate() {
+            for (c, &v) in p.iter().enumerate() {
+                planes[c * wu * hu + i] = v as f64;
+            }
         }
         let mut search = OverlapSearch {
             sample,
             block_w,
             block_h,
-            spec_rg: Vec::new(),
-            spec_b: Vec::new(),
+            spec: Vec::new(),
             integral_sq: integral_of_squares(sample),
             sample_norm: 0.0,
             fft_row,
@@ -100,10 +103,12 @@ impl<'a> OverlapSearch<'a> {
             ifft_row,
             ifft_col,
             work: Workspace::default(),
+            spare_work: Vec::new(),
             sum_sq_maps: Vec::new(),
         };
-        search.spec_rg = search.fft2(rg, h as usize);
-        search.spec_b = search.fft2(b, h as usize);
+        let mut spec = vec![Complex64::new(0.0, 0.0); 3 * (wu / 2 + 1) * hu];
+        search.forward_real(&planes, hu, &mut Vec::new(), &mut spec, true);
+        search.spec = spec;
         search.sample_norm = (search.integral_sq[search.integral_sq.len() - 1] as f64).sqrt();
         search
     }
@@ -112,15 +117,83 @@ impl<'a> OverlapSearch<'a> {
         (self.sample.width() - self.block_w + 1, self.sample.height() - self.block_h + 1)
     }
 
-    /// Forward 2-D FFT of a `W × H` plane whose rows `nonzero_rows..H` are zero (they are skipped).
-    /// The result is left transposed (`H`-long rows, one per column frequency): products of two
-    /// spectra in the same layout are all that is needed, and `ifft2` undoes the transposition.
-    fn fft2(&self, mut plane: Vec<Complex64>, nonzero_rows: usize) -> Vec<Complex64> {
+    /// Row transforms of three real `W`-wide planes (`planes`: channel, then row, then column),
+    /// two real rows `a`, `b` per complex row `a + ib`; `half_spectrum_at` separates them.
+    fn transform_row_pairs(&self, planes: &[f64], pairs: &mut Vec<Complex64>, parallel: bool) {
+        let w = self.sample.width() as usize;
+        // Every entry of `pairs` is written below, so it is only resized, never cleared.
+        pairs.resize((planes.len() / w).div_ceil(2) * w, Complex64::new(0.0, 0.0));
+        for (p, row) in pairs.chunks_exact_mut(w).enumerate() {
+            let a = &planes[2 * p * w..(2 * p + 1) * w];
+            match planes.get((2 * p + 1) * w..(2 * p + 2) * w) {
+                Some(b) => row.iter_mut().zip(a.iter().zip(b)).for_each(|(z, (&a, &b))| *z = Complex64::new(a, b)),
+                None => row.iter_mut().zip(a).for_each(|(z, &a)| *z = Complex64::new(a, 0.0)),
+            }
+        }
+        process_rows(&self.fft_row, pairs, w, parallel);
+    }
+
+    /// Half spectra (`kx ≤ W/2`) of three real `W × H` planes given by their first
+    /// `nonzero_rows` rows (`planes`: channel, then row, then column; the other rows are zero),
+    /// left in `spec` as channel, then `kx`, then `ky`: one contiguous column per frequency, which
+    /// is the layout the column transforms need and all that products of spectra need.
+    fn forward_real(&self, planes: &[f64], nonzero_rows: usize, pairs: &mut Vec<Complex64>, spec: &mut [Complex64], parallel: bool) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
-        process_rows(&self.fft_row, &mut plane[..w * nonzero_rows], w);
-        let mut t = transpose(&plane, w, h);
-        process_rows(&self.fft_col, &mut t, h);
-        t
+        let half = w / 2 + 1;
+        let real_rows = 3 * nonzero_rows;
+        self.transform_row_pairs(planes, pairs, parallel);
+        for column in spec.chunks_exact_mut(h) {
+            column[nonzero_rows..].fill(Complex64::new(0.0, 0.0));
+        }
+        // Scattered into columns a few frequencies at a time, so that the writes stay in cache.
+        const FREQUENCIES_PER_PASS: usize = 16;
+        for k0 in (0..half).step_by(FREQUENCIES_PER_PASS) {
+            for r in 0..real_rows {
+                let (channel, y) = (r / nonzero_rows, r % nonzero_rows);
+                let base = channel * half * h + y;
+                for k in k0..(k0 + FREQUENCIES_PER_PASS).min(half) {
+                    spec[base + k * h] = half_spectrum_at(pairs, w, r, k);
+                }
+            }
+        }
+        process_rows(&self.fft_col, spec, h, parallel);
+    }
+
+    /// Column `kx` of the summed cross-correlation's half spectrum, `Σ_c Ŝ_c·conj T̂_c`, already
+    /// transformed back along `y`, into `out`; `by_frequency` holds the template's row-pair
+    /// transforms transposed (all pairs at frequency 0, then at 1, …), so a column reads two runs. The template's column of each channel is
+    /// transformed in `column` just before its product: one column at a time stays in cache,
+    /// where whole template spectra would not.
+    fn correlate_column(
+        &self,
+        by_frequency: &[Complex64],
+        rows: usize,
+        kx: usize,
+        out: &mut [Complex64],
+        column: &mut [Complex64],
+        fft_scratch: &mut [Complex64],
+    ) {
+        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        let plane = (w / 2 + 1) * h;
+        let pair_count = by_frequency.len() / w;
+        let at = &by_frequency[kx * pair_count..(kx + 1) * pair_count];
+        let mirrored = &by_frequency[(w - kx) % w * pair_count..((w - kx) % w + 1) * pair_count];
+        for c in 0..3 {
+            for (y, v) in column[..rows].iter_mut().enumerate() {
+                let r = c * rows + y;
+                let (z, m) = (at[r / 2], mirrored[r / 2].conj());
+                *v = if r % 2 == 1 { (z - m) * Complex64::new(0.0, -0.5) } else { (z + m) * 0.5 };
+            }
+            column[rows..].fill(Complex64::new(0.0, 0.0));
+            self.fft_col.process_with_scratch(column, fft_scratch);
+            let sample = &self.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
+            if c == 0 {
+                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o = s * t.conj());
+            } else {
+                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o += s * t.conj());
+            }
+        }
+        self.ifft_col.process_with_scratch(out, fft_scratch);
     }
 
     fn region_sum_sq(&self, x: u32, y: u32, r: &Rect) -> u64 {
@@ -170,86 +243,175 @@ impl<'a> OverlapSearch<'a> {
         if total_area == 0 {
             return self.candidates_direct(target, origin, regions, tolerance);
         }
+        let map_index = self.sum_sq_map(regions);
+        let mut work = std::mem::take(&mut self.work);
+        let parallel = rayon::current_num_threads() > 1;
+        let found = self.search_fft(&mut work, target, origin, regions, map_index, tolerance, parallel);
+        self.work = work;
+        found
+    }
+
+    /// The candidate sets of several blocks against the same `target`, each `(origin, regions)`
+    /// as in [`OverlapSearch::candidates`], in the order given. Blocks are searched concurrently,
+    /// one per task rather than one split across tasks: a single 256² search is too small to share
+    /// well. Each set is decided on exact integers, so it is the same whatever the thread count.
+    pub fn candidates_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
+        let maps: Vec<Option<usize>> = queries
+            .iter()
+            .map(|(_, regions)| (regions.iter().map(|r| r.area()).sum::<u64>() > 0).then(|| self.sum_sq_map(regions)))
+            .collect();
+        let tasks = rayon::current_num_threads().clamp(1, queries.len().max(1));
+        let per_task = queries.len().div_ceil(tasks).max(1);
+        let mut pool = std::mem::take(&mut self.spare_work);
+        pool.resize_with(queries.len().div_ceil(per_task), Workspace::default);
+        let this = &*self;
+        let search_chunk = |work: &mut Workspace, queries: &[((u32, u32), Vec<Rect>)], maps: &[Option<usize>]| -> Vec<Candidates> {
+            queries
+                .iter()
+                .zip(maps)
+                .map(|((origin, regions), map)| match map {
+                    Some(m) => this.search_fft(work, target, *origin, regions, *m, tolerance, false),
+                    None => this.candidates_direct(target, *origin, regions, tolerance),
+                })
+                .collect()
+        };
+        let found: Vec<Vec<Candidates>> = if pool.len() <= 1 {
+            pool.iter_mut().map(|work| search_chunk(work, queries, &maps)).collect()
+        } else {
+            pool.par_iter_mut()
+                .zip(queries.par_chunks(per_task).zip(maps.par_chunks(per_task)))
+                .map(|(work, (queries, maps))| search_chunk(work, queries, maps))
+                .collect()
+        };
+        self.spare_work = pool;
+        found.into_iter().flatten().collect()
+    }
+
+    /// One block's FFT search with the ΣS² map `map_index`; `parallel` splits its transforms and
+    /// re-check across the pool (same result either way).
+    fn search_fft(
+        &self,
+        work: &mut Workspace,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        map_index: usize,
+        tolerance: f64,
+        parallel: bool,
+    ) -> Candidates {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let (nx, ny) = self.positions();
         let (nxu, nyu) = (nx as usize, ny as usize);
         let rows = self.block_h as usize;
-        let map_index = self.sum_sq_map(regions);
-        let mut work = std::mem::take(&mut self.work);
-        if work.spec_rg.len() != w * h {
-            work.rows_rg = vec![Complex64::new(0.0, 0.0); w * rows];
-            work.rows_b = vec![Complex64::new(0.0, 0.0); w * rows];
-            work.spec_rg = vec![Complex64::new(0.0, 0.0); w * h];
-            work.spec_b = vec![Complex64::new(0.0, 0.0); w * h];
-            work.product = vec![Complex64::new(0.0, 0.0); w * h];
-            work.plane = vec![Complex64::new(0.0, 0.0); w * h];
+        let half = w / 2 + 1;
+        if work.product.len() != half * h {
+            work.planes = vec![0.0; 3 * rows * w];
+            work.product = vec![Complex64::new(0.0, 0.0); half * h];
             work.approx = vec![0.0; nxu * nyu];
         }
-        // Template planes: the target's overlap pixels at their block offsets, zero elsewhere.
-        work.rows_rg.fill(Complex64::new(0.0, 0.0));
-        work.rows_b.fill(Complex64::new(0.0, 0.0));
+        // Template planes: the target's overlap pixels at their block offsets, zero elsewhere (the
+        // planes are kept zero between blocks: only the pixels written here are cleared after).
         let mut sum_t2: u64 = 0;
         for r in regions {
             for dy in 0..r.h {
                 for dx in 0..r.w {
                     let p = target.get(origin.0 + r.x + dx, origin.1 + r.y + dy);
                     let i = (r.y + dy) as usize * w + (r.x + dx) as usize;
-                    work.rows_rg[i] = Complex64::new(p[0] as f64, p[1] as f64);
-                    work.rows_b[i] = Complex64::new(p[2] as f64, 0.0);
+                    for (c, &v) in p.iter().enumerate() {
+                        work.planes[c * rows * w + i] = v as f64;
+                    }
                     sum_t2 += p.iter().map(|&c| c as u64 * c as u64).sum::<u64>();
                 }
             }
         }
-        // Forward 2-D FFTs of the templates: rows (only the non-zero ones), then columns.
-        for (plane, spec) in [(&mut work.rows_rg, &mut work.spec_rg), (&mut work.rows_b, &mut work.spec_b)] {
-            process_rows(&self.fft_row, plane, w);
-            // The column pass of the previous block filled whole rows: clear their zero tails.
-            for row in spec.chunks_exact_mut(h) {
-                row[rows..].fill(Complex64::new(0.0, 0.0));
+        self.transform_row_pairs(&work.planes, &mut work.pairs, parallel);
+        for r in regions {
+            for c in 0..3 {
+                for dy in 0..r.h as usize {
+                    let i = c * rows * w + (r.y as usize + dy) * w + r.x as usize;
+                    work.planes[i..i + r.w as usize].fill(0.0);
+                }
             }
-            transpose_into(plane, w, rows, spec, h);
-            process_rows(&self.fft_col, spec, h);
         }
-        // Σ_c S_c ⋆ T_c = Re IFFT( F(R+iG)·conj F(Tr+iTg) + F(B)·conj F(Tb) ).
-        for (((p, s1), t1), (s2, t2)) in
-            work.product.iter_mut().zip(&self.spec_rg).zip(&work.spec_rg).zip(self.spec_b.iter().zip(&work.spec_b))
-        {
-            *p = s1 * t1.conj() + s2 * t2.conj();
+        // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
+        // back along columns one column at a time.
+        let zero = Complex64::new(0.0, 0.0);
+        let scratch_len = self.fft_col.get_inplace_scratch_len().max(self.ifft_col.get_inplace_scratch_len());
+        let pair_count = work.pairs.len() / w;
+        work.by_frequency.resize(work.pairs.len(), zero);
+        transpose_into(&work.pairs, w, pair_count, &mut work.by_frequency, pair_count);
+        let pairs = &work.by_frequency;
+        if parallel {
+            work.product.par_chunks_mut(h).enumerate().for_each_init(
+                || (vec![zero; h], vec![zero; scratch_len]),
+                |(column, scratch), (kx, out)| self.correlate_column(pairs, rows, kx, out, column, scratch),
+            );
+        } else {
+            work.column.resize(h, zero);
+            work.fft_scratch.resize(scratch_len, zero);
+            for (kx, out) in work.product.chunks_exact_mut(h).enumerate() {
+                self.correlate_column(pairs, rows, kx, out, &mut work.column, &mut work.fft_scratch);
+            }
         }
-        // Inverse: columns, then only the rows that hold candidate positions.
-        process_rows(&self.ifft_col, &mut work.product, h);
-        transpose_into(&work.product, h, w, &mut work.plane[..nyu * w], w);
-        process_rows(&self.ifft_row, &mut work.plane[..nyu * w], w);
+        // Then the rows that hold candidate positions, two real rows `y1`, `y2` per complex row:
+        // its spectrum is X₁(k) + i·X₂(k), each X completed by X(W−k) = X̄(k).
+        let row_pairs = nyu.div_ceil(2);
+        // Every entry is written below (`k` and its mirror cover the row): resized, never cleared.
+        work.rows.resize(row_pairs * w, Complex64::new(0.0, 0.0));
+        let i_unit = Complex64::new(0.0, 1.0);
+        // A few row pairs at a time, so that the writes stay in cache.
+        const PAIRS_PER_PASS: usize = 8;
+        for (band, rows_out) in work.rows.chunks_mut(PAIRS_PER_PASS * w).enumerate() {
+            let first = band * PAIRS_PER_PASS;
+            for k in 0..half {
+                let column = &work.product[k * h..(k + 1) * h];
+                let mirror = w - k;
+                for (p, row) in rows_out.chunks_exact_mut(w).enumerate() {
+                    let y = 2 * (first + p);
+                    let a = column[y];
+                    let b = column.get(y + 1).copied().unwrap_or(Complex64::new(0.0, 0.0));
+                    row[k] = a + i_unit * b;
+                    if k > 0 && mirror >= half {
+                        row[mirror] = a.conj() + i_unit * b.conj();
+                    }
+                }
+            }
+        }
+        process_rows(&self.ifft_row, &mut work.rows, w, parallel);
         let scale = 1.0 / (w * h) as f64;
 
         // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
         // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
         let margin = 1e-9 * self.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
         let sum_sq = &self.sum_sq_maps[map_index].1;
-        let plane = &work.plane;
-        work.approx.par_chunks_mut(nxu).enumerate().for_each(|(y, row)| {
-            let corr = &plane[y * w..y * w + nxu];
+        let pairs = &work.rows;
+        let approx_row = |(y, row): (usize, &mut [f64])| {
+            let corr = &pairs[y / 2 * w..y / 2 * w + nxu];
             let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
+            let second = y % 2 == 1;
             for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
-                *a = s - 2.0 * c.re * scale + sum_t2 as f64;
+                let c = if second { c.im } else { c.re };
+                *a = s - 2.0 * c * scale + sum_t2 as f64;
             }
-        });
+        };
+        if parallel {
+            work.approx.par_chunks_mut(nxu).enumerate().for_each(approx_row);
+        } else {
+            work.approx.chunks_mut(nxu).enumerate().for_each(approx_row);
+        }
         let amin = work.approx.iter().copied().fold(f64::INFINITY, f64::min);
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
         let approx = &work.approx;
-        let this = &*self;
-        let rechecked: Vec<(u32, u32, u64)> = (0..ny)
-            .into_par_iter()
-            .flat_map_iter(|y| {
-                let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
-                row.iter()
-                    .enumerate()
-                    .filter(|(_, a)| **a <= threshold)
-                    .map(|(x, _)| (x as u32, y, this.exact_ssd(x as u32, y, target, origin, regions)))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        self.work = work;
+        let recheck_row = |y: u32| {
+            let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
+            row.iter()
+                .enumerate()
+                .filter(|(_, a)| **a <= threshold)
+                .map(|(x, _)| (x as u32, y, self.exact_ssd(x as u32, y, target, origin, regions)))
+                .collect::<Vec<_>>()
+        };
+        let rechecked: Vec<(u32, u32, u64)> =
+            if parallel { (0..ny).into_par_iter().flat_map_iter(recheck_row).collect() } else { (0..ny).flat_map(recheck_row).collect() };
         let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
         let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
         Candidates { min_ssd: min, members }
@@ -271,31 +433,35 @@ impl<'a> OverlapSearch<'a> {
     }
 }
 
-fn process_rows(fft: &Arc<dyn Fft<f64>>, data: &mut [Complex64], len: usize) {
-    // Fixed-size chunks: each row's transform is independent of how rows are grouped.
-    const ROWS_PER_TASK: usize = 16;
-    data.par_chunks_mut(len * ROWS_PER_TASK).for_each(|chunk| fft.process(chunk));
+/// Real row `r`'s spectrum at frequency `k`, from the row-pair transforms `pairs` (rows `W`
+/// long): `A(k) = (Z(k) + Z̄(W−k)) / 2` for the first row of a pair, `B(k) = (Z(k) − Z̄(W−k)) / 2i`
+/// for the second.
+#[inline]
+fn half_spectrum_at(pairs: &[Complex64], w: usize, r: usize, k: usize) -> Complex64 {
+    let z = &pairs[r / 2 * w..(r / 2 + 1) * w];
+    let mirrored = z[(w - k) % w].conj();
+    if r % 2 == 1 { (z[k] - mirrored) * Complex64::new(0.0, -0.5) } else { (z[k] + mirrored) * 0.5 }
 }
 
-fn transpose(src: &[Complex64], w: usize, h: usize) -> Vec<Complex64> {
-    let mut dst = vec![Complex64::new(0.0, 0.0); w * h];
-    transpose_into(src, w, h, &mut dst, h);
-    dst
+fn process_rows(fft: &Arc<dyn Fft<f64>>, data: &mut [Complex64], len: usize, parallel: bool) {
+    // Fixed-size chunks: each row's transform is independent of how rows are grouped.
+    const ROWS_PER_TASK: usize = 16;
+    if parallel {
+        data.par_chunks_mut(len * ROWS_PER_TASK).for_each(|chunk| fft.process(chunk));
+    } else {
+        fft.process(data);
+    }
 }
 
 /// Writes the transpose of the `w × h` row-major `src` into `dst`, whose rows are `dst_stride`
-/// long: `dst[x·dst_stride + y] = src[y·w + x]` for `y < min(h, dst_stride)`; other entries of
-/// `dst` are left untouched. Also used to read only the first rows of a transposed result.
+/// long: `dst[x·dst_stride + y] = src[y·w + x]`. In tiles, so that reads and writes stay in cache.
 fn transpose_into(src: &[Complex64], w: usize, h: usize, dst: &mut [Complex64], dst_stride: usize) {
     const T: usize = 16;
-    let h_used = h.min(dst_stride);
-    let rows_out = dst.len() / dst_stride;
-    let w_used = w.min(rows_out);
-    for by in (0..h_used).step_by(T) {
-        for bx in (0..w_used).step_by(T) {
-            for x in bx..(bx + T).min(w_used) {
+    for by in (0..h).step_by(T) {
+        for bx in (0..w).step_by(T) {
+            for x in bx..(bx + T).min(w) {
                 let d = &mut dst[x * dst_stride..x * dst_stride + dst_stride];
-                for y in by..(by + T).min(h_used) {
+                for y in by..(by + T).min(h) {
                     d[y] = src[y * w + x];
                 }
             }
@@ -360,6 +526,28 @@ mod tests {
             let origin = (k * 9, 100 - k * 7);
             let fast = search.candidates(&target, origin, regions, 0.05 * k as f64);
             assert_eq!(fast, search.candidates_direct(&target, origin, regions, 0.05 * k as f64), "call {k}");
+        }
+    }
+
+    #[test]
+    fn many_blocks_at_once_equal_one_at_a_time_on_any_pool() {
+        // An odd width exercises the half spectrum without a Nyquist column; the empty region set
+        // takes the brute-force path.
+        let sample = noise(45, 38, 31);
+        let target = noise(90, 90, 32);
+        let queries: Vec<((u32, u32), Vec<Rect>)> = vec![
+            ((3, 4), vec![Rect::new(0, 0, 4, 14)]),
+            ((30, 2), vec![Rect::new(0, 0, 14, 4)]),
+            ((12, 40), vec![Rect::new(0, 0, 4, 14), Rect::new(4, 0, 10, 4)]),
+            ((60, 61), vec![]),
+            ((70, 9), vec![Rect::new(0, 0, 4, 14), Rect::new(4, 0, 10, 4)]),
+        ];
+        let mut search = OverlapSearch::new(&sample, 14, 14);
+        let one_by_one: Vec<Candidates> = queries.iter().map(|(o, r)| search.candidates_direct(&target, *o, r, 0.2)).collect();
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let many = pool.install(|| search.candidates_many(&target, &queries, 0.2));
+            assert_eq!(many, one_by_one, "{threads} threads");
         }
     }
 
