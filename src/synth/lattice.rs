@@ -230,9 +230,28 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
 /// `(squared length, dx, dy)`, nearest first (ties in a fixed order).
 fn offsets_by_distance(w: usize, h: usize) -> Vec<(i64, i64, i64)> {
     let (rx, ry) = ((w / 2) as i64, (h / 2) as i64);
-    let mut by_distance: Vec<(i64, i64, i64)> =
-        (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
-    by_distance.sort_unstable();
+    // A counting sort on the squared length: visiting `dx` then `dy` in increasing order fills each
+    // length's bucket in tuple order, so the result is the sorted list of `(d², dx, dy)` in linear
+    // time (a comparison sort of these ~4·w·h offsets was a fifth of an extraction).
+    let max_d2 = (4 * rx * rx + 4 * ry * ry) as usize;
+    let mut starts = vec![0usize; max_d2 + 2];
+    for oy in -2 * ry..=2 * ry {
+        for ox in -2 * rx..=2 * rx {
+            starts[(ox * ox + oy * oy) as usize + 1] += 1;
+        }
+    }
+    for i in 1..starts.len() {
+        starts[i] += starts[i - 1];
+    }
+    let mut by_distance = vec![(0i64, 0i64, 0i64); starts[max_d2 + 1]];
+    for ox in -2 * rx..=2 * rx {
+        for oy in -2 * ry..=2 * ry {
+            let d2 = ox * ox + oy * oy;
+            let slot = &mut starts[d2 as usize];
+            by_distance[*slot] = (d2, ox, oy);
+            *slot += 1;
+        }
+    }
     by_distance
 }
 
@@ -524,5 +543,16 @@ mod tests {
         assert_eq!(canonical((0, -26), (-27, 0)), ((27, 0), (0, 26)));
         let (a, b) = canonical((-36, -24), (-38, 24));
         assert!(a.0 > 0 && cross(a, b) > 0);
+    }
+
+    #[test]
+    fn offsets_come_in_tuple_order() {
+        for (w, h) in [(8, 8), (9, 14), (31, 20)] {
+            let (rx, ry) = ((w / 2) as i64, (h / 2) as i64);
+            let mut want: Vec<(i64, i64, i64)> =
+                (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
+            want.sort_unstable();
+            assert_eq!(offsets_by_distance(w, h), want, "{w}x{h}");
+        }
     }
 }

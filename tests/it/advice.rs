@@ -1,5 +1,7 @@
-//! `texsyn advise` and the `warnings` of a run, on real samples: the twelve bundled ones and five
-//! material albedos (tests/fixtures/advice), every method with its defaults, 384² from 256².
+//! `texsyn advise` and the `warnings` of a run, on real samples: the twelve bundled ones, five
+//! material albedos (tests/fixtures/advice) and nine walls, roofs and floors the methods never saw
+//! while their defaults were chosen (tests/fixtures/structured), every method with its defaults,
+//! 384² from 256².
 //!
 //! The regression guard: scored on texsyn's own orientation metrics against quilting on the same
 //! sample, every output either stays within a factor [`FACTOR`] of quilting or carries a warning;
@@ -17,7 +19,7 @@ const METHODS: [&str; 7] = ["quilting", "double-seam", "patch-sampling", "coevol
 
 fn samples() -> Vec<PathBuf> {
     let mut out = Vec::new();
-    for dir in [repo().join("jobs/samples"), repo().join("tests/fixtures/advice")] {
+    for dir in [repo().join("jobs/samples"), repo().join("tests/fixtures/advice"), repo().join("tests/fixtures/structured")] {
         for e in std::fs::read_dir(&dir).unwrap() {
             let p = e.unwrap().path();
             if p.extension().is_some_and(|x| x == "png") {
@@ -126,7 +128,21 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
     for s in ["cork", "grass_gray", "gravel_gray", "hedge_leaves", "pebbles_beige", "roughcast_plaster"] {
         assert_eq!(kinds[s], "stochastic", "{s}");
     }
-    for s in ["bricks_gray", "brick_a_albedo", "metal_tread_studs", "tiles_terracotta", "weave_gray"] {
+    for s in [
+        "bricks_gray",
+        "brick_a_albedo",
+        "metal_tread_studs",
+        "tiles_terracotta",
+        "weave_gray",
+        // The unseen walls, roofs and floors.
+        "beige_bricks",
+        "city_bricks",
+        "roof",
+        "stk_generic_asianRoof_a",
+        "stk_generic_brickRoad_a",
+        "stktex_generic_stoneWallA",
+        "tiles",
+    ] {
         assert_eq!(kinds[s], "near-regular", "{s}");
     }
 }
