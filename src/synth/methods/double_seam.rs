@@ -530,10 +530,12 @@ impl Method for DoubleSeam {
     }
 
     fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        // Measured (VmHWM of `texsyn run`, bricks_gray 256², block 50): per output pixel the
-        // canvas and its per-pixel seam and cost planes, about 31 B; 512²: 31 MB, 1024²: 57 MB,
-        // 2048²: 153 MB, 4096²: 500 MB in all.
-        crate::synth::method::linear_memory(sample, output, 40.0, 128.0, 16 << 20)
+        // Measured (VmHWM of `texsyn run -j 2`, bricks_gray 256², block 50): per output pixel the
+        // canvas and its per-pixel seam and cost planes, about 31 B. Per sample pixel, the FFT
+        // buffers kept for the job and, on samples whose hue or saturation lines are flat (bricks),
+        // the full per-case statistics tables: 67 MiB in all at 512², 79 MiB at 768², 124 MiB at
+        // 1536².
+        crate::synth::method::linear_memory(sample, output, 40.0, 320.0, 16 << 20)
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
