@@ -77,6 +77,13 @@ impl Analysis {
         Some(vector_length(l.t1).min(vector_length(l.t2)))
     }
 
+    /// The view the lattice was found in when the gray plane showed none, if the sample is also
+    /// strongly oriented: such a lattice is weak (on irregular stone-block walls it is a grid that
+    /// does not follow the joints), and the oriented structure is what tiles and texels break.
+    pub fn weak_lattice_on_oriented(&self) -> Option<&'static str> {
+        self.lattice.as_ref().and_then(|l| l.found_in).filter(|_| self.orientation >= ORIENTED_FROM)
+    }
+
     /// The length of the longer lattice vector, in pixels.
     pub fn longest_vector(&self) -> Option<f64> {
         let l = self.lattice.as_ref()?;
@@ -261,7 +268,16 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
             if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
         }
         "coevolution" | "tes" => {
-            if a.lattice.is_some() || lattice_given(p) {
+            if let (Some(view), false) = (a.weak_lattice_on_oriented(), lattice_given(p)) {
+                Fit::NotFor {
+                    because: format!(
+                        "its lattice was found only in the sample's {view}, not in its gray levels, and the sample is strongly \
+                         oriented (coherence {:.3}): texels cut on that lattice will not line up",
+                        a.orientation
+                    ),
+                    instead: "quilting",
+                }
+            } else if a.lattice.is_some() || lattice_given(p) {
                 Fit::Fits
             } else {
                 Fit::NotFor {
@@ -273,6 +289,14 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 }
             }
         }
+        "wang-tiles" | "rw-tiles" if a.weak_lattice_on_oriented().is_some() => Fit::NotFor {
+            because: format!(
+                "its lattice was found only in the sample's {}, and tiles cut on a weak lattice break the sample's oriented \
+                 structure at every tile edge",
+                a.weak_lattice_on_oriented().unwrap_or_default()
+            ),
+            instead: "quilting",
+        },
         "wang-tiles" | "rw-tiles" => match a.kind {
             Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
                 set: vec![("align".into(), "lattice".into())],
@@ -328,9 +352,10 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
 
 /// The warning sentence for a job, if its method and parameters do not fit its sample. A
 /// near-regular method on a sample without a lattice is not warned about: it refuses the job
-/// itself, with the reason, and a warning would only repeat it.
+/// itself, with the reason, and a warning would only repeat it. On a weak lattice it runs, and
+/// is warned about.
 pub fn warning(a: &Analysis, method: &str, p: &Params) -> Option<String> {
-    if matches!(method, "coevolution" | "tes") {
+    if matches!(method, "coevolution" | "tes") && a.lattice.is_none() {
         return None;
     }
     match fit(a, method, p) {
