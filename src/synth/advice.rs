@@ -250,6 +250,12 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 set.push(("blend".to_string(), "cut".to_string()));
                 why.push("feathering blends misaligned edges of a structured sample into ghosts".into());
             }
+            // The swarm misses the exact continuations of the neighbouring patches on a lattice
+            // (rows of a roof or a wall drift); scoring them keeps the rows.
+            if method == "patch-sampling" && a.kind == Kind::NearRegular && p.get("continuations") == Some(&ParamValue::Bool(false)) {
+                set.push(("continuations".to_string(), "true".to_string()));
+                why.push("the swarm misses the exact continuations of neighbouring patches on a lattice, so rows drift".into());
+            }
             // Quilting's exhaustive overlap search finds in-phase continuations with any block;
             // double-seam (which judges a block by two seam lines) and patch sampling (a swarm
             // search, then a feathered zone) keep whole texels only when a block holds one.
@@ -371,7 +377,7 @@ pub fn warning(a: &Analysis, method: &str, p: &Params) -> Option<String> {
 }
 
 fn toml_value(v: &str) -> String {
-    if v.parse::<f64>().is_ok() { v.to_string() } else { format!("\"{v}\"") }
+    if v.parse::<f64>().is_ok() || v == "true" || v == "false" { v.to_string() } else { format!("\"{v}\"") }
 }
 
 pub fn kind_word(k: Kind) -> &'static str {
@@ -431,6 +437,9 @@ mod tests {
         assert_eq!(warning(&a, "quilting", &params(&[("block", ParamValue::Int(12))])), None);
         let w = warning(&a, "patch-sampling", &params(&[("blend", ParamValue::Str("feather".into()))])).expect("feathering warns");
         assert!(w.contains("blend = \"cut\""), "{w}");
+        let w = warning(&a, "patch-sampling", &params(&[("continuations", ParamValue::Bool(false))])).expect("the swarm alone warns");
+        assert!(w.contains("continuations = true"), "{w}");
+        assert_eq!(warning(&a, "patch-sampling", &params(&[("continuations", ParamValue::Bool(true))])), None);
         // Blocks smaller than the texel (lattice vectors (8, ±8)): the methods that cannot
         // search their way back into phase are told a block that holds one.
         let w = warning(&a, "double-seam", &params(&[("block", ParamValue::Int(8))])).expect("small blocks warn");
