@@ -171,29 +171,12 @@ fn defined(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
-fn kl_gray_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
-    defined(kl_divergence_eps(&gray_histogram(p.img), &gray_histogram(q.img), p.params.epsilon))
-}
-fn kl_orientation_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
-    defined(kl_divergence_eps(&p.orientation_histogram(), &q.orientation_histogram(), p.params.epsilon))
-}
-fn acf_gray_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
-    let a = gray_acf(p.img, p.params)?;
-    let b = gray_acf(q.img, q.params)?;
-    defined(euclidean_distance(a.values(), b.values()))
-}
-fn acf_orientation_impl(p: &Analysis, q: &Analysis) -> Option<f64> {
-    let a = p.orientation_acf()?;
-    let b = q.orientation_acf()?;
-    defined(euclidean_distance(a.values(), b.values()))
-}
-
 /// Gray-level histogram KL, `D_KL(sample‖output)` (§5.6 item 1).
 pub fn kl_gray(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
     kl_gray_with(sample, output, &MetricParams::default())
 }
 pub fn kl_gray_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
-    kl_gray_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+    score("kl_gray", sample, &SampleReference::new(params.clone()), &Analysis::new(output, params), None)
 }
 
 /// Local-orientation histogram KL (§5.6 item 2); `None` when either image has no valid pixel.
@@ -201,7 +184,7 @@ pub fn kl_orientation(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
     kl_orientation_with(sample, output, &MetricParams::default())
 }
 pub fn kl_orientation_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
-    kl_orientation_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+    score("kl_orientation", sample, &SampleReference::new(params.clone()), &Analysis::new(output, params), None)
 }
 
 /// Gray autocorrelation distance (§5.6 item 3); `None` when either image is constant.
@@ -209,7 +192,7 @@ pub fn acf_gray(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
     acf_gray_with(sample, output, &MetricParams::default())
 }
 pub fn acf_gray_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
-    acf_gray_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+    score("acf_gray", sample, &SampleReference::new(params.clone()), &Analysis::new(output, params), None)
 }
 
 /// Orientation autocorrelation distance (§5.6 item 4).
@@ -217,7 +200,7 @@ pub fn acf_orientation(sample: &RgbImage, output: &RgbImage) -> Option<f64> {
     acf_orientation_with(sample, output, &MetricParams::default())
 }
 pub fn acf_orientation_with(sample: &RgbImage, output: &RgbImage, params: &MetricParams) -> Option<f64> {
-    acf_orientation_impl(&Analysis::new(sample, params), &Analysis::new(output, params))
+    score("acf_orientation", sample, &SampleReference::new(params.clone()), &Analysis::new(output, params), None)
 }
 
 /// Why metrics could not be computed.
@@ -321,28 +304,29 @@ pub fn evaluate_against(
     let params = &reference.params;
     params.validate()?;
     let q = Analysis::new(output, params);
-    let mut out = BTreeMap::new();
-    for &name in names {
-        let value = match name {
-            "kl_gray" => defined(kl_divergence_eps(reference.gray_histogram(sample), &gray_histogram(output), params.epsilon)),
-            "kl_orientation" => defined(kl_divergence_eps(&reference.orientation(sample).0, &q.orientation_histogram(), params.epsilon)),
-            "acf_gray" => reference
-                .gray_acf(sample)
-                .zip(gray_acf(output, params))
-                .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
-            "acf_orientation" => reference
-                .orientation(sample)
-                .1
-                .as_ref()
-                .zip(q.orientation_acf())
-                .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
-            "verbatim" => reference.windows(sample).fraction(sample, output),
-            "seam_visibility" => grid.and_then(|g| seam_visibility(output, g)),
-            _ => unreachable!("names were checked above"),
-        };
-        out.insert(name.to_string(), value);
+    Ok(names.iter().map(|&name| (name.to_string(), score(name, sample, reference, &q, grid))).collect())
+}
+
+/// One metric (a name of [`METRIC_NAMES`]) of the output `q` against `sample` through its
+/// reference: the single definition every entry point uses.
+fn score(name: &str, sample: &RgbImage, reference: &SampleReference, q: &Analysis, grid: Option<&SeamGrid>) -> Option<f64> {
+    let (output, params) = (q.img, &reference.params);
+    match name {
+        "kl_gray" => defined(kl_divergence_eps(reference.gray_histogram(sample), &gray_histogram(output), params.epsilon)),
+        "kl_orientation" => defined(kl_divergence_eps(&reference.orientation(sample).0, &q.orientation_histogram(), params.epsilon)),
+        "acf_gray" => {
+            reference.gray_acf(sample).zip(gray_acf(output, params)).and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values())))
+        }
+        "acf_orientation" => reference
+            .orientation(sample)
+            .1
+            .as_ref()
+            .zip(q.orientation_acf())
+            .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
+        "verbatim" => reference.windows(sample).fraction(sample, output),
+        "seam_visibility" => grid.and_then(|g| seam_visibility(output, g)),
+        _ => unreachable!("names are checked before scoring"),
     }
-    Ok(out)
 }
 
 #[cfg(test)]

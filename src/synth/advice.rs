@@ -295,15 +295,14 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 }
             }
         }
-        "wang-tiles" | "rw-tiles" if a.weak_lattice_on_oriented().is_some() => Fit::NotFor {
-            because: format!(
-                "its lattice was found only in the sample's {}, and tiles cut on a weak lattice break the sample's oriented \
-                 structure at every tile edge",
-                a.weak_lattice_on_oriented().unwrap_or_default()
-            ),
-            instead: "quilting",
-        },
         "wang-tiles" | "rw-tiles" => match a.kind {
+            _ if let Some(view) = a.weak_lattice_on_oriented() => Fit::NotFor {
+                because: format!(
+                    "its lattice was found only in the sample's {view}, and tiles cut on a weak lattice break the sample's oriented \
+                     structure at every tile edge"
+                ),
+                instead: "quilting",
+            },
             Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
                 set: vec![("align".into(), "lattice".into())],
                 because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),

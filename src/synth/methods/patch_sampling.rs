@@ -762,18 +762,17 @@ impl Method for PatchSampling {
                     }
                     let stride = block - overlap;
                     let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
-                    let left = match &torus {
-                        Some(_) => (bi, (bj + cols - 1) % cols),
-                        None if bj > 0 => (bi, bj - 1),
-                        None => return top_only(&placed, cols, &torus, (bi, bj), rows, stride, (nx, ny)),
+                    // Left, then top; on a torus the row or column before the first wraps.
+                    let neighbours = match &torus {
+                        Some(_) => [Some((bi, (bj + cols - 1) % cols)), Some(((bi + rows - 1) % rows, bj))],
+                        None => [(bj > 0).then(|| (bi, bj - 1)), (bi > 0).then(|| (bi - 1, bj))],
                     };
-                    let mut h = Vec::new();
-                    if let Some(p) = placed[(left.0 * cols + left.1) as usize] {
-                        h.push((p.0 + stride, p.1));
-                    }
-                    h.extend(top_only(&placed, cols, &torus, (bi, bj), rows, stride, (nx, ny)));
-                    h.retain(|&(x, y)| x < nx && y < ny);
-                    h
+                    neighbours
+                        .into_iter()
+                        .zip([(stride, 0), (0, stride)])
+                        .filter_map(|(n, (dx, dy))| n.and_then(|(ni, nj)| placed[(ni * cols + nj) as usize]).map(|p| (p.0 + dx, p.1 + dy)))
+                        .filter(|&(x, y)| x < nx && y < ny)
+                        .collect()
                 })
                 .collect();
             let mut found: Vec<BlockResult> = if wave == [(0, 0)] {
@@ -869,25 +868,6 @@ struct Zone<'a> {
     regions: Vec<Rect>,
     block: u32,
     sides: Sides,
-}
-
-/// The top neighbour's continuation, one stride down, if that neighbour is placed (on a torus the
-/// row above wraps).
-fn top_only(
-    placed: &[Option<(u32, u32)>],
-    cols: u32,
-    torus: &Option<TorusGrid>,
-    (bi, bj): (u32, u32),
-    rows: u32,
-    stride: u32,
-    (nx, ny): (u32, u32),
-) -> Vec<(u32, u32)> {
-    let top = match torus {
-        Some(_) => (bi + rows - 1) % rows,
-        None if bi > 0 => bi - 1,
-        None => return Vec::new(),
-    };
-    placed[(top * cols + bj) as usize].map(|p| (p.0, p.1 + stride)).filter(|&(x, y)| x < nx && y < ny).into_iter().collect()
 }
 
 /// The swarm search of one block (§4.2 step 5, §4.3).
