@@ -360,8 +360,7 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     instead: "quilting",
                 }
             } else if let (Some(g), "tes", false) = (out_of_phase, method, lattice_given(p)) {
-                let (step, name, r) =
-                    if g.across <= g.down { (g.block.0, "across", g.across) } else { (g.block.1, "down", g.down) };
+                let (step, name, r) = if g.across <= g.down { (g.block.0, "across", g.across) } else { (g.block.1, "down", g.down) };
                 Fit::NotFor {
                     because: format!(
                         "TES abuts the texel's {}×{} px bounding boxes on a rectangular grid, and this sample does not repeat \
