@@ -64,13 +64,19 @@ pub struct GridRepeat {
     pub down: f64,
     /// The weaker of the correlations at `t1` and `t2`.
     pub along_lattice: f64,
+    /// How far the box steps miss the lattice: the larger distance, in pixels, from `(width, 0)`
+    /// and `(0, height)` to their nearest lattice vectors.
+    pub miss_px: f64,
 }
 
-/// TES's grid counts as out of phase when the sample repeats a block's step less than this
-/// fraction of how well it repeats along its lattice. Seen at 384² from 256²: TES dislocates rows
-/// on a weave (−0.51 against 0.75, the box steps miss the sheared lattice by 12 px) and a
-/// staggered roof (0.21 down against 0.56); it looks like its samples at 0.69 (city bricks, a
-/// stone wall) and above (tread plate, tiles, terracotta, two roofs, three brick walls: 0.88–1.06).
+/// TES's grid counts as out of phase when its box steps miss the lattice by more than
+/// [`PHASE_TOLERANCE`] of the shorter lattice vector (as tiles do), or when the sample repeats a
+/// box step less than this fraction of how well it repeats along its lattice. Seen at 384² from
+/// 256²: TES dislocates rows on a weave (steps 12 px off a 48 px vector; correlation −0.51 against
+/// 0.75), city bricks (32 px off a 71 px vector: bricks chopped), red bricks (12 px off 55 px) and
+/// a staggered roof (3 px off, but 0.21 down against 0.56: its rows are sharp); it looks like its
+/// samples where both hold (tread plate, tiles, terracotta, a clay roof, a brick road, a stone
+/// wall, beige bricks: at most 0.15 of the vector off, correlation ratios 0.68–1.06).
 pub const GRID_REPEAT_MIN: f64 = 0.5;
 
 /// The normalised correlation of `plane` (`w × h`, row-major) with itself shifted by `(dx, dy)`,
@@ -107,12 +113,14 @@ fn self_correlation(plane: &[f64], w: usize, h: usize, (dx, dy): (i64, i64)) -> 
 /// [`GridRepeat`] of a sample on its lattice.
 fn grid_repeat(img: &RgbImage, l: &Lattice) -> GridRepeat {
     use crate::synth::methods::near_regular::grid::Geometry;
+    use crate::synth::methods::tiles::align::{Alignment, residual_px};
     let (w, h) = (img.width() as usize, img.height() as usize);
     let gray: Vec<f64> = img.as_raw().chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0).collect();
     let (x0, x1, y0, y1) = Geometry::new(l.t1, l.t2).bbox;
     let block = (x1 - x0 + 1, y1 - y0 + 1);
     let at = |v| self_correlation(&gray, w, h, v);
-    GridRepeat { block, across: at((block.0, 0)), down: at((0, block.1)), along_lattice: at(l.t1).min(at(l.t2)) }
+    let miss_px = Alignment::new(l.t1, l.t2, "extracted").map_or(f64::INFINITY, |al| residual_px(&al, [(block.0, 0), (0, block.1)]));
+    GridRepeat { block, across: at((block.0, 0)), down: at((0, block.1)), along_lattice: at(l.t1).min(at(l.t2)), miss_px }
 }
 
 impl Analysis {
@@ -349,7 +357,11 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
             if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
         }
         "coevolution" | "tes" => {
-            let out_of_phase = a.grid_repeat.as_ref().filter(|g| g.across.min(g.down) < GRID_REPEAT_MIN * g.along_lattice);
+            let shortest = a.shortest_vector().unwrap_or(f64::INFINITY);
+            let out_of_phase = a
+                .grid_repeat
+                .as_ref()
+                .filter(|g| g.miss_px > PHASE_TOLERANCE * shortest || g.across.min(g.down) < GRID_REPEAT_MIN * g.along_lattice);
             if let (Some(view), false) = (a.weak_lattice_on_oriented(), lattice_given(p)) {
                 Fit::NotFor {
                     because: format!(
@@ -361,12 +373,20 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 }
             } else if let (Some(g), "tes", false) = (out_of_phase, method, lattice_given(p)) {
                 let (step, name, r) = if g.across <= g.down { (g.block.0, "across", g.across) } else { (g.block.1, "down", g.down) };
+                let why = if g.miss_px > PHASE_TOLERANCE * shortest {
+                    format!("its steps miss the sample's lattice by {:.1} px", g.miss_px)
+                } else {
+                    format!(
+                        "this sample does not repeat along that grid: its correlation {step} px {name} is {r:.2}, against {:.2} \
+                         along its lattice",
+                        g.along_lattice
+                    )
+                };
                 Fit::NotFor {
                     because: format!(
-                        "TES abuts the texel's {}×{} px bounding boxes on a rectangular grid, and this sample does not repeat \
-                         along that grid: its correlation {step} px {name} is {r:.2}, against {:.2} along its lattice, so blocks \
-                         join out of phase and rows break",
-                        g.block.0, g.block.1, g.along_lattice
+                        "TES abuts the texel's {}×{} px bounding boxes on a rectangular grid, and {why}, so blocks join out of \
+                         phase and rows break",
+                        g.block.0, g.block.1
                     ),
                     instead: "coevolution",
                 }

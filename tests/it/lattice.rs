@@ -2,7 +2,7 @@
 //! vectors docs/methods.md §2.2's prototype found, in canonical form), the eight others do not, and
 //! the command says so with its exit code. Then on real game textures of walls, roofs and floors
 //! (tests/fixtures/structured/): each has a lattice of the texel size one measures by eye, and the
-//! two irregular stone layouts among them have none.
+//! two irregular stone layouts among them have none; a running bond's lattice is of whole bricks.
 
 use super::common::*;
 
@@ -91,14 +91,23 @@ fn real_walls_roofs_and_floors_have_a_lattice_of_their_texel_size() {
         // Clay roof tiles: rows 31 px apart, two tile columns (about 49 px) per repeat.
         ("roof", 28.0..35.0, 44.0..54.0, Some("band-passed gray")),
     ] {
-        let (code, v) = lattice_json(&format!("tests/fixtures/structured/{sample}.png"));
-        assert_eq!(code, Some(0), "{sample}: {v}");
-        let l = &v["lattice"];
-        let (a, b) = (vector_length(&l["t1"]), vector_length(&l["t2"]));
-        let (s, g) = (a.min(b), a.max(b));
-        assert!(shorter.contains(&s) && longer.contains(&g), "{sample}: |t| = {s:.1}, {g:.1}: {l}");
-        assert_eq!(l["found_in"].as_str(), view, "{sample}: {l}");
+        check_texel(&format!("tests/fixtures/structured/{sample}.png"), shorter, longer, view);
     }
+    // Red bricks in running bond, about 80 × 43 px: whole bricks, (±40, 43) and (80, 0) or their
+    // sums. The half-brick lattice (40, 0), (−6, 43) that shifts by half a brick or one course
+    // also explains its peaks, but the sample repeats a whole brick 1.4 times as clearly.
+    check_texel("tests/fixtures/advice/brick_a_albedo.png", 50.0..60.0, 56.0..66.0, None);
+}
+
+/// The lattice of the sample at `path` has vectors of these lengths, found in `view`.
+fn check_texel(path: &str, shorter: std::ops::Range<f64>, longer: std::ops::Range<f64>, view: Option<&str>) {
+    let (code, v) = lattice_json(path);
+    assert_eq!(code, Some(0), "{path}: {v}");
+    let l = &v["lattice"];
+    let (a, b) = (vector_length(&l["t1"]), vector_length(&l["t2"]));
+    let (s, g) = (a.min(b), a.max(b));
+    assert!(shorter.contains(&s) && longer.contains(&g), "{path}: |t| = {s:.1}, {g:.1}: {l}");
+    assert_eq!(l["found_in"].as_str(), view, "{path}: {l}");
 }
 
 /// The fallback views must not promote what the gray plane rightly refused: the rubble and sett
