@@ -235,6 +235,12 @@ pub const PHASE_TOLERANCE: f64 = crate::synth::methods::tiles::align::PHASE_TOLE
 /// a brick road) they look right.
 pub const MIN_TEXELS_PER_TILE: f64 = 1.5;
 
+/// Quilting needs a block of at least 1/this of the shorter lattice vector. Seen at 384² from 256²
+/// with the default block of 50: terracotta floor tiles (84 px, 1.68 blocks) lose their grout
+/// (blocks inside one tile's plain interior match anywhere; tiles merge), right at block 90; city
+/// bricks (1.42), beige bricks (1.28), red bricks (1.10) and a stone wall (1.06) look right.
+pub const QUILTING_TEXEL_PER_BLOCK: f64 = 1.5;
+
 /// A tile job's phase on the sample's lattice ([`tile_phase`]).
 struct TilePhase {
     /// The tile size the job uses: its `tile`, or what `tile = "auto"` chooses on this sample.
@@ -339,19 +345,30 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 set.push(("continuations".to_string(), "true".to_string()));
                 why.push("the swarm misses the exact continuations of neighbouring patches on a lattice, so rows drift".into());
             }
-            // Quilting's exhaustive overlap search finds in-phase continuations with any block;
-            // double-seam (which judges a block by two seam lines) and patch sampling (a swarm
+            // Double-seam (which judges a block by two seam lines) and patch sampling (a swarm
             // search, then a feathered zone) keep whole texels only when a block holds one.
-            if let (true, Some(block), Some(texel)) = (method != "quilting", int(p, "block"), a.longest_vector()) {
+            // Quilting's exhaustive overlap search finds in-phase continuations with blocks a
+            // little smaller than the texel, but not with much smaller ones (QUILTING_TEXEL_PER_BLOCK).
+            if let (Some(block), Some(texel)) = (int(p, "block"), a.longest_vector()) {
                 let shortest = a.shortest_vector().unwrap_or(texel);
                 let room = i64::from(a.width.min(a.height)) / 2;
                 let wanted = ((texel.ceil() as i64 + 1) / 2 * 2).min(room);
-                if (block as f64) < shortest && wanted > block {
+                let quilting = method == "quilting";
+                let too_small = if quilting { shortest > QUILTING_TEXEL_PER_BLOCK * block as f64 } else { (block as f64) < shortest };
+                if too_small && wanted > block {
                     set.push(("block".to_string(), wanted.to_string()));
-                    why.push(format!(
-                        "blocks of {block} px are smaller than the sample's texel (lattice vectors of {shortest:.0} and {texel:.0} px), \
-                         so they join pieces of texels out of phase"
-                    ));
+                    why.push(if quilting {
+                        format!(
+                            "blocks of {block} px are under two thirds of the sample's texel (lattice vectors of {shortest:.0} and \
+                             {texel:.0} px): they fit inside one texel's plain interior, where any overlap matches, and the joints \
+                             between texels go missing"
+                        )
+                    } else {
+                        format!(
+                            "blocks of {block} px are smaller than the sample's texel (lattice vectors of {shortest:.0} and {texel:.0} \
+                             px), so they join pieces of texels out of phase"
+                        )
+                    });
                 }
             }
             if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
@@ -528,6 +545,17 @@ mod tests {
                 [40, 50, 70]
             }
         })
+    }
+
+    #[test]
+    fn quilting_is_told_a_block_when_texels_are_much_larger_than_its_blocks() {
+        let a = analyse(&blobs((30.0, 0.0), (0.0, 32.0)));
+        let block = |b: i64| params(&[("block", ParamValue::Int(b))]);
+        let w = warning(&a, "quilting", &block(16)).expect("blocks of 16 on a 30 px texel");
+        assert!(w.contains("set block = 32"), "{w}");
+        assert_eq!(warning(&a, "quilting", &block(24)), None, "a block of 24 keeps the joints");
+        // Double-seam and patch sampling want a whole texel per block.
+        assert!(warning(&a, "double-seam", &block(24)).is_some_and(|w| w.contains("set block = 32")));
     }
 
     #[test]

@@ -140,6 +140,9 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
         assert_eq!(w("coevolution"), 0, "{s} coevolution");
     }
     assert!(jobs["metal_tread_studs__tes.toml"]["warnings"].as_array().is_none_or(|w| w.is_empty()));
+    // Quilting's default blocks (50 px) lie inside terracotta's 84 px tiles and lose the grout.
+    let q = jobs["tiles_terracotta__quilting.toml"]["warnings"].to_string();
+    assert!(q.contains("set block = 88"), "terracotta quilting: {q}");
     // The analysis discriminates: some samples of each kind.
     for k in ["near-regular", "oriented", "stochastic"] {
         assert!(kinds.values().any(|v| v == k), "no {k} sample among {kinds:?}");
