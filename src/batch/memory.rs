@@ -80,11 +80,12 @@ pub fn job_estimate_with(
         return PROCESS_BYTES + 2 * sample_bytes + method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
     }
     let synthesis = method.peak_memory(params, sample, (output.width, output.height));
-    // PNG keeps the whole compressed stream before writing it (at worst the raw rows plus a
-    // little); 16-bit PNG first widens the samples (twice, native and big-endian); EXR holds the
+    // 8-bit PNG is compressed strip by strip beside the image (a strip, the compressor's window
+    // and a 1 MiB chunk); 16-bit PNG first widens the samples (twice, native and big-endian) and
+    // keeps the whole compressed stream (at worst the raw rows plus a little); EXR holds the
     // linear floats plus its own compressed blocks.
     let encoding = match (output.format, output.bit_depth) {
-        (Format::Png, 8) => raw + raw + raw / 64,
+        (Format::Png, 8) => raw + 4 * MIB,
         (Format::Png, _) => raw + 4 * raw + 2 * raw + raw / 32,
         (Format::Exr, _) => raw + 4 * raw + 4 * raw + raw / 8,
     };

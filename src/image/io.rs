@@ -366,21 +366,22 @@ pub struct Encoded {
     pub pixels: NativeImage,
 }
 
+/// Rows per strip when an 8-bit PNG is compressed from an image in memory ([`encode_to`]).
+const PNG_STRIP_ROWS: u32 = 64;
+
 /// Encodes like [`encode`] straight into `w` (the same bytes) and returns the pixel digest of
-/// what was stored. For 8-bit PNG nothing but the encoder's own compressed stream is held besides
-/// the image: no copy of the pixels, no second buffer of the file.
+/// what was stored. 8-bit PNG is compressed strip by strip into IDAT chunks of 1 MiB as they fill
+/// ([`encode_png_strips`]): besides the image only one strip and the compressor's window are held.
+/// (Compressing the whole image first, as the `image` crate's PNG encoder does, kept the whole
+/// compressed stream, grown by doubling: up to twice the raw image again.)
 pub fn encode_to(img: &RgbImage, enc: Encoding, w: &mut dyn std::io::Write) -> Result<Digest, ImageError> {
     if (enc.format, enc.bit_depth) == (Format::Png, 8) {
         let (width, height) = img.dimensions();
-        image::ImageEncoder::write_image(
-            image::codecs::png::PngEncoder::new(w),
-            img.as_raw(),
-            width,
-            height,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
-        return Ok(rgb_pixel_digest(img));
+        let row = width as usize * 3;
+        let raw = img.as_raw();
+        return encode_png_strips_with(width, height, PNG_STRIP_ROWS, png::Compression::Fast, w, &mut |y0, rows| {
+            rows.copy_from_slice(&raw[y0 as usize * row..y0 as usize * row + rows.len()]);
+        });
     }
     let encoded = encode(img, enc)?;
     w.write_all(&encoded.bytes).map_err(ImageError::Io)?;
@@ -389,9 +390,8 @@ pub fn encode_to(img: &RgbImage, enc: Encoding, w: &mut dyn std::io::Write) -> R
 
 /// Encodes an 8-bit RGB PNG of `width × height` from strips of `strip_rows` rows that
 /// `render(y0, rows)` fills, into `w` as it goes; returns the pixel digest. Memory: one strip and
-/// the compressor's window, whatever the size. The same pixels, filter and compression level as
-/// [`encode`] of the whole image; the file differs only in how the compressed stream is cut into
-/// IDAT chunks.
+/// the compressor's window, whatever the size. The same pixels and filter as [`encode`], at
+/// zlib's default level (smaller files, slower than `encode`'s fast compressor).
 pub fn encode_png_strips(
     width: u32,
     height: u32,
@@ -399,11 +399,24 @@ pub fn encode_png_strips(
     w: &mut dyn std::io::Write,
     render: &mut dyn FnMut(u32, &mut [u8]),
 ) -> Result<Digest, ImageError> {
+    encode_png_strips_with(width, height, strip_rows, png::Compression::Balanced, w, render)
+}
+
+/// [`encode_png_strips`] at a given compression: the fills use zlib's default level (tiles repeat
+/// far apart, which it finds); images in memory use the fast compressor, as they always have.
+fn encode_png_strips_with(
+    width: u32,
+    height: u32,
+    strip_rows: u32,
+    compression: png::Compression,
+    w: &mut dyn std::io::Write,
+    render: &mut dyn FnMut(u32, &mut [u8]),
+) -> Result<Digest, ImageError> {
     let fail = |e: png::EncodingError| ImageError::Encode(format!("PNG encoding failed: {e}"));
     let mut encoder = png::Encoder::new(w, width, height);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
-    encoder.set_compression(png::Compression::Balanced);
+    encoder.set_compression(compression);
     encoder.set_filter(png::Filter::Adaptive);
     let mut writer = encoder.write_header().map_err(fail)?;
     let mut stream = writer.stream_writer_with_size(1 << 20).map_err(fail)?;
@@ -431,14 +444,7 @@ pub fn encode(img: &RgbImage, enc: Encoding) -> Result<Encoded, ImageError> {
     match (enc.format, enc.bit_depth) {
         (Format::Png, 8) => {
             let mut bytes = Vec::new();
-            image::ImageEncoder::write_image(
-                image::codecs::png::PngEncoder::new(&mut bytes),
-                img.as_raw(),
-                w,
-                h,
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(|e| ImageError::Encode(format!("PNG encoding failed: {e}")))?;
+            encode_to(img, enc, &mut bytes)?;
             Ok(Encoded { bytes, pixels: NativeImage::from_rgb8(img) })
         }
         (Format::Png, 16) => {
