@@ -29,6 +29,11 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
             o["params"].as_object_mut().unwrap().remove("align");
             o["diagnostics"].as_object_mut().unwrap().remove("align_choice");
         }
+        // 8-bit PNG has since been compressed in chunks as it is written: the same pixels in
+        // other file bytes (`verify` above reads the stored files against their recorded bytes).
+        for o in o["outputs"].as_array_mut().into_iter().flatten() {
+            o.as_object_mut().unwrap().remove("file_digest");
+        }
         // Patch sampling has since gained `continuations` (default false: the same search and
         // pixels), which enters the resolved parameters and so the content key.
         if o["method"] == "patch-sampling" {
