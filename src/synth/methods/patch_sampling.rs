@@ -969,6 +969,7 @@ impl Memo {
         }
     }
 
+    #[inline]
     fn get_or_insert(&mut self, index: usize, compute: impl FnOnce() -> u64) -> u64 {
         let (word, bit) = (index / 64, 1u64 << (index % 64));
         if self.known[word] & bit != 0 {
@@ -986,6 +987,7 @@ impl Memo {
 /// first changes nothing (`h` is an integer), and for `0 ≤ c ≤ h`, `t = trunc(c)` and `c − t` are
 /// exact, so `c − t ≥ 0.5` is exactly where `round` goes up, and then `t + 1 ≤ h` (NaN gives 0
 /// either way).
+#[inline]
 fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
     let r = |v: f64, h: f64| {
         let c = v.clamp(0.0, h);

@@ -341,7 +341,21 @@ fn argmin(values: &[f64]) -> usize {
 /// it is cheap and, until the whole swarm has the same fitness, at least 1, so the distance is
 /// rarely needed (the conjunction is the same either way).
 pub fn premature(x: &[f64], f: &[f64], d: usize, diagonal: f64, cp: &ChaosParams) -> bool {
-    normalised_variance(f) < cp.variance_threshold && mean_distance(x, f.len(), d, diagonal) < cp.distance_threshold
+    variance_below(f, cp.variance_threshold) && mean_distance(x, f.len(), d, diagonal) < cp.distance_threshold
+}
+
+/// `σ² < threshold` (eqs. 4–5), deciding without the divisions where it can: with a spread above 1
+/// the most distant particle's term is `(±spread / spread)² = 1` exactly and the others are
+/// squares, so `σ² ≥ 1` and a threshold of at most 1 is not met. The test runs after every
+/// iteration of every block, and this is its usual case.
+fn variance_below(f: &[f64], threshold: f64) -> bool {
+    let m = f.len();
+    let favg = f.iter().sum::<f64>() / m as f64;
+    let spread = f.iter().map(|fi| (fi - favg).abs()).fold(0.0, f64::max);
+    if spread > 1.0 && threshold <= 1.0 {
+        return false;
+    }
+    normalised_variance(f) < threshold
 }
 
 /// `(dis, σ²)` of eqs. 3–5 for the positions `x` (`M × D`, particle-major) and fitness values `f`.
@@ -480,6 +494,22 @@ mod tests {
         let asy = run(&p, 5);
         assert_eq!(sync.trace[0], asy.trace[0]);
         assert_ne!(sync.trace, asy.trace);
+    }
+
+    #[test]
+    fn the_variance_shortcut_decides_as_the_full_sum() {
+        let mut s = Stream::new(4, "test/variance");
+        let mut cases: Vec<Vec<f64>> = vec![vec![7.0; 20], vec![0.25, 0.75], vec![3.0, 4.0, 3.0], vec![1e7, 1e7 + 1.0, 1e7 + 3.0]];
+        for _ in 0..500 {
+            let (m, range) = (1 + s.below(30) as usize, [1, 2, 3, 1000][s.below(4) as usize]);
+            let fraction = s.below(2) as f64;
+            cases.push((0..m).map(|_| s.below(range) as f64 + fraction * s.uniform_f64()).collect());
+        }
+        for f in &cases {
+            for t in [0.0, 0.001, 0.5, 1.0, 1.5, 2.0, 1e12] {
+                assert_eq!(variance_below(f, t), normalised_variance(f) < t, "{f:?}, threshold {t}");
+            }
+        }
     }
 
     #[test]

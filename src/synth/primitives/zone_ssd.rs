@@ -17,6 +17,10 @@ use crate::image::RgbImage;
 /// Bytes scored together; lines are padded to a multiple of this.
 const CHUNK: usize = 16;
 
+/// The most chunks a line may have so that its whole sum (at most `255²` per byte) fits an `i32`:
+/// 2064, over 11 000 pixels (blocks are at most 4096).
+const MAX_LINE_CHUNKS: usize = i32::MAX as usize / (255 * 255 * CHUNK);
+
 /// The sample in the two layouts strips are read in, each followed by `CHUNK` bytes of padding so
 /// that a padded line read at the end of the last row stays in bounds.
 pub struct SampleLines {
@@ -78,6 +82,7 @@ impl PackedZone {
                 let (lines, len) = if transposed { (r.w, r.h) } else { (r.h, r.w) };
                 let bytes = len as usize * 3;
                 let padded = bytes.div_ceil(CHUNK) * CHUNK;
+                assert!(padded / CHUNK <= MAX_LINE_CHUNKS, "a zone strip of {len} pixels is too long to score");
                 let mut packed = vec![0u8; lines as usize * padded];
                 for l in 0..lines {
                     let line = &mut packed[l as usize * padded..l as usize * padded + bytes];
@@ -113,24 +118,26 @@ impl PackedZone {
     }
 }
 
-/// The masked SSD of one strip. A chunk's sum (at most `16 · 255²`) fits an `i32`; the strip's
-/// total is kept in a `u64`.
+/// The masked SSD of one strip. Each line is summed in 16 lanes of `i32`, one per byte of a
+/// chunk, added up once per line: the lanes map onto 16-bit multiply-adds, and a horizontal sum
+/// per chunk cost more than the chunk's arithmetic. A line has at most `MAX_LINE_CHUNKS` chunks
+/// (checked when packing), so its sum fits an `i32`; the strip's total is kept in a `u64`.
 fn strip_ssd(layout: &[u8], stride: usize, start: usize, s: &Strip) -> u64 {
     let mut total = 0u64;
     for l in 0..s.lines {
         let a = &layout[start + l * stride..start + l * stride + s.padded];
         let b = &s.target[l * s.padded..(l + 1) * s.padded];
+        let mut lanes = [0i32; CHUNK];
         for ((ca, cb), cm) in a.chunks_exact(CHUNK).zip(b.chunks_exact(CHUNK)).zip(s.mask.chunks_exact(CHUNK)) {
             let ca: &[u8; CHUNK] = ca.try_into().expect("chunk");
             let cb: &[u8; CHUNK] = cb.try_into().expect("chunk");
             let cm: &[u8; CHUNK] = cm.try_into().expect("chunk");
-            let mut chunk = 0i32;
             for j in 0..CHUNK {
                 let d = i32::from(i16::from(ca[j].abs_diff(cb[j]) & cm[j]));
-                chunk += d * d;
+                lanes[j] += d * d;
             }
-            total += chunk as u64;
         }
+        total += lanes.iter().sum::<i32>() as u64;
     }
     total
 }

@@ -14,7 +14,7 @@ use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::boundary_cut::{horizontal_cut, vertical_cut};
 use crate::synth::primitives::canvas::Canvas;
-use crate::synth::primitives::overlap::pixel_error;
+use crate::synth::primitives::overlap::{bytes_ssd, pixel_error};
 use crate::synth::rng::Stream;
 use std::time::Instant;
 
@@ -79,6 +79,9 @@ impl MethodConfig for TesConfig {
 /// The sample's blocks and the pixel-level overlap fitness between them.
 struct Blocks<'a> {
     sample: &'a RgbImage,
+    /// The sample transposed (column `x` top to bottom is run `x`): a strip taller than wide is
+    /// read as a few long runs of bytes instead of many short rows.
+    columns: Vec<u8>,
     /// Top-left corner of each block in the sample.
     origin: Vec<(i64, i64)>,
     bw: i64,
@@ -96,20 +99,35 @@ enum Side {
 }
 
 impl Blocks<'_> {
+    fn new(sample: &RgbImage, origin: Vec<(i64, i64)>, (bw, bh): (i64, i64), (ovw, ovh): (i64, i64)) -> Blocks<'_> {
+        let (w, h) = (sample.width() as usize, sample.height() as usize);
+        let raw = sample.as_raw();
+        let mut columns = vec![0u8; w * h * 3];
+        for x in 0..w {
+            for y in 0..h {
+                columns[(x * h + y) * 3..(x * h + y) * 3 + 3].copy_from_slice(&raw[(y * w + x) * 3..(y * w + x) * 3 + 3]);
+            }
+        }
+        Blocks { sample, columns, origin, bw, bh, ovw, ovh }
+    }
+
     fn inside(&self, x: i64, y: i64, w: i64, h: i64) -> bool {
         x >= 0 && y >= 0 && x + w <= self.sample.width() as i64 && y + h <= self.sample.height() as i64
     }
 
+    /// Minus the mean pixel error of the `w × h` rectangles at `a` and `b` (both inside the
+    /// sample); the error sum is an integer, so reading rows or columns gives the same value.
     fn mean_error(&self, a: (i64, i64), b: (i64, i64), w: i64, h: i64) -> f64 {
-        let mut sum = 0u64;
-        for dy in 0..h {
-            for dx in 0..w {
-                sum += pixel_error(
-                    self.sample.get((a.0 + dx) as u32, (a.1 + dy) as u32),
-                    self.sample.get((b.0 + dx) as u32, (b.1 + dy) as u32),
-                ) as u64;
-            }
-        }
+        let (sw, sh) = (self.sample.width() as usize, self.sample.height() as usize);
+        let (a, b, w, h) = ((a.0 as usize, a.1 as usize), (b.0 as usize, b.1 as usize), w as usize, h as usize);
+        let sum: u64 = if w >= h {
+            let raw = self.sample.as_raw();
+            let run = |(x, y): (usize, usize), dy: usize| &raw[((y + dy) * sw + x) * 3..((y + dy) * sw + x + w) * 3];
+            (0..h).map(|dy| bytes_ssd(run(a, dy), run(b, dy))).sum()
+        } else {
+            let run = |(x, y): (usize, usize), dx: usize| &self.columns[((x + dx) * sh + y) * 3..((x + dx) * sh + y + h) * 3];
+            (0..w).map(|dx| bytes_ssd(run(a, dx), run(b, dx))).sum()
+        };
         -(sum as f64) / (w * h) as f64
     }
 
@@ -266,14 +284,12 @@ impl Method for Tes {
         }
         let (x0, x1, y0, y1) = g.bbox;
         let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
-        let blocks = Blocks {
+        let blocks = Blocks::new(
             sample,
-            origin: tex.iter().map(|&(x, y)| (x + x0, y + y0)).collect(),
-            bw,
-            bh,
-            ovw: ((bw as f64 / 6.0).round() as i64).max(2).min(bw),
-            ovh: ((bh as f64 / 6.0).round() as i64).max(2).min(bh),
-        };
+            tex.iter().map(|&(x, y)| (x + x0, y + y0)).collect(),
+            (bw, bh),
+            (((bw as f64 / 6.0).round() as i64).max(2).min(bw), ((bh as f64 / 6.0).round() as i64).max(2).min(bh)),
+        );
         let (rows, cols) = match (cfg.grid.rows, cfg.grid.cols) {
             (None, _) | (_, None) => ((req.height as u64).div_ceil(bh as u64) as usize, (req.width as u64).div_ceil(bw as u64) as usize),
             (Some(r), Some(c)) => (r as usize, c as usize),
@@ -439,7 +455,7 @@ mod tests {
     #[test]
     fn natural_neighbours_fit_perfectly() {
         let s = sample();
-        let blocks = Blocks { sample: &s, origin: vec![(0, 0), (20, 0), (0, 16)], bw: 20, bh: 16, ovw: 3, ovh: 3 };
+        let blocks = Blocks::new(&s, vec![(0, 0), (20, 0), (0, 16)], (20, 16), (3, 3));
         assert_eq!(blocks.fitness(0, 1, Side::East), (0.0, false));
         assert_eq!(blocks.fitness(0, 2, Side::South), (0.0, false));
         assert!(blocks.fitness(1, 0, Side::East).0 < 0.0);
