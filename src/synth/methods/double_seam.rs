@@ -239,11 +239,11 @@ struct Prepared<'a> {
     w: usize,
     planes: HsiPlanes,
     edges: Vec<u8>,
-    /// The planes' spectra, for [`fft_bounds`].
+    /// The planes' spectra, for [`FftBounds`].
     spectra: Spectra,
     /// Run sums of the planes, for [`BoundStats`].
     prefixes: Prefixes,
-    /// [`fft_bounds`]' buffers, kept from one grid position to the next.
+    /// [`FftBounds`]' buffers, kept from one grid position to the next.
     fft_buffers: std::sync::Mutex<Vec<Vec<Complex64>>>,
 }
 
@@ -264,7 +264,8 @@ struct Prefixes {
     h: usize,
     /// `rows[q][y·(w+1) + x]`: the sum of quantity `q` (H, S, I, H², S², I²) over row `y`, columns `0..x`.
     rows: [Vec<f64>; 6],
-    /// `cols[q][x·(h+1) + y]`: the sum over column `x`, rows `0..y`.
+    /// `cols[q][y·w + x]`: the sum over column `x`, rows `0..y` (row-major, so the run sums of
+    /// consecutive candidates are consecutive differences).
     cols: [Vec<f64>; 6],
 }
 
@@ -285,9 +286,9 @@ impl Prefixes {
         });
         let cols = std::array::from_fn(|q| {
             let mut p = vec![0.0; (h + 1) * w];
-            for x in 0..w {
-                for y in 0..h {
-                    p[x * (h + 1) + y + 1] = p[x * (h + 1) + y] + value(q, y * w + x);
+            for y in 0..h {
+                for x in 0..w {
+                    p[(y + 1) * w + x] = p[y * w + x] + value(q, y * w + x);
                 }
             }
             p
@@ -295,16 +296,19 @@ impl Prefixes {
         Prefixes { w, h, rows, cols }
     }
 
-    /// The sum of quantity `q` over `run` placed at candidate `(x, y)`.
-    fn run_sum(&self, q: usize, run: &Run, x: i32, y: i32) -> f64 {
-        let (c, r) = ((x + run.c) as usize, (y + run.r) as usize);
-        let len = run.len as usize;
-        if run.horizontal {
+    /// Adds the sum of quantity `q` over `run` placed at candidates `(x0 + j, y)` to `acc[j]`.
+    fn add_run(&self, q: usize, run: &Run, x0: i32, y: i32, acc: &mut [f64]) {
+        let (c, r) = ((x0 + run.c) as usize, (y + run.r) as usize);
+        let (len, n) = (run.len as usize, acc.len());
+        let (start, end) = if run.horizontal {
             let row = &self.rows[q][r * (self.w + 1)..];
-            row[c + len] - row[c]
+            (&row[c..c + n], &row[c + len..c + len + n])
         } else {
-            let col = &self.cols[q][c * (self.h + 1)..];
-            col[r + len] - col[r]
+            let cols = &self.cols[q];
+            (&cols[r * self.w + c..r * self.w + c + n], &cols[(r + len) * self.w + c..(r + len) * self.w + c + n])
+        };
+        for ((a, e), s) in acc.iter_mut().zip(end).zip(start) {
+            *a += e - s;
         }
     }
 
@@ -349,7 +353,7 @@ fn runs_of(line: &[(i32, i32)]) -> Vec<Run> {
     runs
 }
 
-/// Per candidate and line, what [`fft_bounds`] needs of the candidate side: per channel the
+/// Per candidate and line, what [`FftBounds`] needs of the candidate side: per channel the
 /// line's mean and an interval of `1/sqrt(centred sum of squares)`, from run sums (so not the
 /// exact two-pass values the scores use, but within a proven error). `[m, inv_hi, inv_lo]` per
 /// channel; `inv_hi = ∞` marks a line whose sum of squares may be too small to tell from flat.
@@ -370,17 +374,19 @@ impl BoundStats {
             let err_ss = 4.0 * err;
             // Below this a line may be flat (pearson's FLAT) or too close to it for the interval to be tight.
             let floor = (1e3 * err_ss).max(1e-9);
+            let (x0, nx) = (*xs.start(), (xs.end() - xs.start() + 1).max(0) as usize);
             ys.par_iter()
                 .flat_map_iter(|&y| {
-                    let runs = &runs;
-                    xs.clone().map(move |x| {
-                        let mut st = [0.0; 9];
-                        for k in 0..3 {
-                            let (mut s1, mut s2) = (0.0, 0.0);
-                            for run in runs {
-                                s1 += pre.run_sum(k, run, x, y);
-                                s2 += pre.run_sum(k + 3, run, x, y);
-                            }
+                    let mut row = vec![[0.0; 9]; nx];
+                    let (mut s1, mut s2) = (vec![0.0; nx], vec![0.0; nx]);
+                    for k in 0..3 {
+                        s1.fill(0.0);
+                        s2.fill(0.0);
+                        for run in &runs {
+                            pre.add_run(k, run, x0, y, &mut s1);
+                            pre.add_run(k + 3, run, x0, y, &mut s2);
+                        }
+                        for ((st, &s1), &s2) in row.iter_mut().zip(&s1).zip(&s2) {
                             let ss = s2 - s1 * s1 / n;
                             let (lo, hi) = (ss * (1.0 - 1e-9) - err_ss, ss * (1.0 + 1e-9) + err_ss);
                             st[3 * k] = s1 / n;
@@ -391,8 +397,8 @@ impl BoundStats {
                                 st[3 * k + 2] = 1.0 / hi.sqrt();
                             }
                         }
-                        st
-                    })
+                    }
+                    row
                 })
                 .collect()
         });
@@ -430,12 +436,16 @@ struct Shape {
     ranges: Ranges,
     bounds: BoundStats,
     exact: std::sync::OnceLock<[LineStats; 2]>,
+    /// How this shape's FFT bounds went: searches begun with the I channel alone, and those of
+    /// them that needed the H and S cross sums too. Where most did, later searches correlate all
+    /// three channels at once and skip the I-only pass.
+    fft_history: std::sync::Mutex<(usize, usize)>,
 }
 
 impl Shape {
     fn new(prep: &Prepared, ls: [Vec<(i32, i32)>; 2], ranges: Ranges) -> Shape {
         let bounds = BoundStats::new(prep, &ls, ranges.clone());
-        Shape { ls, ranges, bounds, exact: std::sync::OnceLock::new() }
+        Shape { ls, ranges, bounds, exact: std::sync::OnceLock::new(), fft_history: std::sync::Mutex::new((0, 0)) }
     }
 
     fn exact(&self, prep: &Prepared, s: &Settings) -> &[LineStats; 2] {
@@ -548,7 +558,6 @@ impl Method for DoubleSeam {
         let planes = HsiPlanes::of(sample);
         let edges = otsu_edges(&sobel4(&planes.i, sw as usize, sh as usize));
         let prep = Prepared::new(sample, planes, edges);
-
         if req.tileable {
             return synthesize_torus(req, &s, &prep);
         }
@@ -947,6 +956,14 @@ fn score_all(
     score_lines(prep, s, &lines(case, s.block, s.g, s.a), admissible(prep, s, case), stats, out, origin)
 }
 
+/// [`choose`] bounds the candidates by FFT when more than 1/this of them survive the edge bound:
+/// the I-channel transforms cost about as much as scoring that many in full.
+const FFT_BEYOND: usize = 16;
+
+/// [`choose`] computes the H and S cross sums too when more than 1/this of the candidates survive
+/// the I-channel bounds: two more transforms each way cost about as much as scoring that many.
+const FULL_BOUNDS_BEYOND: usize = 32;
+
 /// Slack added to an upper bound of `F` before it may rule a candidate out: far above the few
 /// ulps by which a computed Pearson correlation can exceed 1, far below any score difference
 /// that matters.
@@ -964,7 +981,7 @@ fn may_reach(bound: f64, theta: f64) -> bool {
 /// bounds each line's `F_i` by the edge term alone, from the edge mismatches (exact integers):
 /// every candidate whose bound (plus [`BOUND_SLACK`]) stays under that `θ` is out (its `F` is
 /// below `θ`, so it is neither a member nor the maximum), and the rest are scored in full. When
-/// the bound rules out too few, [`fft_bounds`] bounds every candidate. Every full score is
+/// the bound rules out too few, [`FftBounds`] bounds every candidate. Every full score is
 /// computed with the same operations in the same order as [`score_lines`] (per channel the cross
 /// sums are independent sums in line order; the candidate's statistics come from the shape's
 /// table or [`exact_line_stats`], the same bits), so `F_max`, `θ` and the set are bit for bit the
@@ -1070,13 +1087,29 @@ fn choose(
             })
             .collect();
     }
-    if survivors.is_empty() || survivors.len() * 4 > mism.len() {
-        // The bound from approximate scores: every cross sum by FFT, within a rigorous margin.
-        let u = fft_bounds(prep, s, ls, &outs, &shape.bounds, (x0, y0, nx, ny), &mism);
-        let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
-        f_low = f_low.max(full(best, mism[best]));
-        let theta_low = s.tau.min(f_low - s.eps);
-        survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
+    if survivors.is_empty() || survivors.len() * FFT_BEYOND > mism.len() {
+        // The bounds from approximate scores: cross sums by FFT, within a rigorous margin; the
+        // I channel first, all three where that leaves too many to score.
+        let mut fb = FftBounds::new(prep, s, ls, &outs, &shape.bounds, (x0, y0, nx, ny), &mism);
+        let mut history = shape.fft_history.lock().expect("history");
+        let mut u = if history.1 * 2 > history.0 { fb.all() } else { fb.intensity() };
+        let mut hs = history.1 * 2 > history.0;
+        loop {
+            let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
+            f_low = f_low.max(full(best, mism[best]));
+            let theta_low = s.tau.min(f_low - s.eps);
+            survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
+            if hs {
+                break;
+            }
+            history.0 += 1;
+            if survivors.len() <= mism.len() / FULL_BOUNDS_BEYOND {
+                break;
+            }
+            history.1 += 1;
+            u = fb.full();
+            hs = true;
+        }
     }
     if survivors.len() > mism.len() / 64 {
         // Cheaper than the survivors' statistics one by one, here and in later searches.
@@ -1094,136 +1127,213 @@ fn choose(
     Ok((members[st.below_usize(members.len())], members.len(), f_max))
 }
 
-/// Upper bounds of `F` at every candidate, from cross sums computed for all positions at once by
-/// FFT (three forward and three inverse 2-D transforms of the sample's size per grid position).
-/// The FFT's absolute error is far below `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the usual bound is
-/// about `1e-16` times that), and the margin added per correlation covers that and the rounding
-/// of the exact sums; degenerate lines take B8's values, which do not depend on the cross sum.
-fn fft_bounds(
-    prep: &Prepared,
-    s: &Settings,
-    ls: &[Vec<(i32, i32)>; 2],
-    outs: &[OutputLine; 2],
-    bounds: &BoundStats,
-    (x0, y0, nx, ny): (i32, i32, usize, usize),
-    mism: &[[u32; 2]],
-) -> Vec<f64> {
-    let sp = &prep.spectra;
-    let (w, h) = (sp.w, sp.h);
-    let cmin = ls.iter().flatten().map(|p| p.0).min().unwrap_or(0);
-    let rmin = ls.iter().flatten().map(|p| p.1).min().unwrap_or(0);
-    let zero = Complex64::new(0.0, 0.0);
-    let rmax = ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
-    let kernel_rows = 0..(rmax - rmin + 1) as usize;
-    // The job's six plane-sized buffers, reused from block to block.
-    let mut buffers = std::mem::take(&mut *prep.fft_buffers.lock().expect("buffers"));
-    if buffers.len() != 6 {
-        buffers = (0..6).map(|_| vec![zero; w * h]).collect();
-    }
-    let (z, spec) = buffers.split_at_mut(3);
-    // Kernels: line 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1 (only their rows are read).
-    for zz in z.iter_mut() {
-        zz[..kernel_rows.end * w].fill(zero);
-    }
-    for li in 0..2 {
-        for (i, &(c, r)) in ls[li].iter().enumerate() {
-            let at = (r - rmin) as usize * w + (c - cmin) as usize;
-            let o = &outs[li];
-            z[li][at] = Complex64::new(o.centred[0][i], o.centred[1][i]);
-            if li == 0 {
-                z[2][at].re = o.centred[2][i];
-            } else {
-                z[2][at].im = o.centred[2][i];
+/// Upper bounds of `F`, from cross sums computed for all positions at once by FFT, in two
+/// stages: [`FftBounds::intensity`] correlates only the I channel (one forward and one inverse
+/// 2-D transform of the sample's size) and bounds `ρ_H` and `ρ_S` by 1; γ being the largest weight,
+/// that alone rules out most candidates. [`FftBounds::full`] adds the H and S cross sums (two
+/// transforms each way) for when too many survive. The FFT's absolute error is far below
+/// `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the usual bound is about `1e-16` times that), and the margin
+/// added per correlation covers that and the rounding of the exact sums; degenerate lines take
+/// B8's values, which do not depend on the cross sum.
+struct FftBounds<'p> {
+    prep: &'p Prepared<'p>,
+    s: &'p Settings,
+    ls: &'p [Vec<(i32, i32)>; 2],
+    outs: &'p [OutputLine; 2],
+    bounds: &'p BoundStats,
+    area: (i32, i32, usize, usize),
+    mism: &'p [[u32; 2]],
+    cmin: i32,
+    rmin: i32,
+    /// The job's six plane-sized buffers (taken from `prep` and given back on drop): three kernel
+    /// planes, then three for their spectra, which end up holding the correlations. Kernels: line
+    /// 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1.
+    buffers: Vec<Vec<Complex64>>,
+    /// Per line and channel: Σ centred and the error margin of the cross sum.
+    sum_c: [[f64; 3]; 2],
+    margin: [[f64; 3]; 2],
+    /// Per line and channel 1/sqrt of the output side's sum of squares (0: a flat output line).
+    inv_out: [[f64; 3]; 2],
+    /// The edge factor 1/(1 + μ·m/n) of every mismatch count m.
+    edge_factor: [Vec<f64>; 2],
+}
+
+impl<'p> FftBounds<'p> {
+    fn new(
+        prep: &'p Prepared<'p>,
+        s: &'p Settings,
+        ls: &'p [Vec<(i32, i32)>; 2],
+        outs: &'p [OutputLine; 2],
+        bounds: &'p BoundStats,
+        area: (i32, i32, usize, usize),
+        mism: &'p [[u32; 2]],
+    ) -> FftBounds<'p> {
+        let sp = &prep.spectra;
+        let (w, h) = (sp.w, sp.h);
+        let cmin = ls.iter().flatten().map(|p| p.0).min().unwrap_or(0);
+        let rmin = ls.iter().flatten().map(|p| p.1).min().unwrap_or(0);
+        let mut buffers = std::mem::take(&mut *prep.fft_buffers.lock().expect("buffers"));
+        if buffers.len() != 6 {
+            buffers = (0..6).map(|_| vec![Complex64::new(0.0, 0.0); w * h]).collect();
+        }
+        let log = ((w * h) as f64).log2().max(1.0);
+        let mut sum_c = [[0.0; 3]; 2];
+        let mut margin = [[0.0; 3]; 2];
+        for li in 0..2 {
+            for k in 0..3 {
+                let c = &outs[li].centred[k];
+                sum_c[li][k] = c.iter().sum::<f64>();
+                let abs: f64 = c.iter().map(|v| v.abs()).sum();
+                margin[li][k] = 1e-9 * (sp.norms[k] * outs[li].ss[k].sqrt() * log + abs + 1e-3);
             }
         }
+        let inv_out = [0, 1].map(|li| outs[li].ss.map(|v| if v >= FLAT { 1.0 / v.sqrt() } else { 0.0 }));
+        let edge_factor: [Vec<f64>; 2] =
+            [0, 1].map(|li| (0..=ls[li].len()).map(|m| 1.0 / (1.0 + s.mu * (m as f64 / ls[li].len() as f64))).collect());
+        FftBounds { prep, s, ls, outs, bounds, area, mism, cmin, rmin, buffers, sum_c, margin, inv_out, edge_factor }
     }
-    for (zz, sz) in z.iter_mut().zip(spec.iter_mut()) {
-        sp.forward(zz, kernel_rows.clone(), sz);
-    }
-    // Unpack the two real kernels' spectra of each plane and multiply with the sample's (into the
-    // kernel planes, free now: every entry is written).
-    let half = Complex64::new(0.5, 0.0);
-    let minus_half_i = Complex64::new(0.0, -0.5);
-    let i1 = Complex64::new(0.0, 1.0);
-    let p = z;
-    // Spectra are transposed: frequency (u, v) at u·h + v.
-    for u in 0..w {
-        for v in 0..h {
-            let f = u * h + v;
-            let nf = ((w - u) % w) * h + (h - v) % h;
-            let [sh, ss, si] = [sp.planes[0][f], sp.planes[1][f], sp.planes[2][f]];
-            let pair = |x: &[Complex64]| -> (Complex64, Complex64) {
-                let (a, b) = (x[f], x[nf].conj());
-                ((a + b) * half, (a - b) * minus_half_i)
-            };
-            for (k, (sa, sb)) in [(sh, ss), (sh, ss), (si, si)].into_iter().enumerate() {
-                let (ta, tb) = pair(&spec[k]);
-                p[k][f] = sa * ta.conj() + i1 * (sb * tb.conj());
-            }
+
+    /// Cross sums of the kernels `ks` (indices into the three kernel planes) at every position:
+    /// afterwards `buffers[3 + k]` holds kernel `k`'s (real part: first plane, imaginary: second).
+    fn correlate(&mut self, ks: &[usize]) {
+        let sp = &self.prep.spectra;
+        let (w, h) = (sp.w, sp.h);
+        let (_, y0, _, ny) = self.area;
+        let (cmin, rmin) = (self.cmin, self.rmin);
+        let zero = Complex64::new(0.0, 0.0);
+        let rmax = self.ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
+        let kernel_rows = 0..(rmax - rmin + 1) as usize;
+        let (z, spec) = self.buffers.split_at_mut(3);
+        // Only the kernel rows are read.
+        for &k in ks {
+            z[k][..kernel_rows.end * w].fill(zero);
         }
-    }
-    // The inverse transforms land in the spectra's buffers (every entry is written).
-    for (pp, out) in p.iter_mut().zip(spec.iter_mut()) {
-        sp.inverse(pp, (y0 + rmin) as usize..(y0 + rmin) as usize + ny, out);
-    }
-    let p = &*spec;
-    let scale = 1.0 / (w * h) as f64;
-    let log = ((w * h) as f64).log2().max(1.0);
-    // Per line and channel: Σ centred, Σ |centred|, and the error margin of the cross sum.
-    let mut sum_c = [[0.0; 3]; 2];
-    let mut margin = [[0.0; 3]; 2];
-    for li in 0..2 {
-        for k in 0..3 {
-            let c = &outs[li].centred[k];
-            sum_c[li][k] = c.iter().sum::<f64>();
-            let abs: f64 = c.iter().map(|v| v.abs()).sum();
-            margin[li][k] = 1e-9 * (sp.norms[k] * outs[li].ss[k].sqrt() * log + abs + 1e-3);
-        }
-    }
-    let cap = 1.0 + 1e-9;
-    // Per line and channel 1/sqrt of the output side's sum of squares (0: a flat output line).
-    let inv_out = [0, 1].map(|li| outs[li].ss.map(|v| if v >= FLAT { 1.0 / v.sqrt() } else { 0.0 }));
-    // The edge factor 1/(1 + μ·m/n) of every mismatch count m.
-    let edge_factor: [Vec<f64>; 2] =
-        [0, 1].map(|li| (0..=ls[li].len()).map(|m| 1.0 / (1.0 + s.mu * (m as f64 / ls[li].len() as f64))).collect());
-    let bounds = (0..ny * nx)
-        .into_par_iter()
-        .map(|kidx| {
-            let (x, y) = (x0 + (kidx % nx) as i32, y0 + (kidx / nx) as i32);
-            let at = (y + rmin) as usize * w + (x + cmin) as usize;
-            let mut u = 0.0;
-            for li in 0..2 {
-                let bx = &bounds.lines[li][kidx];
-                let corr = [
-                    if li == 0 { p[0][at].re } else { p[1][at].re },
-                    if li == 0 { p[0][at].im } else { p[1][at].im },
-                    if li == 0 { p[2][at].re } else { p[2][at].im },
-                ];
-                let mut d = 0.0;
-                for k in 0..3 {
-                    let (m2, inv_hi, inv_lo) = (bx[3 * k], bx[3 * k + 1], bx[3 * k + 2]);
-                    // ρ is 1 for two flat lines with close means and 0 for one flat line (B8);
-                    // otherwise c/sqrt(v1·v2), at most 1.
-                    let rho = if inv_hi == f64::INFINITY {
-                        cap
-                    } else if inv_out[li][k] == 0.0 {
-                        0.0
+        for li in 0..2 {
+            let o = &self.outs[li];
+            for (i, &(c, r)) in self.ls[li].iter().enumerate() {
+                let at = (r - rmin) as usize * w + (c - cmin) as usize;
+                if ks.contains(&li) {
+                    z[li][at] = Complex64::new(o.centred[0][i], o.centred[1][i]);
+                }
+                if ks.contains(&2) {
+                    if li == 0 {
+                        z[2][at].re = o.centred[2][i];
                     } else {
-                        let c = corr[k] * scale - m2 * sum_c[li][k] + margin[li][k];
-                        (c * inv_out[li][k] * if c >= 0.0 { inv_hi } else { inv_lo }).min(cap)
-                    };
-                    d += s.weights[k] * rho;
+                        z[2][at].im = o.centred[2][i];
+                    }
                 }
-                if s.clamp {
-                    d = d.max(0.0);
-                }
-                u += d * edge_factor[li][mism[kidx][li] as usize];
             }
-            u
-        })
-        .collect();
-    *prep.fft_buffers.lock().expect("buffers") = buffers;
-    bounds
+        }
+        for &k in ks {
+            sp.forward(&mut z[k], kernel_rows.clone(), &mut spec[k]);
+        }
+        // Unpack the two real kernels' spectra of each plane and multiply with the sample's (into
+        // the kernel planes, free now: every entry is written).
+        let half = Complex64::new(0.5, 0.0);
+        let minus_half_i = Complex64::new(0.0, -0.5);
+        let i1 = Complex64::new(0.0, 1.0);
+        for &k in ks {
+            let (sa, sb) = if k < 2 { (&sp.planes[0], &sp.planes[1]) } else { (&sp.planes[2], &sp.planes[2]) };
+            let (t, pk) = (&spec[k], &mut z[k]);
+            // Spectra are transposed: frequency (u, v) at u·h + v; its negative at nu·h + nv.
+            for u in 0..w {
+                let nu = if u == 0 { 0 } else { w - u };
+                let (row, neg) = (&t[u * h..(u + 1) * h], &t[nu * h..(nu + 1) * h]);
+                let (sa, sb, pk) = (&sa[u * h..(u + 1) * h], &sb[u * h..(u + 1) * h], &mut pk[u * h..(u + 1) * h]);
+                for v in 0..h {
+                    let nv = if v == 0 { 0 } else { h - v };
+                    let (a, b) = (row[v], neg[nv].conj());
+                    let (ta, tb) = ((a + b) * half, (a - b) * minus_half_i);
+                    pk[v] = sa[v] * ta.conj() + i1 * (sb[v] * tb.conj());
+                }
+            }
+        }
+        // The inverse transforms land in the spectra's buffers (every entry is written).
+        for &k in ks {
+            sp.inverse(&mut z[k], (y0 + rmin) as usize..(y0 + rmin) as usize + ny, &mut spec[k]);
+        }
+    }
+
+    /// The bounds of one row of candidates, with the H and S cross sums when `hs` (else
+    /// `ρ_H, ρ_S ≤ 1`).
+    fn bound_row(&self, row: usize, hs: bool, u: &mut [f64]) {
+        let (x0, y0, nx, _) = self.area;
+        let w = self.prep.spectra.w;
+        let p = &self.buffers[3..];
+        let scale = 1.0 / p[0].len() as f64;
+        let cap = 1.0 + 1e-9;
+        let at = (y0 + row as i32 + self.rmin) as usize * w + (x0 + self.cmin) as usize;
+        let ks = row * nx..(row + 1) * nx;
+        let mism = &self.mism[ks.clone()];
+        u.fill(0.0);
+        for li in 0..2 {
+            let bx = &self.bounds.lines[li][ks.clone()];
+            let ef = &self.edge_factor[li];
+            // The part of D_HSI not bounded per candidate: ρ ≤ 1 for the channels not correlated.
+            let d0 = if hs { 0.0 } else { (self.s.weights[0] + self.s.weights[1]) * cap };
+            let channels = if hs { 0..3 } else { 2..3 };
+            let mut d = vec![d0; nx];
+            for k in channels {
+                let plane = if k < 2 { &p[li] } else { &p[2] };
+                let corr = &plane[at..at + nx];
+                let im = if k < 2 { k == 1 } else { li == 1 };
+                let (io, sc, mg, wk) = (self.inv_out[li][k], self.sum_c[li][k], self.margin[li][k], self.s.weights[k]);
+                // ρ is 1 for two flat lines with close means and 0 for one flat line (B8);
+                // otherwise c/sqrt(v1·v2), at most 1.
+                if io == 0.0 {
+                    for (dd, b) in d.iter_mut().zip(bx) {
+                        *dd += wk * if b[3 * k + 1] == f64::INFINITY { cap } else { 0.0 };
+                    }
+                } else {
+                    let (scale, sc) = (scale * io, sc * io);
+                    let mg = mg * io;
+                    for ((dd, c), b) in d.iter_mut().zip(corr).zip(bx) {
+                        let (m2, inv_hi, inv_lo) = (b[3 * k], b[3 * k + 1], b[3 * k + 2]);
+                        let c = if im { c.im } else { c.re } * scale - m2 * sc + mg;
+                        let rho = (c * if c >= 0.0 { inv_hi } else { inv_lo }).min(cap);
+                        *dd += wk * if inv_hi == f64::INFINITY { cap } else { rho };
+                    }
+                }
+            }
+            for ((uu, dd), m) in u.iter_mut().zip(&d).zip(mism) {
+                let dd = if self.s.clamp { dd.max(0.0) } else { *dd };
+                *uu += dd * ef[m[li] as usize];
+            }
+        }
+    }
+
+    /// Bounds of every candidate, row-major, from the I channel alone, or from all three after
+    /// [`FftBounds::intensity`] when `hs`.
+    fn bounds(&self, hs: bool) -> Vec<f64> {
+        let (_, _, nx, ny) = self.area;
+        let mut u = vec![0.0; nx * ny];
+        u.par_chunks_mut(nx).enumerate().for_each(|(row, chunk)| self.bound_row(row, hs, chunk));
+        u
+    }
+
+    /// Bounds of every candidate from the I channel alone.
+    fn intensity(&mut self) -> Vec<f64> {
+        self.correlate(&[2]);
+        self.bounds(false)
+    }
+
+    /// Bounds of every candidate from all three channels (after [`FftBounds::intensity`]).
+    fn full(&mut self) -> Vec<f64> {
+        self.correlate(&[0, 1]);
+        self.bounds(true)
+    }
+
+    /// Bounds of every candidate from all three channels at once.
+    fn all(&mut self) -> Vec<f64> {
+        self.correlate(&[0, 1, 2]);
+        self.bounds(true)
+    }
+}
+
+impl Drop for FftBounds<'_> {
+    fn drop(&mut self) {
+        *self.prep.fft_buffers.lock().expect("buffers") = std::mem::take(&mut self.buffers);
+    }
 }
 
 /// The sample's H, S and I planes as 2-D spectra (transposed, see [`Spectra::forward`]), with the plans.
@@ -1273,7 +1383,7 @@ impl Spectra {
     fn inverse(&self, spec: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
         let (w, h) = (self.w, self.h);
         spec.par_chunks_mut(h * 16).for_each(|c| self.col[1].process(c));
-        transpose(spec, h, w, dst);
+        transpose(spec, h, rows.clone(), dst);
         dst[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[1].process(c));
     }
 }
@@ -1297,12 +1407,14 @@ fn transpose_rows(src: &[Complex64], w: usize, h: usize, rows: std::ops::Range<u
     }
 }
 
-/// `dst[x·h + y] = src[y·w + x]` for a row-major `w × h` `src`, in cache-sized tiles.
-fn transpose(src: &[Complex64], w: usize, h: usize, dst: &mut [Complex64]) {
+/// `dst[x·h + y] = src[y·w + x]` for a row-major `w × h` `src`, in cache-sized tiles, for the
+/// `x` in `xs` only (the other entries of `dst` are left as they are).
+fn transpose(src: &[Complex64], w: usize, xs: std::ops::Range<usize>, dst: &mut [Complex64]) {
     const T: usize = 16;
+    let h = src.len() / w;
     for by in (0..h).step_by(T) {
-        for bx in (0..w).step_by(T) {
-            for x in bx..(bx + T).min(w) {
+        for bx in xs.clone().step_by(T) {
+            for x in bx..(bx + T).min(xs.end) {
                 for y in by..(by + T).min(h) {
                     dst[x * h + y] = src[y * w + x];
                 }
@@ -1315,18 +1427,19 @@ fn transpose(src: &[Complex64], w: usize, h: usize, dst: &mut [Complex64]) {
 /// `base` (plus each line offset).
 fn edge_mismatch_row(edges: &[u8], line: &[u8], offsets: &[isize], base: usize, m: &mut [u32]) {
     let n = m.len();
-    // Counted in 16 bits (more lanes per instruction), in runs short enough not to overflow.
-    let mut m16 = vec![0u16; n];
-    for (offs, bits) in offsets.chunks(u16::MAX as usize).zip(line.chunks(u16::MAX as usize)) {
-        m16.fill(0);
+    // Counted in 8 bits (sixteen lanes per instruction without widening), in runs short enough
+    // not to overflow.
+    let mut m8 = vec![0u8; n];
+    for (offs, bits) in offsets.chunks(u8::MAX as usize).zip(line.chunks(u8::MAX as usize)) {
+        m8.fill(0);
         for (&off, &e1) in offs.iter().zip(bits) {
             let b = (base as isize + off) as usize;
             // Edge bits are 0 or 1: a mismatch is their exclusive or.
-            for (mm, &e2) in m16.iter_mut().zip(&edges[b..b + n]) {
-                *mm += u16::from(e1 ^ e2);
+            for (mm, &e2) in m8.iter_mut().zip(&edges[b..b + n]) {
+                *mm += e1 ^ e2;
             }
         }
-        for (a, &b) in m.iter_mut().zip(&m16) {
+        for (a, &b) in m.iter_mut().zip(&m8) {
             *a += u32::from(b);
         }
     }
