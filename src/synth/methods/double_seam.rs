@@ -544,8 +544,9 @@ impl Method for DoubleSeam {
         // canvas and its per-pixel seam and cost planes, about 31 B. Per sample pixel, the FFT
         // buffers kept for the job and, on samples whose hue or saturation lines are flat (bricks),
         // the full per-case statistics tables: 67 MiB in all at 512², 79 MiB at 768², 124 MiB at
-        // 1536².
-        crate::synth::method::linear_memory(sample, output, 40.0, 320.0, 16 << 20)
+        // 1536². Since then the spectra are per column and per row (+48 B), and a torus's ring
+        // lines (two columns and two rows each) need up to twelve FFT buffers instead of six (+96 B).
+        crate::synth::method::linear_memory(sample, output, 40.0, 464.0, 16 << 20)
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -1128,26 +1129,28 @@ fn choose(
 }
 
 /// Upper bounds of `F`, from cross sums computed for all positions at once by FFT, in two
-/// stages: [`FftBounds::intensity`] correlates only the I channel (one forward and one inverse
-/// 2-D transform of the sample's size) and bounds `ρ_H` and `ρ_S` by 1; γ being the largest weight,
-/// that alone rules out most candidates. [`FftBounds::full`] adds the H and S cross sums (two
-/// transforms each way) for when too many survive. The FFT's absolute error is far below
-/// `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the usual bound is about `1e-16` times that), and the margin
+/// stages: [`FftBounds::intensity`] correlates only the I channel and bounds `ρ_H` and `ρ_S` by 1;
+/// γ being the largest weight, that alone rules out most candidates where `θ` is high.
+/// [`FftBounds::full`] adds the H and S cross sums for when too many survive. A line is a few
+/// straight groups of pixels (one column or one row each), so its cross sums at every position
+/// are a sum of 1-D correlations along columns or rows: one 1-D inverse transform per sample
+/// column or row a candidate reaches, per pair of groups, from the sample's 1-D spectra
+/// ([`Spectra`]). The FFT's absolute error is far below `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the
+/// usual bound is about `1e-16` times that per group, and a line has a handful), and the margin
 /// added per correlation covers that and the rounding of the exact sums; degenerate lines take
 /// B8's values, which do not depend on the cross sum.
 struct FftBounds<'p> {
     prep: &'p Prepared<'p>,
     s: &'p Settings,
-    ls: &'p [Vec<(i32, i32)>; 2],
     outs: &'p [OutputLine; 2],
     bounds: &'p BoundStats,
     area: (i32, i32, usize, usize),
     mism: &'p [[u32; 2]],
-    cmin: i32,
-    rmin: i32,
-    /// The job's six plane-sized buffers (taken from `prep` and given back on drop): three kernel
-    /// planes, then three for their spectra, which end up holding the correlations. Kernels: line
-    /// 0 H + iS, line 1 H + iS, I of line 0 + i·I of line 1.
+    /// Each line's pixels grouped by column (vertical runs) and by row (the rest).
+    groups: Vec<Group>,
+    /// Per correlated (group, channel): where its correlations are (see [`FftBounds::correlate`]).
+    terms: Vec<Term>,
+    /// One plane-sized buffer per pair of terms (taken from `prep` and given back on drop).
     buffers: Vec<Vec<Complex64>>,
     /// Per line and channel: Σ centred and the error margin of the cross sum.
     sum_c: [[f64; 3]; 2],
@@ -1156,6 +1159,25 @@ struct FftBounds<'p> {
     inv_out: [[f64; 3]; 2],
     /// The edge factor 1/(1 + μ·m/n) of every mismatch count m.
     edge_factor: [Vec<f64>; 2],
+}
+
+/// The pixels of one line in one sample column (`vertical`, at window column `at`) or one row
+/// (at window row `at`): `(j, i)` for line pixel `i` at offset `from + j` along it.
+struct Group {
+    li: usize,
+    vertical: bool,
+    at: i32,
+    from: i32,
+    pixels: Vec<(usize, usize)>,
+}
+
+/// One group's correlation with one channel: the real (or imaginary) part of `buffer`, laid out
+/// by columns (`x·h + y`) for a vertical group, by rows for a horizontal one.
+struct Term {
+    group: usize,
+    k: usize,
+    buffer: usize,
+    imag: bool,
 }
 
 impl<'p> FftBounds<'p> {
@@ -1170,11 +1192,28 @@ impl<'p> FftBounds<'p> {
     ) -> FftBounds<'p> {
         let sp = &prep.spectra;
         let (w, h) = (sp.w, sp.h);
-        let cmin = ls.iter().flatten().map(|p| p.0).min().unwrap_or(0);
-        let rmin = ls.iter().flatten().map(|p| p.1).min().unwrap_or(0);
-        let mut buffers = std::mem::take(&mut *prep.fft_buffers.lock().expect("buffers"));
-        if buffers.len() != 6 {
-            buffers = (0..6).map(|_| vec![Complex64::new(0.0, 0.0); w * h]).collect();
+        let mut groups: Vec<Group> = Vec::new();
+        // (group, first offset along, first line pixel, length) of every run.
+        let mut along = Vec::new();
+        for (li, line) in ls.iter().enumerate() {
+            let mut i = 0;
+            for run in runs_of(line) {
+                let (vertical, at, start) = if run.horizontal { (false, run.r, run.c) } else { (true, run.c, run.r) };
+                let g = match groups.iter().position(|g| g.li == li && g.vertical == vertical && g.at == at) {
+                    Some(g) => g,
+                    None => {
+                        groups.push(Group { li, vertical, at, from: start, pixels: Vec::new() });
+                        groups.len() - 1
+                    }
+                };
+                groups[g].from = groups[g].from.min(start);
+                along.push((g, start, i, run.len));
+                i += run.len as usize;
+            }
+        }
+        for (g, start, i, len) in along {
+            let skip = (start - groups[g].from) as usize;
+            groups[g].pixels.extend((0..len as usize).map(|t| (skip + t, i + t)));
         }
         let log = ((w * h) as f64).log2().max(1.0);
         let mut sum_c = [[0.0; 3]; 2];
@@ -1190,81 +1229,116 @@ impl<'p> FftBounds<'p> {
         let inv_out = [0, 1].map(|li| outs[li].ss.map(|v| if v >= FLAT { 1.0 / v.sqrt() } else { 0.0 }));
         let edge_factor: [Vec<f64>; 2] =
             [0, 1].map(|li| (0..=ls[li].len()).map(|m| 1.0 / (1.0 + s.mu * (m as f64 / ls[li].len() as f64))).collect());
-        FftBounds { prep, s, ls, outs, bounds, area, mism, cmin, rmin, buffers, sum_c, margin, inv_out, edge_factor }
+        let buffers = std::mem::take(&mut *prep.fft_buffers.lock().expect("buffers"));
+        FftBounds { prep, s, outs, bounds, area, mism, groups, terms: Vec::new(), buffers, sum_c, margin, inv_out, edge_factor }
     }
 
-    /// Cross sums of the kernels `ks` (indices into the three kernel planes) at every position:
-    /// afterwards `buffers[3 + k]` holds kernel `k`'s (real part: first plane, imaginary: second).
+    /// Correlates every group with the channels `ks`: the terms in pairs of the same orientation,
+    /// each pair one complex 1-D correlation per sample column (row) its candidates reach, the
+    /// first term in the real part and the second in the imaginary part.
     fn correlate(&mut self, ks: &[usize]) {
-        let sp = &self.prep.spectra;
+        let prep = self.prep;
+        let sp = &prep.spectra;
         let (w, h) = (sp.w, sp.h);
-        let (_, y0, _, ny) = self.area;
-        let (cmin, rmin) = (self.cmin, self.rmin);
-        let zero = Complex64::new(0.0, 0.0);
-        let rmax = self.ls.iter().flatten().map(|p| p.1).max().unwrap_or(0);
-        let kernel_rows = 0..(rmax - rmin + 1) as usize;
-        let (z, spec) = self.buffers.split_at_mut(3);
-        // Only the kernel rows are read.
-        for &k in ks {
-            z[k][..kernel_rows.end * w].fill(zero);
-        }
-        for li in 0..2 {
-            let o = &self.outs[li];
-            for (i, &(c, r)) in self.ls[li].iter().enumerate() {
-                let at = (r - rmin) as usize * w + (c - cmin) as usize;
-                if ks.contains(&li) {
-                    z[li][at] = Complex64::new(o.centred[0][i], o.centred[1][i]);
+        let (x0, y0, nx, ny) = self.area;
+        let first = self.terms.len();
+        let first_buffer = self.terms.iter().map(|t| t.buffer + 1).max().unwrap_or(0);
+        let mut next = first_buffer;
+        for vertical in [true, false] {
+            let new: Vec<(usize, usize)> = (0..self.groups.len())
+                .filter(|&g| self.groups[g].vertical == vertical)
+                .flat_map(|g| ks.iter().map(move |&k| (g, k)))
+                .collect();
+            for pair in new.chunks(2) {
+                for (t, &(group, k)) in pair.iter().enumerate() {
+                    self.terms.push(Term { group, k, buffer: next, imag: t == 1 });
                 }
-                if ks.contains(&2) {
-                    if li == 0 {
-                        z[2][at].re = o.centred[2][i];
+                next += 1;
+            }
+        }
+        while self.buffers.len() < next {
+            self.buffers.push(vec![Complex64::new(0.0, 0.0); w * h]);
+        }
+        for b in first_buffer..next {
+            let pair: Vec<&Term> = self.terms[first..].iter().filter(|u| u.buffer == b).collect();
+            let g0 = &self.groups[pair[0].group];
+            let vertical = g0.vertical;
+            let (n, count, planes, fwd, inv) =
+                if vertical { (h, w, &sp.cols, &sp.col[0], &sp.col[1]) } else { (w, h, &sp.rows, &sp.row[0], &sp.row[1]) };
+            // The columns (rows) the candidates reach.
+            let reach = |g: &Group| -> std::ops::Range<usize> {
+                let start = g.at + if vertical { x0 } else { y0 };
+                start as usize..start as usize + if vertical { nx } else { ny }
+            };
+            let mut lo = count;
+            let mut hi = 0;
+            let mut kernels: Vec<(usize, Vec<Complex64>)> = Vec::new();
+            for term in &pair {
+                let g = &self.groups[term.group];
+                let r = reach(g);
+                lo = lo.min(r.start);
+                hi = hi.max(r.end);
+                let mut z = vec![Complex64::new(0.0, 0.0); n];
+                for &(j, i) in &g.pixels {
+                    z[j].re = self.outs[g.li].centred[term.k][i];
+                }
+                fwd.process(&mut z);
+                z.iter_mut().for_each(|v| *v = v.conj());
+                kernels.push((term.k, z));
+            }
+            let out = &mut self.buffers[b][lo * n..hi * n];
+            out.par_chunks_mut(n * 16).enumerate().for_each(|(ci, chunk)| {
+                for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
+                    let line = lo + ci * 16 + cj;
+                    let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * n..(line + 1) * n]);
+                    if let Some((kb, kv)) = kernels.get(1) {
+                        let fb = &planes[*kb][line * n..(line + 1) * n];
+                        for ((((d, a), b), x), y) in dst.iter_mut().zip(fa).zip(fb).zip(ka).zip(kv) {
+                            let q = b * y;
+                            *d = a * x + Complex64::new(-q.im, q.re);
+                        }
                     } else {
-                        z[2][at].im = o.centred[2][i];
+                        for ((d, a), x) in dst.iter_mut().zip(fa).zip(ka) {
+                            *d = a * x;
+                        }
                     }
                 }
-            }
-        }
-        for &k in ks {
-            sp.forward(&mut z[k], kernel_rows.clone(), &mut spec[k]);
-        }
-        // Unpack the two real kernels' spectra of each plane and multiply with the sample's (into
-        // the kernel planes, free now: every entry is written).
-        let half = Complex64::new(0.5, 0.0);
-        let minus_half_i = Complex64::new(0.0, -0.5);
-        let i1 = Complex64::new(0.0, 1.0);
-        for &k in ks {
-            let (sa, sb) = if k < 2 { (&sp.planes[0], &sp.planes[1]) } else { (&sp.planes[2], &sp.planes[2]) };
-            let (t, pk) = (&spec[k], &mut z[k]);
-            // Spectra are transposed: frequency (u, v) at u·h + v; its negative at nu·h + nv.
-            for u in 0..w {
-                let nu = if u == 0 { 0 } else { w - u };
-                let (row, neg) = (&t[u * h..(u + 1) * h], &t[nu * h..(nu + 1) * h]);
-                let (sa, sb, pk) = (&sa[u * h..(u + 1) * h], &sb[u * h..(u + 1) * h], &mut pk[u * h..(u + 1) * h]);
-                for v in 0..h {
-                    let nv = if v == 0 { 0 } else { h - v };
-                    let (a, b) = (row[v], neg[nv].conj());
-                    let (ta, tb) = ((a + b) * half, (a - b) * minus_half_i);
-                    pk[v] = sa[v] * ta.conj() + i1 * (sb[v] * tb.conj());
-                }
-            }
-        }
-        // The inverse transforms land in the spectra's buffers (every entry is written).
-        for &k in ks {
-            sp.inverse(&mut z[k], (y0 + rmin) as usize..(y0 + rmin) as usize + ny, &mut spec[k]);
+                inv.process(chunk);
+            });
         }
     }
 
     /// The bounds of one row of candidates, with the H and S cross sums when `hs` (else
     /// `ρ_H, ρ_S ≤ 1`).
-    fn bound_row(&self, row: usize, hs: bool, u: &mut [f64]) {
+    fn bound_row(&self, row: usize, hs: bool, u: &mut [f64], cross: &mut [[Vec<f64>; 3]; 2], d: &mut [f64]) {
         let (x0, y0, nx, _) = self.area;
-        let w = self.prep.spectra.w;
-        let p = &self.buffers[3..];
-        let scale = 1.0 / p[0].len() as f64;
+        let sp = &self.prep.spectra;
+        let (w, h) = (sp.w, sp.h);
         let cap = 1.0 + 1e-9;
-        let at = (y0 + row as i32 + self.rmin) as usize * w + (x0 + self.cmin) as usize;
+        let y = y0 + row as i32;
         let ks = row * nx..(row + 1) * nx;
         let mism = &self.mism[ks.clone()];
+        // The cross sums of this row's candidates, per line and channel, term by term.
+        cross.iter_mut().flatten().for_each(|c| c.fill(0.0));
+        for term in &self.terms {
+            let g = &self.groups[term.group];
+            let buf = &self.buffers[term.buffer];
+            let acc = &mut cross[g.li][term.k];
+            let part = |v: &Complex64| if term.imag { v.im } else { v.re };
+            if g.vertical {
+                let scale = 1.0 / h as f64;
+                let (col, r) = ((x0 + g.at) as usize, (y + g.from) as usize);
+                for (x, a) in acc.iter_mut().enumerate() {
+                    *a += part(&buf[(col + x) * h + r]) * scale;
+                }
+            } else {
+                let scale = 1.0 / w as f64;
+                let at = (y + g.at) as usize * w + (x0 + g.from) as usize;
+                for (a, v) in acc.iter_mut().zip(&buf[at..at + nx]) {
+                    *a += part(v) * scale;
+                }
+            }
+        }
         u.fill(0.0);
         for li in 0..2 {
             let bx = &self.bounds.lines[li][ks.clone()];
@@ -1272,11 +1346,8 @@ impl<'p> FftBounds<'p> {
             // The part of D_HSI not bounded per candidate: ρ ≤ 1 for the channels not correlated.
             let d0 = if hs { 0.0 } else { (self.s.weights[0] + self.s.weights[1]) * cap };
             let channels = if hs { 0..3 } else { 2..3 };
-            let mut d = vec![d0; nx];
+            d.fill(d0);
             for k in channels {
-                let plane = if k < 2 { &p[li] } else { &p[2] };
-                let corr = &plane[at..at + nx];
-                let im = if k < 2 { k == 1 } else { li == 1 };
                 let (io, sc, mg, wk) = (self.inv_out[li][k], self.sum_c[li][k], self.margin[li][k], self.s.weights[k]);
                 // ρ is 1 for two flat lines with close means and 0 for one flat line (B8);
                 // otherwise c/sqrt(v1·v2), at most 1.
@@ -1285,17 +1356,16 @@ impl<'p> FftBounds<'p> {
                         *dd += wk * if b[3 * k + 1] == f64::INFINITY { cap } else { 0.0 };
                     }
                 } else {
-                    let (scale, sc) = (scale * io, sc * io);
-                    let mg = mg * io;
-                    for ((dd, c), b) in d.iter_mut().zip(corr).zip(bx) {
+                    let (sc, mg) = (sc * io, mg * io);
+                    for ((dd, c), b) in d.iter_mut().zip(&cross[li][k]).zip(bx) {
                         let (m2, inv_hi, inv_lo) = (b[3 * k], b[3 * k + 1], b[3 * k + 2]);
-                        let c = if im { c.im } else { c.re } * scale - m2 * sc + mg;
+                        let c = c * io - m2 * sc + mg;
                         let rho = (c * if c >= 0.0 { inv_hi } else { inv_lo }).min(cap);
                         *dd += wk * if inv_hi == f64::INFINITY { cap } else { rho };
                     }
                 }
             }
-            for ((uu, dd), m) in u.iter_mut().zip(&d).zip(mism) {
+            for ((uu, dd), m) in u.iter_mut().zip(&*d).zip(mism) {
                 let dd = if self.s.clamp { dd.max(0.0) } else { *dd };
                 *uu += dd * ef[m[li] as usize];
             }
@@ -1307,7 +1377,14 @@ impl<'p> FftBounds<'p> {
     fn bounds(&self, hs: bool) -> Vec<f64> {
         let (_, _, nx, ny) = self.area;
         let mut u = vec![0.0; nx * ny];
-        u.par_chunks_mut(nx).enumerate().for_each(|(row, chunk)| self.bound_row(row, hs, chunk));
+        const ROWS: usize = 8;
+        u.par_chunks_mut(nx * ROWS).enumerate().for_each(|(chunk, us)| {
+            let mut cross = [0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx]));
+            let mut d = vec![0.0; nx];
+            for (r, u) in us.chunks_exact_mut(nx).enumerate() {
+                self.bound_row(chunk * ROWS + r, hs, u, &mut cross, &mut d);
+            }
+        });
         u
     }
 
@@ -1336,90 +1413,39 @@ impl Drop for FftBounds<'_> {
     }
 }
 
-/// The sample's H, S and I planes as 2-D spectra (transposed, see [`Spectra::forward`]), with the plans.
+/// The sample's H, S and I planes as 1-D spectra of every column and every row, with the plans.
 struct Spectra {
     w: usize,
     h: usize,
-    planes: [Vec<Complex64>; 3],
+    /// `cols[k][x·h + v]`: frequency `v` of column `x` of plane `k` (H, S, I).
+    cols: [Vec<Complex64>; 3],
+    /// `rows[k][y·w + u]`: frequency `u` of row `y`.
+    rows: [Vec<Complex64>; 3],
     /// Euclidean norm of each plane.
     norms: [f64; 3],
-    row: [Arc<dyn Fft<f64>>; 2],
+    /// Forward and inverse plans along columns (length `h`) and rows (length `w`).
     col: [Arc<dyn Fft<f64>>; 2],
+    row: [Arc<dyn Fft<f64>>; 2],
 }
 
 impl Spectra {
     fn new(planes: &HsiPlanes, w: usize, h: usize) -> Spectra {
         let mut planner = FftPlanner::<f64>::new();
-        let mut sp = Spectra {
-            w,
-            h,
-            planes: [Vec::new(), Vec::new(), Vec::new()],
-            norms: [0.0; 3],
-            row: [planner.plan_fft_forward(w), planner.plan_fft_inverse(w)],
-            col: [planner.plan_fft_forward(h), planner.plan_fft_inverse(h)],
-        };
-        for (k, plane) in [&planes.h, &planes.s, &planes.i].into_iter().enumerate() {
-            let mut z: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
-            let mut spec = vec![Complex64::new(0.0, 0.0); w * h];
-            sp.forward(&mut z, 0..h, &mut spec);
-            sp.planes[k] = spec;
-            sp.norms[k] = plane.iter().map(|v| v * v).sum::<f64>().sqrt();
-        }
-        sp
-    }
-
-    /// Forward 2-D FFT (unnormalised) of a row-major `w × h` plane that is zero outside `rows`
-    /// (which are all it reads); the spectrum is left transposed (`dst[u·h + v]`, `u` the column
-    /// frequency).
-    fn forward(&self, data: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
-        let (w, h) = (self.w, self.h);
-        data[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[0].process(c));
-        transpose_rows(data, w, h, rows, dst);
-        dst.par_chunks_mut(h * 16).for_each(|c| self.col[0].process(c));
-    }
-
-    /// Inverse of [`Spectra::forward`] (unnormalised), from a transposed spectrum into a row-major
-    /// plane whose rows `rows` only are finished.
-    fn inverse(&self, spec: &mut [Complex64], rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
-        let (w, h) = (self.w, self.h);
-        spec.par_chunks_mut(h * 16).for_each(|c| self.col[1].process(c));
-        transpose(spec, h, rows.clone(), dst);
-        dst[rows.start * w..rows.end * w].par_chunks_mut(w * 16).for_each(|c| self.row[1].process(c));
-    }
-}
-
-/// `dst[x·h + y] = src[y·w + x]` for the rows `rows` of a row-major `w × h` `src`, zero for the
-/// other rows.
-fn transpose_rows(src: &[Complex64], w: usize, h: usize, rows: std::ops::Range<usize>, dst: &mut [Complex64]) {
-    const T: usize = 16;
-    for x0 in (0..w).step_by(T) {
-        for y0 in (rows.start..rows.end).step_by(T) {
-            for x in x0..(x0 + T).min(w) {
-                for y in y0..(y0 + T).min(rows.end) {
-                    dst[x * h + y] = src[y * w + x];
-                }
-            }
-        }
-    }
-    for column in dst.chunks_exact_mut(h) {
-        column[..rows.start].fill(Complex64::new(0.0, 0.0));
-        column[rows.end..].fill(Complex64::new(0.0, 0.0));
-    }
-}
-
-/// `dst[x·h + y] = src[y·w + x]` for a row-major `w × h` `src`, in cache-sized tiles, for the
-/// `x` in `xs` only (the other entries of `dst` are left as they are).
-fn transpose(src: &[Complex64], w: usize, xs: std::ops::Range<usize>, dst: &mut [Complex64]) {
-    const T: usize = 16;
-    let h = src.len() / w;
-    for by in (0..h).step_by(T) {
-        for bx in xs.clone().step_by(T) {
-            for x in bx..(bx + T).min(xs.end) {
-                for y in by..(by + T).min(h) {
-                    dst[x * h + y] = src[y * w + x];
-                }
-            }
-        }
+        let col = [planner.plan_fft_forward(h), planner.plan_fft_inverse(h)];
+        let row = [planner.plan_fft_forward(w), planner.plan_fft_inverse(w)];
+        let ps = [&planes.h, &planes.s, &planes.i];
+        let cols = ps.map(|p| {
+            let mut z: Vec<Complex64> = (0..w).flat_map(|x| (0..h).map(move |y| Complex64::new(p[y * w + x], 0.0))).collect();
+            col[0].process(&mut z);
+            z
+        });
+        let rows = ps.map(|p| {
+            let mut z: Vec<Complex64> = p.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+            row[0].process(&mut z);
+            z
+        });
+        let norms = ps.map(|p| p.iter().map(|v| v * v).sum::<f64>().sqrt());
+        Spectra { w, h, cols, rows, norms, col, row }
     }
 }
 
