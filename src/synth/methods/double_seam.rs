@@ -1749,6 +1749,50 @@ mod tests {
     }
 
     #[test]
+    fn pruned_choice_on_ring_lines_equals_scoring_every_candidate() {
+        // Lines on three and on four sides of the pasted square, as a torus's blocks have them:
+        // two columns and one or two rows per line, which the FFT bounds correlate group by group.
+        let sample = structured();
+        let planes = HsiPlanes::of(&sample);
+        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
+        let prep = Prepared::new(&sample, planes, edges);
+        let mut out = Canvas::new(60, 60, (96, 96), false);
+        for (bi, bj) in [(0u32, 0u32), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 0), (2, 1), (2, 2)] {
+            out.paste(&prep, (7 + 23 * bj + 5 * bi, 3 + 21 * bi + 7 * bj), (20 * bj, 20 * bi), 0, 0, 20);
+        }
+        let base = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
+        for s in [Settings { ..base }, Settings { clamp: true, ..base }, Settings { level_penalty: 10.0, ..base }] {
+            let (b, g) = (s.block, s.g);
+            for bottom in [false, true] {
+                let ring = |d: i32| -> Vec<(i32, i32)> {
+                    let (lo, hi) = (g - 1 - d, b + d);
+                    let top = (lo..=hi).map(|c| (c, lo));
+                    let left = (lo + 1..hi).map(|r| (lo, r));
+                    let right = (lo + 1..hi).map(|r| (hi, r));
+                    let under = (lo..=hi).map(|c| (c, hi)).filter(|_| bottom);
+                    top.chain(left).chain(right).chain(under).collect()
+                };
+                let ls = [ring(0), ring(g - 1 - s.a)];
+                let ranges = line_ranges(&prep, &s, &ls);
+                let stats = [candidate_stats_in(&prep, &s, ranges.clone(), &ls[0]), candidate_stats_in(&prep, &s, ranges.clone(), &ls[1])];
+                let origin = (20, 20);
+                let (positions, scores) = score_lines(&prep, &s, &ls, ranges.clone(), &stats, &out, origin);
+                let best = positions[(0..scores.len()).max_by(|&i, &j| scores[i].total_cmp(&scores[j])).unwrap()];
+                let shape = Shape::new(&prep, ls.clone(), ranges);
+                for seed in [1u64, 2, 3] {
+                    let want = pick(&s, &positions, &scores, seed, 1, 1).unwrap();
+                    for hints in [vec![], vec![(40, 40)], vec![best]] {
+                        let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                        assert_eq!(got.0, want.0, "{s:?} bottom {bottom} {hints:?}");
+                        assert_eq!(got.1, want.1);
+                        assert_eq!(got.2.to_bits(), want.2.to_bits());
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn runs_cover_a_line_in_order() {
         for line in [
             lines(Case::L, 24, 4, -1)[0].clone(),
