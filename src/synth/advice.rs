@@ -9,7 +9,7 @@
 //! calls it stochastic, where every method is fine and nothing is said.
 
 use crate::image::RgbImage;
-use crate::metrics::{MetricParams, orientation_acf};
+use crate::metrics::{MetricParams, centred_gray, orientation_acf};
 use crate::synth::lattice::{self, Lattice, LatticeOptions};
 use crate::synth::params::{ParamValue, Params};
 use serde::Serialize;
@@ -115,7 +115,7 @@ fn grid_repeat(img: &RgbImage, l: &Lattice) -> GridRepeat {
     use crate::synth::methods::near_regular::grid::Geometry;
     use crate::synth::methods::tiles::align::{Alignment, residual_px};
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let gray: Vec<f64> = img.as_raw().chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0).collect();
+    let gray = centred_gray(img);
     let (x0, x1, y0, y1) = Geometry::new(l.t1, l.t2).bbox;
     let block = (x1 - x0 + 1, y1 - y0 + 1);
     let at = |v| self_correlation(&gray, w, h, v);

@@ -248,8 +248,10 @@ struct Prepared<'a> {
 }
 
 impl<'a> Prepared<'a> {
-    fn new(rgb: &'a RgbImage, planes: HsiPlanes, edges: Vec<u8>) -> Prepared<'a> {
+    fn of(rgb: &'a RgbImage) -> Prepared<'a> {
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+        let planes = HsiPlanes::of(rgb);
+        let edges = otsu_edges(&sobel4(&planes.i, w, h));
         let spectra = Spectra::new(&planes, w, h);
         let prefixes = Prefixes::new(&planes, w, h);
         Prepared { rgb, w, planes, edges, spectra, prefixes, fft_buffers: std::sync::Mutex::new(Vec::new()) }
@@ -556,9 +558,7 @@ impl Method for DoubleSeam {
         if s.block > sw || s.block > sh {
             return Err(SynthError::Failed(format!("block {} does not fit in the {sw}x{sh} sample", s.block)));
         }
-        let planes = HsiPlanes::of(sample);
-        let edges = otsu_edges(&sobel4(&planes.i, sw as usize, sh as usize));
-        let prep = Prepared::new(sample, planes, edges);
+        let prep = Prepared::of(sample);
         if req.tileable {
             return synthesize_torus(req, &s, &prep);
         }
@@ -1655,9 +1655,7 @@ mod tests {
         };
         assert_eq!(p.int("overlap").unwrap(), 4);
         assert_eq!(Settings::of(&DoubleSeamConfig::from_params(&p).unwrap()), s);
-        let planes = HsiPlanes::of(&sample);
-        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
-        let prep = Prepared::new(&sample, planes, edges);
+        let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
         out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
         out.paste(&prep, (40, 30), (20, 0), 4, 0, 24);
@@ -1705,9 +1703,7 @@ mod tests {
         // for bit, with hints that are natural continuations (so θ is high and most candidates
         // are pruned), with misleading hints and with none, across settings.
         let sample = structured();
-        let planes = HsiPlanes::of(&sample);
-        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
-        let prep = Prepared::new(&sample, planes, edges);
+        let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
         out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
         out.paste(&prep, (30, 5), (20, 0), 4, 0, 24);
@@ -1758,9 +1754,7 @@ mod tests {
         // Lines on three and on four sides of the pasted square, as a torus's blocks have them:
         // two columns and one or two rows per line, which the FFT bounds correlate group by group.
         let sample = structured();
-        let planes = HsiPlanes::of(&sample);
-        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
-        let prep = Prepared::new(&sample, planes, edges);
+        let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
         for (bi, bj) in [(0u32, 0u32), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 0), (2, 1), (2, 2)] {
             out.paste(&prep, (7 + 23 * bj + 5 * bi, 3 + 21 * bi + 7 * bj), (20 * bj, 20 * bi), 0, 0, 20);
@@ -1819,9 +1813,7 @@ mod tests {
         // statistics must hold them: the mean within a tiny error, 1/sqrt(sum of squares) inside
         // its interval, and every line that is flat or nearly so marked (the sample's mortar is flat).
         let sample = structured();
-        let planes = HsiPlanes::of(&sample);
-        let edges = otsu_edges(&sobel4(&planes.i, 96, 96));
-        let prep = Prepared::new(&sample, planes, edges);
+        let prep = Prepared::of(&sample);
         let s = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
         let mut flat_lines = 0;
         for case in [Case::Horizontal, Case::Vertical, Case::L] {
