@@ -11,6 +11,7 @@
 use crate::image::RgbImage;
 use crate::metrics::{MetricParams, centred_gray, orientation_acf};
 use crate::synth::lattice::{self, Lattice, LatticeOptions};
+use crate::synth::methods::default_overlap;
 use crate::synth::params::{ParamValue, Params};
 use serde::Serialize;
 
@@ -49,6 +50,16 @@ pub struct Analysis {
     pub orientation: f64,
     /// With a lattice: how well the sample repeats along TES's rectangular grid ([`GridRepeat`]).
     pub grid_repeat: Option<GridRepeat>,
+    /// How far the mean tone of [`TONE_LINE`]-pixel lines varies, over how much the lines vary
+    /// within themselves (the standard deviation of their means over their median standard
+    /// deviation): what double-seam's Pearson correlations cannot see ([`TONE_SPREAD_FROM`]).
+    pub tone_spread: f64,
+    /// `(block, fraction)` for every even block side from 8 to half the sample's shorter side: the
+    /// fraction of `block × block/6` overlap bands whose contrast is under [`FLAT_BAND_CONTRAST`] of
+    /// the sample's ([`FLAT_BANDS_MAX`]). Left out of `advise --json` (a long table); the advice
+    /// quotes the fraction at the job's block.
+    #[serde(skip)]
+    pub flat_bands: Vec<(i64, f64)>,
 }
 
 /// TES abuts the texel's bounding box on a rectangular grid, so its blocks join in phase only
@@ -110,6 +121,122 @@ fn self_correlation(plane: &[f64], w: usize, h: usize, (dx, dy): (i64, i64)) -> 
     if aa <= 0.0 || bb <= 0.0 { 0.0 } else { ab / (aa * bb).sqrt() }
 }
 
+/// The seam length at which [`Analysis::tone_spread`] is measured: double-seam's default block.
+pub const TONE_LINE: usize = 50;
+
+/// Tone spread from which double-seam is told to set `level_penalty`. Its Pearson correlations
+/// ignore a line's mean tone, so where tone varies between regions more than within lines, a block
+/// of another tone passes as consistent and leaves a step. Seen at 384² from 256²: two-tone floor
+/// tiles (1.33), large cream tiles (4.98), a wall lit from one side (2.92) and a framed tile grid
+/// (1.47) come out with hard tone steps at block edges, and look right with `level_penalty = 10`;
+/// every bundled sample and fixture is at most 1.14 (terracotta, which looks right), stochastic
+/// ones at most 0.71.
+pub const TONE_SPREAD_FROM: f64 = 1.25;
+
+/// An overlap band counts as flat when its gray standard deviation is below this fraction of the
+/// whole sample's: it matches any other flat band, so it says nothing about what joins there.
+pub const FLAT_BAND_CONTRAST: f64 = 0.15;
+
+/// The fraction of flat overlap bands ([`Analysis::flat_bands`]) from which the patch methods are
+/// told to use larger blocks, and the fraction the suggested block brings it to. Seen at 384² from
+/// 256² with block 50: large floor tiles (0.21 flat), cream tiles (0.27) and a wire grid on black
+/// (0.31) come out with merged tiles and bars that end in mid-air, as blocks inside one tile's plain
+/// interior or in the black match anywhere; at the block that brings them to 0.1 they look right.
+/// Every bundled sample and fixture is at most 0.15 (perspective bricks), stochastic ones 0.01.
+pub const FLAT_BANDS_MAX: f64 = 0.2;
+pub const FLAT_BANDS_OK: f64 = 0.1;
+
+/// Windowed gray statistics from summed-area tables: what the patch methods' seams and overlap
+/// bands see of the sample.
+struct Contrast {
+    w: usize,
+    h: usize,
+    /// Summed-area tables of gray and gray², `(w + 1) × (h + 1)`.
+    sum: Vec<f64>,
+    sq: Vec<f64>,
+    /// The whole sample's gray standard deviation.
+    spread: f64,
+}
+
+impl Contrast {
+    fn of(img: &RgbImage) -> Self {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let gray = centred_gray(img);
+        let (mut sum, mut sq) = (vec![0.0; (w + 1) * (h + 1)], vec![0.0; (w + 1) * (h + 1)]);
+        for y in 0..h {
+            let (mut row, mut row_sq) = (0.0, 0.0);
+            for x in 0..w {
+                let g = gray[y * w + x];
+                row += g;
+                row_sq += g * g;
+                sum[(y + 1) * (w + 1) + x + 1] = sum[y * (w + 1) + x + 1] + row;
+                sq[(y + 1) * (w + 1) + x + 1] = sq[y * (w + 1) + x + 1] + row_sq;
+            }
+        }
+        let n = (w * h) as f64;
+        let spread = (sq[(w + 1) * (h + 1) - 1] / n).max(0.0).sqrt();
+        Contrast { w, h, sum, sq, spread }
+    }
+
+    /// Mean and standard deviation of the `bw × bh` window at `(x, y)`.
+    fn window(&self, x: usize, y: usize, bw: usize, bh: usize) -> (f64, f64) {
+        let at = |t: &[f64]| {
+            let (a, b) = (y * (self.w + 1), (y + bh) * (self.w + 1));
+            t[b + x + bw] - t[b + x] - t[a + x + bw] + t[a + x]
+        };
+        let n = (bw * bh) as f64;
+        let mean = at(&self.sum) / n;
+        (mean, (at(&self.sq) / n - mean * mean).max(0.0).sqrt())
+    }
+
+    /// `len × thick` bands along rows and `thick × len` bands along columns, on a grid of about
+    /// 64 positions across the bands and 32 along them (fixed, so the result is deterministic).
+    fn bands(&self, len: usize, thick: usize) -> Vec<(f64, f64)> {
+        let mut out = Vec::new();
+        for (across, along, horizontal) in [(self.h, self.w, true), (self.w, self.h, false)] {
+            if len > along || thick > across {
+                continue;
+            }
+            let (step_across, step_along) = ((across / 64).max(1), (along / 32).max(1));
+            for a in (0..=across - thick).step_by(step_across) {
+                for b in (0..=along - len).step_by(step_along) {
+                    out.push(if horizontal { self.window(b, a, len, thick) } else { self.window(a, b, thick, len) });
+                }
+            }
+        }
+        out
+    }
+
+    /// The spread of [`TONE_LINE`]-pixel lines' mean tones over their median standard deviation
+    /// (floored at 1 % of the sample's, so a sample of flat lines does not divide by zero).
+    fn tone_spread(&self) -> f64 {
+        let lines = self.bands(TONE_LINE.min(self.w.min(self.h)), 1);
+        if lines.is_empty() || self.spread <= 0.0 {
+            return 0.0;
+        }
+        let n = lines.len() as f64;
+        let mean = lines.iter().map(|l| l.0).sum::<f64>() / n;
+        let tones = (lines.iter().map(|l| (l.0 - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let mut sd: Vec<f64> = lines.iter().map(|l| l.1).collect();
+        sd.sort_by(f64::total_cmp);
+        tones / sd[sd.len() / 2].max(0.01 * self.spread)
+    }
+
+    /// For every even block side from 8 to half the sample's shorter side: the fraction of its
+    /// overlap bands (block × the default overlap of block / 6) without contrast.
+    fn flat_bands(&self) -> Vec<(i64, f64)> {
+        let room = self.w.min(self.h) / 2;
+        (8..=room)
+            .step_by(2)
+            .map(|block| {
+                let bands = self.bands(block, (default_overlap(block as i64) as usize).max(2));
+                let flat = bands.iter().filter(|b| b.1 < FLAT_BAND_CONTRAST * self.spread).count();
+                (block as i64, flat as f64 / bands.len().max(1) as f64)
+            })
+            .collect()
+    }
+}
+
 /// [`GridRepeat`] of a sample on its lattice.
 fn grid_repeat(img: &RgbImage, l: &Lattice) -> GridRepeat {
     use crate::synth::methods::near_regular::grid::Geometry;
@@ -158,6 +285,19 @@ impl Analysis {
         self.lattice.as_ref().and_then(|l| l.found_in).filter(|_| self.orientation >= ORIENTED_FROM)
     }
 
+    /// The fraction of flat overlap bands at `block` (at the nearest even side below it, within
+    /// the table); `None` for a sample too small for blocks of 8.
+    pub fn flat_bands_at(&self, block: i64) -> Option<f64> {
+        self.flat_bands.iter().take_while(|e| e.0 <= block.max(8)).last().map(|e| e.1)
+    }
+
+    /// The smallest block above `block` whose overlap bands are at most [`FLAT_BANDS_OK`] flat,
+    /// or the largest the sample allows (half its shorter side).
+    pub fn block_with_contrast(&self, block: i64) -> Option<i64> {
+        let last = self.flat_bands.last()?.0;
+        Some(self.flat_bands.iter().find(|e| e.0 > block && e.1 <= FLAT_BANDS_OK).map_or(last, |e| e.0))
+    }
+
     /// The length of the longer lattice vector, in pixels.
     pub fn longest_vector(&self) -> Option<f64> {
         let l = self.lattice.as_ref()?;
@@ -200,6 +340,8 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         no_lattice: Some(why.into()),
         orientation: 0.0,
         grid_repeat: None,
+        tone_spread: 0.0,
+        flat_bands: Vec::new(),
     };
     if width < 8 || height < 8 {
         return flat("the sample is smaller than 8 × 8 pixels");
@@ -221,7 +363,18 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         Kind::Stochastic
     };
     let grid_repeat = lattice.as_ref().map(|l| grid_repeat(img, l));
-    Analysis { width, height, kind, lattice, no_lattice, orientation, grid_repeat }
+    let contrast = Contrast::of(img);
+    Analysis {
+        width,
+        height,
+        kind,
+        lattice,
+        no_lattice,
+        orientation,
+        grid_repeat,
+        tone_spread: contrast.tone_spread(),
+        flat_bands: contrast.flat_bands(),
+    }
 }
 
 /// Aligned tiles look right only when the tiles' translation vectors are (nearly) lattice
@@ -312,6 +465,14 @@ fn int(p: &Params, name: &str) -> Option<i64> {
     }
 }
 
+fn float(p: &Params, name: &str) -> Option<f64> {
+    match p.get(name)? {
+        ParamValue::Float(v) => Some(*v),
+        ParamValue::Int(v) => Some(*v as f64),
+        _ => None,
+    }
+}
+
 fn word<'p>(p: &'p Params, name: &str) -> Option<&'p str> {
     match p.get(name)? {
         ParamValue::Str(s) => Some(s),
@@ -349,27 +510,60 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
             // search, then a feathered zone) keep whole texels only when a block holds one.
             // Quilting's exhaustive overlap search finds in-phase continuations with blocks a
             // little smaller than the texel, but not with much smaller ones (QUILTING_TEXEL_PER_BLOCK).
-            if let (Some(block), Some(texel)) = (int(p, "block"), a.longest_vector()) {
-                let shortest = a.shortest_vector().unwrap_or(texel);
-                let room = i64::from(a.width.min(a.height)) / 2;
-                let wanted = ((texel.ceil() as i64 + 1) / 2 * 2).min(room);
-                let quilting = method == "quilting";
-                let too_small = if quilting { shortest > QUILTING_TEXEL_PER_BLOCK * block as f64 } else { (block as f64) < shortest };
-                if too_small && wanted > block {
-                    set.push(("block".to_string(), wanted.to_string()));
-                    why.push(if quilting {
-                        format!(
-                            "blocks of {block} px are under two thirds of the sample's texel (lattice vectors of {shortest:.0} and \
-                             {texel:.0} px): they fit inside one texel's plain interior, where any overlap matches, and the joints \
-                             between texels go missing"
-                        )
-                    } else {
-                        format!(
-                            "blocks of {block} px are smaller than the sample's texel (lattice vectors of {shortest:.0} and {texel:.0} \
-                             px), so they join pieces of texels out of phase"
-                        )
-                    });
+            // Pearson correlations ignore a line's mean tone: where tone varies between regions
+            // more than within lines, blocks of another tone pass as consistent.
+            if method == "double-seam" && a.tone_spread >= TONE_SPREAD_FROM && float(p, "level_penalty") == Some(0.0) {
+                set.push(("level_penalty".to_string(), "10".to_string()));
+                why.push(format!(
+                    "its correlations ignore brightness, and the mean tone of this sample's {TONE_LINE}-px lines varies {:.1}× as \
+                     much as the lines themselves, so blocks of another tone pass as consistent and leave steps",
+                    a.tone_spread
+                ));
+            }
+            let mut wanted_block = None;
+            if let Some(block) = int(p, "block") {
+                // Double-seam (which judges a block by two seam lines) and patch sampling (a swarm
+                // search, then a feathered zone) keep whole texels only when a block holds one.
+                // Quilting's exhaustive overlap search finds in-phase continuations with blocks a
+                // little smaller than the texel, but not with much smaller ones (QUILTING_TEXEL_PER_BLOCK).
+                if let Some(texel) = a.longest_vector() {
+                    let shortest = a.shortest_vector().unwrap_or(texel);
+                    let room = i64::from(a.width.min(a.height)) / 2;
+                    let wanted = ((texel.ceil() as i64 + 1) / 2 * 2).min(room);
+                    let quilting = method == "quilting";
+                    let too_small = if quilting { shortest > QUILTING_TEXEL_PER_BLOCK * block as f64 } else { (block as f64) < shortest };
+                    if too_small && wanted > block {
+                        wanted_block = Some(wanted);
+                        why.push(if quilting {
+                            format!(
+                                "blocks of {block} px are under two thirds of the sample's texel (lattice vectors of {shortest:.0} and \
+                                 {texel:.0} px): they fit inside one texel's plain interior, where any overlap matches, and the joints \
+                                 between texels go missing"
+                            )
+                        } else {
+                            format!(
+                                "blocks of {block} px are smaller than the sample's texel (lattice vectors of {shortest:.0} and {texel:.0} \
+                                 px), so they join pieces of texels out of phase"
+                            )
+                        });
+                    }
                 }
+                // Overlaps (or seam lines) inside flat areas match any other flat area, so tiles
+                // merge and edges end in mid-air; larger blocks reach the structure.
+                if let (Some(flat), Some(wanted)) = (a.flat_bands_at(block), a.block_with_contrast(block))
+                    && flat >= FLAT_BANDS_MAX
+                    && wanted > block
+                {
+                    wanted_block = Some(wanted_block.unwrap_or(0).max(wanted));
+                    why.push(format!(
+                        "{:.0} % of this sample's {block}-px overlap bands have almost no contrast, and overlaps inside flat areas \
+                         match anywhere, so shapes merge and edges end in mid-air",
+                        100.0 * flat
+                    ));
+                }
+            }
+            if let Some(b) = wanted_block {
+                set.push(("block".to_string(), b.to_string()));
             }
             if set.is_empty() { Fit::Fits } else { Fit::FitsWith { set, because: why.join("; ") } }
         }
@@ -551,11 +745,72 @@ mod tests {
     fn quilting_is_told_a_block_when_texels_are_much_larger_than_its_blocks() {
         let a = analyse(&blobs((30.0, 0.0), (0.0, 32.0)));
         let block = |b: i64| params(&[("block", ParamValue::Int(b))]);
+        // Flat colours: the flat-band rule asks for more than a texel; the texel rule for 32.
         let w = warning(&a, "quilting", &block(16)).expect("blocks of 16 on a 30 px texel");
-        assert!(w.contains("set block = 32"), "{w}");
-        assert_eq!(warning(&a, "quilting", &block(24)), None, "a block of 24 keeps the joints");
+        assert!(w.contains("under two thirds of the sample's texel") && suggested_block(&w) >= 32, "{w}");
+        let w = warning(&a, "quilting", &block(32)).unwrap_or_default();
+        assert!(!w.contains("texel"), "a block of 32 keeps the joints: {w}");
         // Double-seam and patch sampling want a whole texel per block.
-        assert!(warning(&a, "double-seam", &block(24)).is_some_and(|w| w.contains("set block = 32")));
+        let w = warning(&a, "double-seam", &block(24)).expect("blocks of 24 on a 30 px texel");
+        assert!(w.contains("smaller than the sample's texel") && suggested_block(&w) >= 32, "{w}");
+    }
+
+    /// The `block = N` a warning suggests.
+    fn suggested_block(w: &str) -> i64 {
+        let tail = &w[w.find("block = ").expect("suggests a block") + 8..];
+        tail[..tail.find(|c: char| !c.is_ascii_digit()).unwrap_or(tail.len())].parse().unwrap()
+    }
+
+    /// A deterministic value in `0..amplitude` per pixel.
+    fn noise(x: u32, y: u32, amplitude: u32) -> u8 {
+        let h = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)).wrapping_mul(2_654_435_761);
+        ((h >> 16) % amplitude) as u8
+    }
+
+    #[test]
+    fn double_seam_is_told_to_weigh_tone_where_regions_differ_in_tone() {
+        // A dark half and a light half with the same fine grain (a wall lit from one side): lines
+        // correlate whatever their tone, so Pearson alone would join dark blocks to light ones.
+        let two_tone = RgbImage::from_fn(256, 256, |x, y| {
+            let base = if y < 128 { 60 } else { 170 };
+            let v = base + noise(x, y, 24);
+            [v, v, v]
+        });
+        let a = analyse(&two_tone);
+        assert!(a.tone_spread >= TONE_SPREAD_FROM, "{}", a.tone_spread);
+        let w = warning(&a, "double-seam", &params(&[("level_penalty", ParamValue::Float(0.0))])).expect("two tones");
+        assert!(w.contains("set level_penalty = 10"), "{w}");
+        let given = params(&[("level_penalty", ParamValue::Float(10.0))]);
+        assert!(warning(&a, "double-seam", &given).is_none_or(|w| !w.contains("level_penalty")));
+        // One tone, the same grain: nothing to say.
+        let grain = RgbImage::from_fn(128, 128, |x, y| {
+            let v = 100 + noise(x, y, 24);
+            [v, v, v]
+        });
+        let a = analyse(&grain);
+        assert!(a.tone_spread < TONE_SPREAD_FROM, "{}", a.tone_spread);
+        assert_eq!(warning(&a, "double-seam", &params(&[("level_penalty", ParamValue::Float(0.0))])), None);
+    }
+
+    #[test]
+    fn patch_methods_are_told_a_larger_block_where_overlaps_fall_in_flat_areas() {
+        // Thin diagonal bars 64 px apart on black: most small bands see only black.
+        let bars = RgbImage::from_fn(192, 192, |x, y| if (x + y) % 64 < 6 { [200, 200, 200] } else { [0, 0, 0] });
+        let a = analyse(&bars);
+        let flat = a.flat_bands_at(24).unwrap();
+        assert!(flat >= FLAT_BANDS_MAX, "{flat}");
+        for method in ["quilting", "double-seam", "patch-sampling"] {
+            let w = warning(&a, method, &params(&[("block", ParamValue::Int(24))])).expect("flat bands");
+            assert!(w.contains("have almost no contrast"), "{method}: {w}");
+            let b = suggested_block(&w);
+            assert!(b > 24 && a.flat_bands_at(b).unwrap() <= FLAT_BANDS_OK, "{method}: block {b}: {:?}", a.flat_bands_at(b));
+        }
+        // Grain everywhere: no band is flat.
+        let grain = analyse(&RgbImage::from_fn(192, 192, |x, y| {
+            let v = 100 + noise(x, y, 40);
+            [v, v, v]
+        }));
+        assert_eq!(grain.flat_bands_at(24), Some(0.0));
     }
 
     #[test]

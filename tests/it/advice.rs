@@ -1,12 +1,13 @@
 //! `texsyn advise` and the `warnings` of a run, on real samples: the twelve bundled ones, five
-//! material albedos (tests/fixtures/advice) and ten walls, roofs and floors the methods never saw
-//! while their defaults were chosen (tests/fixtures/structured), every method with its defaults,
-//! 384² from 256².
+//! material albedos (tests/fixtures/advice) and thirteen walls, roofs and floors the methods never
+//! saw while their defaults were chosen (tests/fixtures/structured), every method with its
+//! defaults, 384² from 256².
 //!
 //! The regression guard: scored on texsyn's own orientation metrics against quilting on the same
 //! sample, every output either stays within a factor [`FACTOR`] of quilting or carries a warning;
 //! the near-regular methods may instead refuse a sample without a lattice (with the reason). And
-//! no job on a sample `advise` calls stochastic carries a warning. The score is the geometric mean
+//! no job on a sample `advise` calls stochastic carries a warning, but for one: double-seam told
+//! to weigh tone on a wall lit from one side, where its Pearson criterion leaves tone steps. The score is the geometric mean
 //! of `kl_orientation / max(quilting's, 0.01)` (quilting's KL is often ~0.002, too small to divide
 //! by) and `acf_orientation / quilting's`. When this test fails, open the outputs: either a method
 //! got worse, or the advice no longer matches what it produces.
@@ -92,7 +93,8 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
             let j = jobs[&format!("{}__{method}.toml", stem(&s))];
             let warned = j["warnings"].as_array().is_some_and(|w| !w.is_empty());
             let t = tally.entry(method).or_default();
-            if kind == "stochastic" && warned {
+            let tone_only = j["warnings"].as_array().into_iter().flatten().all(|w| w.as_str().unwrap().contains("ignore brightness"));
+            if kind == "stochastic" && warned && !(method == "double-seam" && tone_only) {
                 problems.push(format!("{} {method}: warned on a stochastic sample: {}", stem(&s), j["warnings"]));
             }
             if j["status"] != "ok" {
@@ -140,6 +142,25 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
         assert_eq!(w("coevolution"), 0, "{s} coevolution");
     }
     assert!(jobs["metal_tread_studs__tes.toml"]["warnings"].as_array().is_none_or(|w| w.is_empty()));
+    // Overlaps in flat areas (large plain tiles, a wire grid on black) match anywhere: the patch
+    // methods are told a larger block. Double-seam is told to weigh tone where the sample's tone
+    // varies more between regions than within lines (the cream tiles, a wall lit from one side),
+    // and only there: on the other stochastic samples nothing is said.
+    let warnings = |s: &str, m: &str| jobs[&format!("{s}__{m}.toml")]["warnings"].to_string();
+    for s in ["stktex_generic_tilesB", "stk_generic_grid_b"] {
+        for m in ["quilting", "double-seam", "patch-sampling"] {
+            let w = warnings(s, m);
+            assert!(w.contains("have almost no contrast") && w.contains("block = "), "{s} {m}: {w}");
+        }
+    }
+    for s in ["stktex_generic_tilesB", "racetrack_wall"] {
+        assert!(warnings(s, "double-seam").contains("set level_penalty = 10"), "{s}: {}", warnings(s, "double-seam"));
+    }
+    for (s, kind) in &kinds {
+        if kind == "stochastic" && s != "racetrack_wall" {
+            assert!(!warnings(s, "double-seam").contains("level_penalty"), "{s}: {}", warnings(s, "double-seam"));
+        }
+    }
     // Quilting's default blocks (50 px) lie inside terracotta's 84 px tiles and lose the grout.
     let q = jobs["tiles_terracotta__quilting.toml"]["warnings"].to_string();
     assert!(q.contains("set block = 88"), "terracotta quilting: {q}");
@@ -147,7 +168,7 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
     for k in ["near-regular", "oriented", "stochastic"] {
         assert!(kinds.values().any(|v| v == k), "no {k} sample among {kinds:?}");
     }
-    for s in ["cork", "grass_gray", "gravel_gray", "hedge_leaves", "pebbles_beige", "roughcast_plaster"] {
+    for s in ["cork", "grass_gray", "gravel_gray", "hedge_leaves", "pebbles_beige", "roughcast_plaster", "racetrack_wall"] {
         assert_eq!(kinds[s], "stochastic", "{s}");
     }
     for s in [
