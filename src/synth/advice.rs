@@ -613,63 +613,93 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 }
             }
         }
-        "wang-tiles" | "rw-tiles" => match a.kind {
-            _ if let Some(view) = a.weak_lattice_on_oriented() => Fit::NotFor {
-                because: format!(
-                    "its lattice was found only in the sample's {view}, and tiles cut on a weak lattice break the sample's oriented \
-                     structure at every tile edge"
-                ),
-                instead: "quilting",
-            },
-            Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
-                set: vec![("align".into(), "lattice".into())],
-                because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
-            },
-            // `tile = "auto"` (the default) picks an in-phase size when one fits the sample with a
-            // lattice cell to spare: then nothing is said. A given size out of phase, or `auto`
-            // finding none and keeping 64, is warned about, naming the size that misses least.
-            Kind::NearRegular => match tile_phase(a, method, p) {
-                Some(ph) if ph.now > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) => {
-                    let (tile, now, (best, best_residual)) = (ph.tile, ph.now, ph.best);
-                    let at = if ph.auto {
-                        format!(
-                            "no tile size that leaves a lattice cell to spare in the sample is in phase with its lattice, so tile = \"auto\" \
-                             keeps {tile}, whose translations miss the lattice by {now:.1} px"
-                        )
-                    } else {
-                        format!("at tile {tile} the tiles' translations miss the sample's lattice by {now:.1} px")
-                    };
-                    let or_auto = match ph.auto_pick {
-                        Some(t) if !ph.auto => format!(" (leaving tile out, its default \"auto\" picks {t} here)"),
-                        _ => String::new(),
-                    };
-                    Fit::FitsWith {
-                        set: vec![("tile".into(), best.to_string())],
-                        because: format!(
-                            "{at}: even aligned tiles cut texels out of phase; tile {best} misses it by {best_residual:.1} px{or_auto}"
-                        ),
-                    }
-                }
-                // In phase, but about one texel per tile (`auto` found no size spanning more in
-                // phase in this sample): the tiling repeats a handful of texels in a regular
-                // pattern, and where texels differ in tone the tiles' cuts split them visibly.
-                Some(ph) if ph.texels < MIN_TEXELS_PER_TILE => Fit::NotFor {
+        "wang-tiles" | "rw-tiles" => with_tone_candidates(
+            a,
+            p,
+            match a.kind {
+                _ if let Some(view) = a.weak_lattice_on_oriented() => Fit::NotFor {
                     because: format!(
-                        "tiles of {} px hold only {:.1} texels, and no larger size in phase with the lattice fits this {}×{} sample, \
-                         so the tiling repeats a few texels in a regular pattern",
-                        ph.tile, ph.texels, a.width, a.height
+                        "its lattice was found only in the sample's {view}, and tiles cut on a weak lattice break the sample's oriented \
+                     structure at every tile edge"
                     ),
+                    instead: "quilting",
+                },
+                Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
+                    set: vec![("align".into(), "lattice".into())],
+                    because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
+                },
+                // `tile = "auto"` (the default) picks an in-phase size when one fits the sample with a
+                // lattice cell to spare: then nothing is said. A given size out of phase, or `auto`
+                // finding none and keeping 64, is warned about, naming the size that misses least.
+                Kind::NearRegular => match tile_phase(a, method, p) {
+                    Some(ph) if ph.now > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) => {
+                        let (tile, now, (best, best_residual)) = (ph.tile, ph.now, ph.best);
+                        let at = if ph.auto {
+                            format!(
+                                "no tile size that leaves a lattice cell to spare in the sample is in phase with its lattice, so tile = \"auto\" \
+                             keeps {tile}, whose translations miss the lattice by {now:.1} px"
+                            )
+                        } else {
+                            format!("at tile {tile} the tiles' translations miss the sample's lattice by {now:.1} px")
+                        };
+                        let or_auto = match ph.auto_pick {
+                            Some(t) if !ph.auto => format!(" (leaving tile out, its default \"auto\" picks {t} here)"),
+                            _ => String::new(),
+                        };
+                        Fit::FitsWith {
+                            set: vec![("tile".into(), best.to_string())],
+                            because: format!(
+                                "{at}: even aligned tiles cut texels out of phase; tile {best} misses it by {best_residual:.1} px{or_auto}"
+                            ),
+                        }
+                    }
+                    // In phase, but about one texel per tile (`auto` found no size spanning more in
+                    // phase in this sample): the tiling repeats a handful of texels in a regular
+                    // pattern, and where texels differ in tone the tiles' cuts split them visibly.
+                    Some(ph) if ph.texels < MIN_TEXELS_PER_TILE => Fit::NotFor {
+                        because: format!(
+                            "tiles of {} px hold only {:.1} texels, and no larger size in phase with the lattice fits this {}×{} sample, \
+                         so the tiling repeats a few texels in a regular pattern",
+                            ph.tile, ph.texels, a.width, a.height
+                        ),
+                        instead: "quilting",
+                    },
+                    _ => Fit::Fits,
+                },
+                Kind::Oriented => Fit::NotFor {
+                    because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
                     instead: "quilting",
                 },
                 _ => Fit::Fits,
             },
-            Kind::Oriented => Fit::NotFor {
-                because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
-                instead: "quilting",
-            },
-            _ => Fit::Fits,
-        },
+        ),
         _ => Fit::Fits,
+    }
+}
+
+/// Tile methods draw their tiles' patches at random (`patch_candidates = 1`, the papers'). On a
+/// sample whose tone varies between regions ([`TONE_SPREAD_FROM`]) the tiles mix light and dark
+/// patches, and the tiling repeats that patchwork in a visible pattern; building 16 choices and
+/// keeping the one whose cuts cost least picks patches that agree. Seen at 384² from 256²: a wall
+/// lit from one side (rw-tiles: dark and light blotches tiled; wang-tiles: faint) and a framed tile
+/// grid (rw-tiles: broken grout), both right with `patch_candidates = 16`.
+fn with_tone_candidates(a: &Analysis, p: &Params, fit: Fit) -> Fit {
+    if a.tone_spread < TONE_SPREAD_FROM || int(p, "patch_candidates") != Some(1) {
+        return fit;
+    }
+    let why = format!(
+        "its patches are drawn at random from a sample whose tone varies between regions ({TONE_LINE}-px lines' mean tone \
+         varies {:.1}× as much as the lines themselves), so the tiling repeats a patchwork of tones",
+        a.tone_spread
+    );
+    let set = ("patch_candidates".to_string(), "16".to_string());
+    match fit {
+        Fit::Fits => Fit::FitsWith { set: vec![set], because: why },
+        Fit::FitsWith { set: mut s, because } => {
+            s.push(set);
+            Fit::FitsWith { set: s, because: format!("{because}; {why}") }
+        }
+        not_for => not_for,
     }
 }
 
@@ -768,7 +798,7 @@ mod tests {
     }
 
     #[test]
-    fn double_seam_is_told_to_weigh_tone_where_regions_differ_in_tone() {
+    fn double_seam_and_tiles_are_told_to_weigh_tone_where_regions_differ_in_tone() {
         // A dark half and a light half with the same fine grain (a wall lit from one side): lines
         // correlate whatever their tone, so Pearson alone would join dark blocks to light ones.
         let two_tone = RgbImage::from_fn(256, 256, |x, y| {
@@ -782,6 +812,12 @@ mod tests {
         assert!(w.contains("set level_penalty = 10"), "{w}");
         let given = params(&[("level_penalty", ParamValue::Float(10.0))]);
         assert!(warning(&a, "double-seam", &given).is_none_or(|w| !w.contains("level_penalty")));
+        // The tile methods, drawing patches at random, are told to choose among candidates.
+        for method in ["wang-tiles", "rw-tiles"] {
+            let w = warning(&a, method, &params(&[("patch_candidates", ParamValue::Int(1))])).expect("two tones");
+            assert!(w.contains("set patch_candidates = 16"), "{w}");
+            assert_eq!(warning(&a, method, &params(&[("patch_candidates", ParamValue::Int(16))])), None);
+        }
         // One tone, the same grain: nothing to say.
         let grain = RgbImage::from_fn(128, 128, |x, y| {
             let v = 100 + noise(x, y, 24);
@@ -790,6 +826,7 @@ mod tests {
         let a = analyse(&grain);
         assert!(a.tone_spread < TONE_SPREAD_FROM, "{}", a.tone_spread);
         assert_eq!(warning(&a, "double-seam", &params(&[("level_penalty", ParamValue::Float(0.0))])), None);
+        assert_eq!(warning(&a, "rw-tiles", &params(&[("patch_candidates", ParamValue::Int(1))])), None);
     }
 
     #[test]
