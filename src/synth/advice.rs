@@ -646,11 +646,24 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                             Some(t) if !ph.auto => format!(" (leaving tile out, its default \"auto\" picks {t} here)"),
                             _ => String::new(),
                         };
-                        Fit::FitsWith {
-                            set: vec![("tile".into(), best.to_string())],
-                            because: format!(
-                                "{at}: even aligned tiles cut texels out of phase; tile {best} misses it by {best_residual:.1} px{or_auto}"
-                            ),
+                        // No size that fits the sample is in phase either: suggesting the one
+                        // that misses least would send the user to another broken tiling.
+                        if best_residual > PHASE_TOLERANCE * a.shortest_vector().unwrap_or(f64::INFINITY) {
+                            Fit::NotFor {
+                                because: format!(
+                                    "{at}, and no tile size that fits this {}×{} sample is in phase with its lattice (the nearest, tile \
+                                     {best}, misses it by {best_residual:.1} px): even aligned tiles cut texels out of phase",
+                                    a.width, a.height
+                                ),
+                                instead: "coevolution",
+                            }
+                        } else {
+                            Fit::FitsWith {
+                                set: vec![("tile".into(), best.to_string())],
+                                because: format!(
+                                    "{at}: even aligned tiles cut texels out of phase; tile {best} misses it by {best_residual:.1} px{or_auto}"
+                                ),
+                            }
                         }
                     }
                     // In phase, but about one texel per tile (`auto` found no size spanning more in

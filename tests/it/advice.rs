@@ -262,3 +262,55 @@ fn the_report_shows_the_warnings_next_to_the_image() {
     assert!(page[fig..caption_end].contains("data-warning=\"1\""), "warning next to the image");
     assert!(page.contains(&format!("Method advice ({} jobs)", warned.len())));
 }
+
+/// What `advise` suggests is itself advice-free: every method the analysis says *fits with* other
+/// parameters, run with those parameters, carries no warning (a suggestion that is warned about
+/// again would send the user round in circles).
+#[test]
+fn advised_parameters_are_not_warned_again() {
+    let d = scratch("advised");
+    let jobs = d.join("jobs");
+    let mut advised = 0;
+    for s in samples() {
+        let o = run_ok(texsyn().arg("advise").arg(&s).arg("--json"));
+        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        for m in v["methods"].as_array().unwrap() {
+            if m["fit"]["verdict"] != "fits-with" {
+                continue;
+            }
+            let method = m["method"].as_str().unwrap();
+            let set: String = m["fit"]["set"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|kv| {
+                    let (k, v) = (kv[0].as_str().unwrap(), kv[1].as_str().unwrap());
+                    // Numbers and booleans as they are; words quoted.
+                    let value = if v.parse::<f64>().is_ok() || v == "true" || v == "false" { v.to_string() } else { format!("{v:?}") };
+                    format!("{k} = {value}\n")
+                })
+                .collect();
+            write(
+                &jobs.join(format!("{}__{method}.toml", stem(&s))),
+                &format!(
+                    "sample = \"{}\"\nmethod = \"{method}\"\nseed = 1\n[params]\n{set}[output]\npath = \"{method}/{}.png\"\nwidth = 96\nheight = 96\n",
+                    s.display(),
+                    stem(&s)
+                ),
+            );
+            advised += 1;
+        }
+    }
+    assert!(advised >= 20, "only {advised} advised jobs");
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("-q"));
+    let m = manifest(&out);
+    let again: Vec<String> = m["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|j| j["warnings"].as_array().is_some_and(|w| !w.is_empty()))
+        .map(|j| format!("{}: {}", j["id"], j["warnings"]))
+        .collect();
+    assert!(again.is_empty(), "advised parameters warned again:\n{}", again.join("\n"));
+}
