@@ -14,7 +14,7 @@ use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
 use rayon::prelude::*;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -137,7 +137,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let mut set = job::read_all(&files);
     let shard = opts.shard.map(|s| keep_shard(&mut set, s));
     let mut invalid = set.invalid;
-    let previous = previous_records(&opts.out);
+    let (previous, same_tool) = previous_records(&opts.out);
 
     // Decode every distinct sample once.
     let mut sample_paths: Vec<PathBuf> =
@@ -146,14 +146,6 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     sample_paths.dedup();
     let loaded: BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>> =
         sample_paths.par_iter().map(|p| (p.clone(), load_sample(p).map(Arc::new))).collect::<Vec<_>>().into_iter().collect();
-
-    // Whether each method fits its sample (`texsyn advise`), once per distinct sample pixels.
-    let mut digests: Vec<(&str, &Arc<LoadedSample>)> =
-        loaded.values().filter_map(|l| l.as_ref().ok()).map(|s| (s.pixel_digest.sha256.as_str(), s)).collect();
-    digests.sort_by(|a, b| a.0.cmp(b.0));
-    digests.dedup_by(|a, b| a.0 == b.0);
-    let analyses: BTreeMap<String, Analysis> =
-        digests.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
 
     let mut entries = Vec::new();
     for mut job in set.jobs {
@@ -183,8 +175,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
-        let (content_key, mut record) = base_record(&job, &sample, &companions, &opts.out);
-        record.warnings = advice::warning(&analyses[&sample.pixel_digest.sha256], job.method.name(), &job.params).into_iter().collect();
+        let (content_key, record) = base_record(&job, &sample, &companions, &opts.out);
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
         if let Some(limit) = opts.max_memory.filter(|&l| estimate > l && action != Action::UpToDate) {
@@ -194,6 +185,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         }
         entries.push(Entry { job, sample, companions, content_key, record, action, memory: estimate });
     }
+    add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
     Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous })
 }
@@ -280,27 +272,54 @@ fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
 /// What the output directory already records: its manifest and any shard fragments, by job id
 /// (for an id recorded twice, the more recently finished record). Unreadable files count as
 /// absent: the jobs they described simply run again.
-pub fn previous_records(out: &Path) -> BTreeMap<String, JobRecord> {
+/// Whether each job's method fits its sample (`texsyn advise`): the `warnings` of its record. The
+/// analysis runs once per distinct sample pixels, and only for samples with a job that runs or
+/// whose earlier record another build wrote: an up-to-date job recorded by this very build keeps
+/// its recorded warnings (the advice is a function of the sample, the job and the build), so a
+/// re-run with nothing to do does not analyse every sample again.
+fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, same_tool: &BTreeSet<String>) {
+    let reuse = |e: &Entry| e.action == Action::UpToDate && same_tool.contains(&e.job.id);
+    let mut wanted: Vec<(&str, &Arc<LoadedSample>)> =
+        entries.iter().filter(|e| !reuse(e)).map(|e| (e.sample.pixel_digest.sha256.as_str(), &e.sample)).collect();
+    wanted.sort_by(|a, b| a.0.cmp(b.0));
+    wanted.dedup_by(|a, b| a.0 == b.0);
+    let analyses: BTreeMap<String, Analysis> =
+        wanted.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
+    for e in entries.iter_mut() {
+        e.record.warnings = if reuse(e) {
+            previous[&e.job.id].warnings.clone()
+        } else {
+            advice::warning(&analyses[&e.sample.pixel_digest.sha256], e.job.method.name(), &e.job.params).into_iter().collect()
+        };
+    }
+}
+
+/// The records of the manifest and fragments already in `out`, by job id (the latest where a job
+/// appears twice), and the ids of those written by this build of texsyn (same version and commit).
+pub fn previous_records(out: &Path) -> (BTreeMap<String, JobRecord>, BTreeSet<String>) {
     let mut files = vec![out.join(manifest::FILE_NAME)];
     if let Ok(entries) = std::fs::read_dir(out) {
         let mut fragments: Vec<PathBuf> = entries.flatten().map(|e| e.path()).filter(|p| is_fragment(p)).collect();
         fragments.sort();
         files.extend(fragments);
     }
-    let mut records: BTreeMap<String, JobRecord> = BTreeMap::new();
+    let current = manifest::Tool::current();
+    let mut records: BTreeMap<String, (JobRecord, bool)> = BTreeMap::new();
     for f in files {
         let Ok(m) = Manifest::load(&f) else { continue };
+        let same = m.tool == current;
         for j in m.jobs {
             let finished = |r: &JobRecord| r.timing.as_ref().map_or(0, |t| t.finished_at);
             match records.get(&j.id) {
-                Some(old) if finished(old) >= finished(&j) => {}
+                Some((old, _)) if finished(old) >= finished(&j) => {}
                 _ => {
-                    records.insert(j.id.clone(), j);
+                    records.insert(j.id.clone(), (j, same));
                 }
             }
         }
     }
-    records
+    let same_tool = records.iter().filter(|(_, (_, same))| *same).map(|(id, _)| id.clone()).collect();
+    (records.into_iter().map(|(id, (r, _))| (id, r)).collect(), same_tool)
 }
 
 /// Whether `path` is named like a shard's manifest fragment (`manifest.shard-I-of-N.json`).

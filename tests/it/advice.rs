@@ -314,3 +314,31 @@ fn advised_parameters_are_not_warned_again() {
         .collect();
     assert!(again.is_empty(), "advised parameters warned again:\n{}", again.join("\n"));
 }
+
+/// A re-run with nothing to do keeps each job's warnings (taken from the record this build wrote,
+/// without analysing the sample again), and a job that runs again gets them afresh.
+#[test]
+fn up_to_date_jobs_keep_their_warnings() {
+    let d = scratch("advice-rerun");
+    let jobs = d.join("jobs");
+    let sample = repo().join("jobs/samples/bricks_gray.png");
+    write(
+        &jobs.join("tiles.toml"),
+        &format!(
+            "sample = \"{}\"\nmethod = \"wang-tiles\"\nseed = 1\n[params]\nalign = \"none\"\n[output]\npath = \"t.png\"\nwidth = 96\nheight = 96\n",
+            sample.display()
+        ),
+    );
+    let out = d.join("out");
+    let first = run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out));
+    assert!(text(&first).contains("warning: tiles.toml"), "{}", text(&first));
+    let warned = manifest(&out)["jobs"][0]["warnings"].clone();
+    assert!(warned.as_array().is_some_and(|w| w.len() == 1 && w[0].as_str().unwrap().contains("align")), "{warned}");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out));
+    let m = manifest(&out);
+    assert_eq!(m["jobs"][0]["status"], "up-to-date");
+    assert_eq!(m["jobs"][0]["warnings"], warned);
+    let again = run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("--force"));
+    assert!(text(&again).contains("warning: tiles.toml"), "{}", text(&again));
+    assert_eq!(manifest(&out)["jobs"][0]["warnings"], warned);
+}
