@@ -520,6 +520,15 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     a.tone_spread
                 ));
             }
+            if method == "double-seam"
+                && let Some((aux, better)) = aux_line_in_phase(a, p)
+            {
+                set.push(("aux_dist".to_string(), better.to_string()));
+                why.push(format!(
+                    "its auxiliary seam line, {aux} px from the true one, is a lattice translate of it (the sample repeats every \
+                     few pixels), so both lines can lie on the same bar and miss the other direction's phase"
+                ));
+            }
             let mut wanted_block = None;
             if let Some(block) = int(p, "block") {
                 // Double-seam (which judges a block by two seam lines) and patch sampling (a swarm
@@ -690,6 +699,27 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
     }
 }
 
+/// Double-seam judges a block by a true seam line and an auxiliary one `aux_dist` pixels further
+/// into the existing output. On a lattice finer than that distance (a wire grid repeating every
+/// 4 px), the auxiliary line can be a lattice translate of the true line: it sees the same thing,
+/// and where both fall on a bar the other direction's phase goes unseen (seen on such a grid at
+/// 384² from 256²: blocks with rows out of phase for 2 of 4 seeds at `aux_dist` 8 = two periods,
+/// none at 6 = one and a half). Returns the job's `aux_dist` and the distance within the overlap
+/// that lies farthest from every lattice translate (ties to the larger) when the job's lies within
+/// a pixel of one.
+fn aux_line_in_phase(a: &Analysis, p: &Params) -> Option<(i64, i64)> {
+    use crate::synth::methods::tiles::align::{Alignment, residual_px};
+    let l = a.lattice.as_ref()?;
+    let (aux, overlap) = (int(p, "aux_dist")?, int(p, "overlap")?);
+    let al = Alignment::new(l.t1, l.t2, "extracted").ok()?;
+    let off_lattice = |d: i64| residual_px(&al, [(d, 0), (d, 0)]).min(residual_px(&al, [(0, d), (0, d)]));
+    if aux < 1 || off_lattice(aux) >= 1.0 {
+        return None;
+    }
+    let better = (1..=overlap).max_by(|&x, &y| off_lattice(x).total_cmp(&off_lattice(y)).then(x.cmp(&y)))?;
+    (off_lattice(better) >= 1.0).then_some((aux, better))
+}
+
 /// Tile methods draw their tiles' patches at random (`patch_candidates = 1`, the papers'). On a
 /// sample whose tone varies between regions ([`TONE_SPREAD_FROM`]) the tiles mix light and dark
 /// patches, and the tiling repeats that patchwork in a visible pattern; building 16 choices and
@@ -840,6 +870,24 @@ mod tests {
         assert!(a.tone_spread < TONE_SPREAD_FROM, "{}", a.tone_spread);
         assert_eq!(warning(&a, "double-seam", &params(&[("level_penalty", ParamValue::Float(0.0))])), None);
         assert_eq!(warning(&a, "rw-tiles", &params(&[("patch_candidates", ParamValue::Int(1))])), None);
+    }
+
+    #[test]
+    fn double_seam_is_told_an_auxiliary_line_off_a_fine_lattice() {
+        // A wire grid: bars every 4 px across, every 16 px down (with grain, so no band is flat).
+        let grid = RgbImage::from_fn(128, 128, |x, y| {
+            let v = if x % 4 == 0 || y % 16 == 0 { 200 } else { 30 } + noise(x, y, 8);
+            [v, v, v]
+        });
+        let a = analyse(&grid);
+        assert!(a.lattice.is_some(), "{}", a.describe());
+        let job = |aux: i64| params(&[("aux_dist", ParamValue::Int(aux)), ("overlap", ParamValue::Int(8)), ("block", ParamValue::Int(50))]);
+        let w = warning(&a, "double-seam", &job(8)).expect("8 px = two periods");
+        assert!(w.contains("set aux_dist = 6"), "{w}");
+        assert!(warning(&a, "double-seam", &job(6)).is_none_or(|w| !w.contains("aux_dist")));
+        // A lattice coarser than the overlap: the auxiliary line is never in phase.
+        let coarse = analyse(&blobs((30.0, 0.0), (0.0, 32.0)));
+        assert_eq!(aux_line_in_phase(&coarse, &job(8)), None);
     }
 
     #[test]
