@@ -238,6 +238,8 @@ struct Prepared<'a> {
     rgb: &'a RgbImage,
     w: usize,
     planes: HsiPlanes,
+    /// The edge bits, followed by [`EDGE_PAD`] zeros so that [`edge_mismatch_row`] may read whole
+    /// register blocks past the last candidate of a row.
     edges: Vec<u8>,
     /// The planes' spectra, for [`FftBounds`].
     spectra: Spectra,
@@ -251,9 +253,10 @@ impl<'a> Prepared<'a> {
     fn of(rgb: &'a RgbImage) -> Prepared<'a> {
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let planes = HsiPlanes::of(rgb);
-        let edges = otsu_edges(&sobel4(&planes.i, w, h));
+        let mut edges = otsu_edges(&sobel4(&planes.i, w, h));
+        let prefixes = Prefixes::new(&planes, &edges, w, h);
+        edges.resize(w * h + EDGE_PAD, 0);
         let spectra = Spectra::new(&planes, w, h);
-        let prefixes = Prefixes::new(&planes, w, h);
         Prepared { rgb, w, planes, edges, spectra, prefixes, fft_buffers: std::sync::Mutex::new(Vec::new()) }
     }
 }
@@ -269,10 +272,13 @@ struct Prefixes {
     /// `cols[q][y·w + x]`: the sum over column `x`, rows `0..y` (row-major, so the run sums of
     /// consecutive candidates are consecutive differences).
     cols: [Vec<f64>; 6],
+    /// The same two layouts for the edge bits, as exact counts.
+    edge_rows: Vec<u32>,
+    edge_cols: Vec<u32>,
 }
 
 impl Prefixes {
-    fn new(planes: &HsiPlanes, w: usize, h: usize) -> Prefixes {
+    fn new(planes: &HsiPlanes, edges: &[u8], w: usize, h: usize) -> Prefixes {
         let value = |q: usize, i: usize| {
             let v = [&planes.h, &planes.s, &planes.i][q % 3][i];
             if q < 3 { v } else { v * v }
@@ -295,7 +301,31 @@ impl Prefixes {
             }
             p
         });
-        Prefixes { w, h, rows, cols }
+        let mut edge_rows = vec![0; (w + 1) * h];
+        let mut edge_cols = vec![0; (h + 1) * w];
+        for y in 0..h {
+            for x in 0..w {
+                let e = u32::from(edges[y * w + x]);
+                edge_rows[y * (w + 1) + x + 1] = edge_rows[y * (w + 1) + x] + e;
+                edge_cols[(y + 1) * w + x] = edge_cols[y * w + x] + e;
+            }
+        }
+        Prefixes { w, h, rows, cols, edge_rows, edge_cols }
+    }
+
+    /// Adds the number of edge pixels on `run` placed at candidates `(x0 + j, y)` to `acc[j]`.
+    fn add_edge_run(&self, run: &Run, x0: i32, y: i32, acc: &mut [u32]) {
+        let (c, r) = ((x0 + run.c) as usize, (y + run.r) as usize);
+        let (len, n) = (run.len as usize, acc.len());
+        let (start, end) = if run.horizontal {
+            let row = &self.edge_rows[r * (self.w + 1)..];
+            (&row[c..c + n], &row[c + len..c + len + n])
+        } else {
+            (&self.edge_cols[r * self.w + c..r * self.w + c + n], &self.edge_cols[(r + len) * self.w + c..(r + len) * self.w + c + n])
+        };
+        for ((a, e), s) in acc.iter_mut().zip(end).zip(start) {
+            *a += e - s;
+        }
     }
 
     /// Adds the sum of quantity `q` over `run` placed at candidates `(x0 + j, y)` to `acc[j]`.
@@ -355,18 +385,28 @@ fn runs_of(line: &[(i32, i32)]) -> Vec<Run> {
     runs
 }
 
-/// Per candidate and line, what [`FftBounds`] needs of the candidate side: per channel the
-/// line's mean and an interval of `1/sqrt(centred sum of squares)`, from run sums (so not the
-/// exact two-pass values the scores use, but within a proven error). `[m, inv_hi, inv_lo]` per
-/// channel; `inv_hi = ∞` marks a line whose sum of squares may be too small to tell from flat.
+/// Per candidate and line, what [`FftBounds`] needs of the candidate side: per channel an upper
+/// bound `inv_hi` of `1/sqrt(centred sum of squares)`, from run sums (so not the exact two-pass
+/// value the scores use, but within a proven error), `∞` for a line whose sum of squares may be
+/// too small to tell from flat. The true value also lies above `inv_hi·(1 − INV_SPREAD)`.
+/// Laid out by candidate row, then channel, then candidate, so that [`FftBounds`] reads each
+/// channel of a row as one contiguous slice.
 struct BoundStats {
-    lines: [Vec<[f64; 9]>; 2],
+    nx: usize,
+    lines: [Vec<f64>; 2],
 }
+
+/// The relative width of [`BoundStats`]' intervals. A line not marked flat has `lo > 1e3·err_ss`
+/// for the interval `[lo, hi] = [ss·(1 − 1e-9) − err_ss, ss·(1 + 1e-9) + err_ss]` holding its
+/// centred sum of squares, so `hi/lo < 1 + 2.01e-3` and `1/sqrt(hi) > (1/sqrt(lo))·(1 − 1.01e-3)`:
+/// the true `1/sqrt` is at least `inv_hi·(1 − INV_SPREAD)`.
+const INV_SPREAD: f64 = 1.01e-3;
 
 impl BoundStats {
     fn new(prep: &Prepared, ls: &[Vec<(i32, i32)>; 2], (xs, ys): Ranges) -> BoundStats {
         let pre = &prep.prefixes;
-        let ys: Vec<i32> = ys.collect();
+        let (x0, nx) = (*xs.start(), (xs.end() - xs.start() + 1).max(0) as usize);
+        let (y0, ny) = (*ys.start(), (ys.end() - ys.start() + 1).max(0) as usize);
         let lines = [0, 1].map(|li| {
             let runs = runs_of(&ls[li]);
             let n = ls[li].len() as f64;
@@ -376,56 +416,61 @@ impl BoundStats {
             let err_ss = 4.0 * err;
             // Below this a line may be flat (pearson's FLAT) or too close to it for the interval to be tight.
             let floor = (1e3 * err_ss).max(1e-9);
-            let (x0, nx) = (*xs.start(), (xs.end() - xs.start() + 1).max(0) as usize);
-            ys.par_iter()
-                .flat_map_iter(|&y| {
-                    let mut row = vec![[0.0; 9]; nx];
+            let mut fields = vec![0.0; 3 * nx * ny];
+            if nx > 0 {
+                fields.par_chunks_mut(3 * nx).enumerate().for_each(|(row, fs)| {
+                    let y = y0 + row as i32;
                     let (mut s1, mut s2) = (vec![0.0; nx], vec![0.0; nx]);
-                    for k in 0..3 {
+                    for (k, inv_hi) in fs.chunks_exact_mut(nx).enumerate() {
                         s1.fill(0.0);
                         s2.fill(0.0);
                         for run in &runs {
                             pre.add_run(k, run, x0, y, &mut s1);
                             pre.add_run(k + 3, run, x0, y, &mut s2);
                         }
-                        for ((st, &s1), &s2) in row.iter_mut().zip(&s1).zip(&s2) {
-                            let ss = s2 - s1 * s1 / n;
-                            let (lo, hi) = (ss * (1.0 - 1e-9) - err_ss, ss * (1.0 + 1e-9) + err_ss);
-                            st[3 * k] = s1 / n;
-                            if lo <= floor {
-                                st[3 * k + 1] = f64::INFINITY;
-                            } else {
-                                st[3 * k + 1] = 1.0 / lo.sqrt();
-                                st[3 * k + 2] = 1.0 / hi.sqrt();
-                            }
+                        for ((ih, &s1), &s2) in inv_hi.iter_mut().zip(&s1).zip(&s2) {
+                            let lo = (s2 - s1 * s1 / n) * (1.0 - 1e-9) - err_ss;
+                            *ih = if lo <= floor { f64::INFINITY } else { 1.0 / lo.sqrt() };
                         }
                     }
-                    row
-                })
-                .collect()
+                });
+            }
+            fields
         });
-        BoundStats { lines }
+        BoundStats { nx, lines }
+    }
+
+    /// Channel `k`'s `inv_hi` of line `li` at candidate row `row`.
+    fn inv_hi(&self, li: usize, row: usize, k: usize) -> &[f64] {
+        &self.lines[li][(3 * row + k) * self.nx..(3 * row + k + 1) * self.nx]
     }
 }
 
-/// The exact candidate-side statistics of one line (linear hue) at the candidate whose line pixels
-/// are `base + offsets`: the same sums in the same order as [`candidate_stats_in`], so the same bits.
-fn exact_line_stats(prep: &Prepared, offsets: &[isize], base: isize) -> [f64; 6] {
+/// The exact candidate-side statistics of one line (linear hue) at the candidates whose line
+/// pixels are `base + offsets`, for each of `bases`: the same sums in the same order as
+/// [`candidate_stats_in`], so the same bits (the candidates' sums interleaved, each in line order).
+fn exact_line_stats<const L: usize>(prep: &Prepared, offsets: &[isize], bases: [isize; L]) -> [[f64; 6]; L] {
     let n = offsets.len() as f64;
-    let mut st = [0.0; 6];
+    let mut st = [[0.0; 6]; L];
     for (k, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
-        let mut sum = 0.0;
+        let mut sum = [0.0; L];
         for &off in offsets {
-            sum += plane[(base + off) as usize];
+            for l in 0..L {
+                sum[l] += plane[(bases[l] + off) as usize];
+            }
         }
-        let m = sum / n;
-        let mut ss = 0.0;
+        let m = sum.map(|v| v / n);
+        let mut ss = [0.0; L];
         for &off in offsets {
-            let d = plane[(base + off) as usize] - m;
-            ss += d * d;
+            for l in 0..L {
+                let d = plane[(bases[l] + off) as usize] - m[l];
+                ss[l] += d * d;
+            }
         }
-        st[2 * k] = m;
-        st[2 * k + 1] = ss;
+        for l in 0..L {
+            st[l][2 * k] = m[l];
+            st[l][2 * k + 1] = ss[l];
+        }
     }
     st
 }
@@ -976,6 +1021,9 @@ fn may_reach(bound: f64, theta: f64) -> bool {
     (bound + BOUND_SLACK).partial_cmp(&theta) != Some(std::cmp::Ordering::Less)
 }
 
+/// How many candidates [`choose`] scores in full at once: independent sums to interleave.
+const LANES: usize = 4;
+
 /// The candidate set and the pick of one grid position: the same as [`score_lines`] followed by
 /// [`pick`], without scoring every candidate in full where that is not needed. `hints` are
 /// positions likely to score well (the natural continuations of the neighbours); they are scored
@@ -1020,37 +1068,45 @@ fn choose(
         let o = &outs[li];
         offsets[li].iter().zip(&o.edges).map(|(&off, &e1)| u32::from(e1 != prep.edges[(base + off) as usize])).sum()
     };
-    // The full score of candidate k, in exactly score_lines' order of operations.
-    let full = |k: usize, mism: [u32; 2]| -> f64 {
-        let base = base_of(k);
-        let mut f = 0.0;
+    // The full scores of LANES candidates at once, each in exactly score_lines' order of
+    // operations (the lanes only interleave independent sums, so each is the same bits).
+    let full_lanes = |ks: [usize; LANES], mism: [[u32; 2]; LANES]| -> [f64; LANES] {
+        let bases = ks.map(base_of);
+        let mut f = [0.0; LANES];
         for li in 0..2 {
             let o = &outs[li];
             // The shape's table when a search has needed it, else the same values computed here.
-            let stx = &match shape.exact.get() {
-                Some(table) => table[li][k],
-                None => exact_line_stats(prep, &offsets[li], base),
+            let stx = match shape.exact.get() {
+                Some(table) => ks.map(|k| table[li][k]),
+                None => exact_line_stats(prep, &offsets[li], bases),
             };
-            let mut d = 0.0;
+            let mut d = [0.0; LANES];
             for (kk, plane) in [&prep.planes.h, &prep.planes.s, &prep.planes.i].into_iter().enumerate() {
-                let m2 = stx[2 * kk];
-                let mut acc = 0.0;
-                for (i, &off) in offsets[li].iter().enumerate() {
-                    acc += o.centred[kk][i] * (plane[(base + off) as usize] - m2);
+                let m2 = stx.map(|st| st[2 * kk]);
+                let mut acc = [0.0; LANES];
+                for (&c, &off) in o.centred[kk].iter().zip(&offsets[li]) {
+                    for l in 0..LANES {
+                        acc[l] += c * (plane[(bases[l] + off) as usize] - m2[l]);
+                    }
                 }
-                d += s.weights[kk] * pearson_from(o.mean[kk], o.ss[kk], stx[2 * kk], stx[2 * kk + 1], acc);
+                for l in 0..LANES {
+                    d[l] += s.weights[kk] * pearson_from(o.mean[kk], o.ss[kk], stx[l][2 * kk], stx[l][2 * kk + 1], acc[l]);
+                }
             }
-            if s.clamp {
-                d = d.max(0.0);
-            }
-            let de = mism[li] as f64 / ns[li];
-            f += d / (1.0 + s.mu * de);
-            if s.level_penalty > 0.0 {
-                f -= s.level_penalty * (o.mean[2] - stx[4]).abs();
+            for l in 0..LANES {
+                if s.clamp {
+                    d[l] = d[l].max(0.0);
+                }
+                let de = mism[l][li] as f64 / ns[li];
+                f[l] += d[l] / (1.0 + s.mu * de);
+                if s.level_penalty > 0.0 {
+                    f[l] -= s.level_penalty * (o.mean[2] - stx[l][4]).abs();
+                }
             }
         }
         f
     };
+    let full = |k: usize, mism: [u32; 2]| -> f64 { full_lanes([k; LANES], [mism; LANES])[0] };
     // A lower bound of F_max from the hints, hence a lower bound of θ.
     let mut f_low = f64::NEG_INFINITY;
     for &(x, y) in hints {
@@ -1068,16 +1124,19 @@ fn choose(
         return everything();
     }
     // Edge mismatches of both lines for every candidate, by rows.
-    let mism: Vec<[u32; 2]> = (0..ny)
-        .into_par_iter()
-        .flat_map_iter(|row| {
-            let mut m = [vec![0u32; nx], vec![0u32; nx]];
-            for li in 0..2 {
-                edge_mismatch_row(&prep.edges, &outs[li].edges, &offsets[li], base_of(row * nx) as usize, &mut m[li]);
+    let counters = [0, 1].map(|li| MismatchCounter::new(&ls[li], &offsets[li], &outs[li].edges));
+    let mut mism = vec![[0u32; 2]; nx * ny];
+    mism.par_chunks_mut(nx).enumerate().for_each_init(
+        || (vec![0u32; nx], vec![0u32; nx]),
+        |(sums, m), (row, dst)| {
+            for (li, counter) in counters.iter().enumerate() {
+                counter.row(prep, (x0, y0 + row as i32), base_of(row * nx) as usize, sums, m);
+                for (d, &v) in dst.iter_mut().zip(m.iter()) {
+                    d[li] = v;
+                }
             }
-            (0..nx).map(move |x| [m[0][x], m[1][x]])
-        })
-        .collect();
+        },
+    );
     let mut survivors: Vec<usize> = Vec::new();
     if theta_low > cap + BOUND_SLACK {
         // Below that a candidate with one perfect line can always reach θ: the edge bound
@@ -1121,7 +1180,16 @@ fn choose(
         // 0.40 → 0.34 s CPU).
         shape.exact(prep, s);
     }
-    let scores: Vec<f64> = survivors.par_iter().map(|&k| full(k, mism[k])).collect();
+    let scores: Vec<f64> = survivors
+        .par_chunks(LANES * 16)
+        .flat_map_iter(|part| {
+            part.chunks(LANES).flat_map(|ks| {
+                // A short last group repeats its last candidate.
+                let lanes: [usize; LANES] = std::array::from_fn(|l| ks[l.min(ks.len() - 1)]);
+                full_lanes(lanes, lanes.map(|k| mism[k])).into_iter().take(ks.len())
+            })
+        })
+        .collect();
     let f_max = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let theta = s.tau.min(f_max - s.eps);
     let members: Vec<(i32, i32)> =
@@ -1270,6 +1338,7 @@ impl<'p> FftBounds<'p> {
             let vertical = g0.vertical;
             let (n, count, planes, fwd, inv) =
                 if vertical { (h, w, &sp.cols, &sp.col[0], &sp.col[1]) } else { (w, h, &sp.rows, &sp.row[0], &sp.row[1]) };
+            let half = n / 2 + 1;
             // The columns (rows) the candidates reach.
             let reach = |g: &Group| -> std::ops::Range<usize> {
                 let start = g.at + if vertical { x0 } else { y0 };
@@ -1288,24 +1357,19 @@ impl<'p> FftBounds<'p> {
                     z[j].re = self.outs[g.li].centred[term.k][i];
                 }
                 fwd.process(&mut z);
-                z.iter_mut().for_each(|v| *v = v.conj());
-                kernels.push((term.k, z));
+                // Conjugated for a correlation, and scaled by 1/n (exact for a power of two) for
+                // the unnormalised inverse transform.
+                let scale = 1.0 / n as f64;
+                kernels.push((term.k, z[..half].iter().map(|v| v.conj() * scale).collect::<Vec<_>>()));
             }
             let out = &mut self.buffers[b][lo * n..hi * n];
             out.par_chunks_mut(n * 16).enumerate().for_each(|(ci, chunk)| {
                 for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
                     let line = lo + ci * 16 + cj;
-                    let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * n..(line + 1) * n]);
-                    if let Some((kb, kv)) = kernels.get(1) {
-                        let fb = &planes[*kb][line * n..(line + 1) * n];
-                        for ((((d, a), b), x), y) in dst.iter_mut().zip(fa).zip(fb).zip(ka).zip(kv) {
-                            let q = b * y;
-                            *d = a * x + Complex64::new(-q.im, q.re);
-                        }
-                    } else {
-                        for ((d, a), x) in dst.iter_mut().zip(fa).zip(ka) {
-                            *d = a * x;
-                        }
+                    let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * half..(line + 1) * half]);
+                    match kernels.get(1) {
+                        Some((k, kb)) => hermitian_products(fa, ka, Some((&planes[*k][line * half..(line + 1) * half], kb)), dst),
+                        None => hermitian_products(fa, ka, None, dst),
                     }
                 }
                 inv.process(chunk);
@@ -1313,40 +1377,53 @@ impl<'p> FftBounds<'p> {
         }
     }
 
-    /// The bounds of one row of candidates, with the H and S cross sums when `hs` (else
-    /// `ρ_H, ρ_S ≤ 1`).
-    fn bound_row(&self, row: usize, hs: bool, u: &mut [f64], cross: &mut [[Vec<f64>; 3]; 2], d: &mut [f64]) {
+    /// The cross sums of candidate rows `row0..row0 + rows`, per line and channel correlated,
+    /// term by term into `cross[li][k][r·nx + x]`: a vertical term's values lie down a column of its
+    /// buffer, so they are read a column run at a time.
+    fn cross_sums(&self, row0: usize, rows: usize, cross: &mut [[Vec<f64>; 3]; 2]) {
         let (x0, y0, nx, _) = self.area;
         let sp = &self.prep.spectra;
         let (w, h) = (sp.w, sp.h);
-        let cap = 1.0 + 1e-9;
-        let y = y0 + row as i32;
-        let ks = row * nx..(row + 1) * nx;
-        let mism = &self.mism[ks.clone()];
-        // The cross sums of this row's candidates, per line and channel, term by term.
+        let y = y0 + row0 as i32;
         cross.iter_mut().flatten().for_each(|c| c.fill(0.0));
         for term in &self.terms {
             let g = &self.groups[term.group];
             let buf = &self.buffers[term.buffer];
             let acc = &mut cross[g.li][term.k];
-            let part = |v: &Complex64| if term.imag { v.im } else { v.re };
-            if g.vertical {
-                let scale = 1.0 / h as f64;
-                let (col, r) = ((x0 + g.at) as usize, (y + g.from) as usize);
-                for (x, a) in acc.iter_mut().enumerate() {
-                    *a += part(&buf[(col + x) * h + r]) * scale;
+            let add = |part: fn(&Complex64) -> f64, acc: &mut [f64]| {
+                if g.vertical {
+                    let (col, r) = ((x0 + g.at) as usize, (y + g.from) as usize);
+                    for x in 0..nx {
+                        let run = &buf[(col + x) * h + r..(col + x) * h + r + rows];
+                        for (a, v) in acc[x..].iter_mut().step_by(nx).zip(run) {
+                            *a += part(v);
+                        }
+                    }
+                } else {
+                    for (rr, acc) in acc.chunks_exact_mut(nx).enumerate() {
+                        let at = (y + rr as i32 + g.at) as usize * w + (x0 + g.from) as usize;
+                        for (a, v) in acc.iter_mut().zip(&buf[at..at + nx]) {
+                            *a += part(v);
+                        }
+                    }
                 }
+            };
+            if term.imag {
+                add(|v| v.im, acc);
             } else {
-                let scale = 1.0 / w as f64;
-                let at = (y + g.at) as usize * w + (x0 + g.from) as usize;
-                for (a, v) in acc.iter_mut().zip(&buf[at..at + nx]) {
-                    *a += part(v) * scale;
-                }
+                add(|v| v.re, acc);
             }
         }
+    }
+
+    /// The bounds of one row of candidates from its cross sums `cross[li][k]`, with the H and S
+    /// channels when `hs` (else `ρ_H, ρ_S ≤ 1`).
+    fn bound_row(&self, row: usize, hs: bool, u: &mut [f64], cross: [[&[f64]; 3]; 2], d: &mut [f64]) {
+        let nx = self.area.2;
+        let cap = 1.0 + 1e-9;
+        let mism = &self.mism[row * nx..(row + 1) * nx];
         u.fill(0.0);
         for li in 0..2 {
-            let bx = &self.bounds.lines[li][ks.clone()];
             let ef = &self.edge_factor[li];
             // The part of D_HSI not bounded per candidate: ρ ≤ 1 for the channels not correlated.
             let d0 = if hs { 0.0 } else { (self.s.weights[0] + self.s.weights[1]) * cap };
@@ -1354,18 +1431,21 @@ impl<'p> FftBounds<'p> {
             d.fill(d0);
             for k in channels {
                 let (io, sc, mg, wk) = (self.inv_out[li][k], self.sum_c[li][k], self.margin[li][k], self.s.weights[k]);
+                let inv_his = self.bounds.inv_hi(li, row, k);
                 // ρ is 1 for two flat lines with close means and 0 for one flat line (B8);
                 // otherwise c/sqrt(v1·v2), at most 1.
                 if io == 0.0 {
-                    for (dd, b) in d.iter_mut().zip(bx) {
-                        *dd += wk * if b[3 * k + 1] == f64::INFINITY { cap } else { 0.0 };
+                    for (dd, &inv_hi) in d.iter_mut().zip(inv_his) {
+                        *dd += wk * if inv_hi == f64::INFINITY { cap } else { 0.0 };
                     }
                 } else {
-                    let (sc, mg) = (sc * io, mg * io);
-                    for ((dd, c), b) in d.iter_mut().zip(&cross[li][k]).zip(bx) {
-                        let (m2, inv_hi, inv_lo) = (b[3 * k], b[3 * k + 1], b[3 * k + 2]);
-                        let c = c * io - m2 * sc + mg;
-                        let rho = (c * if c >= 0.0 { inv_hi } else { inv_lo }).min(cap);
+                    // The cross sum is Σ c·(v − m2) = Σ c·v − m2·Σ c, and Σ c (the output line's
+                    // centred values) is all but zero: −m2·Σ c ≤ peak·|Σ c| joins the margin, so
+                    // the candidate's mean is not needed.
+                    let mg = (mg + self.prep.spectra.peaks[k] * sc.abs()) * io;
+                    for ((dd, &c), &inv_hi) in d.iter_mut().zip(cross[li][k]).zip(inv_his) {
+                        let c = c * io + mg;
+                        let rho = (c * inv_hi * if c >= 0.0 { 1.0 } else { 1.0 - INV_SPREAD }).min(cap);
                         *dd += wk * if inv_hi == f64::INFINITY { cap } else { rho };
                     }
                 }
@@ -1382,12 +1462,15 @@ impl<'p> FftBounds<'p> {
     fn bounds(&self, hs: bool) -> Vec<f64> {
         let (_, _, nx, ny) = self.area;
         let mut u = vec![0.0; nx * ny];
-        const ROWS: usize = 8;
+        const ROWS: usize = 16;
         u.par_chunks_mut(nx * ROWS).enumerate().for_each(|(chunk, us)| {
-            let mut cross = [0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx]));
+            let rows = us.len() / nx;
+            let mut cross = [0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx * rows]));
+            self.cross_sums(chunk * ROWS, rows, &mut cross);
             let mut d = vec![0.0; nx];
             for (r, u) in us.chunks_exact_mut(nx).enumerate() {
-                self.bound_row(chunk * ROWS + r, hs, u, &mut cross, &mut d);
+                let c = [0, 1].map(|li| [0, 1, 2].map(|k| &cross[li][k][r * nx..(r + 1) * nx]));
+                self.bound_row(chunk * ROWS + r, hs, u, c, &mut d);
             }
         });
         u
@@ -1418,16 +1501,51 @@ impl Drop for FftBounds<'_> {
     }
 }
 
+/// `dst = A + i·B` for `A = fa·ka` and `B = fb·kb` (pointwise; `B = 0` without `b`), from
+/// frequencies `0..=n/2` of four spectra of real sequences (`n = dst.len()`): `A` and `B` are
+/// then spectra of real sequences too, so frequency `n − j` is `conj(A_j) + i·conj(B_j)` and each
+/// product is computed for half of the frequencies only.
+fn hermitian_products(fa: &[Complex64], ka: &[Complex64], b: Option<(&[Complex64], &[Complex64])>, dst: &mut [Complex64]) {
+    let n = dst.len();
+    let half = n / 2 + 1;
+    // Frequencies 1..=mirrored have their partner n − j in the upper part, in reverse order;
+    // 0 and (for even n) n/2 are their own.
+    let mirrored = n - half;
+    let (lower, upper) = dst.split_at_mut(half);
+    let both = |p: Complex64, q: Complex64| (Complex64::new(p.re - q.im, p.im + q.re), Complex64::new(p.re + q.im, q.re - p.im));
+    let zero = [Complex64::new(0.0, 0.0)];
+    let (fb, kb, step) = match b {
+        Some((fb, kb)) => (fb, kb, 1),
+        None => (&zero[..], &zero[..], 0),
+    };
+    for j in std::iter::once(0).chain(mirrored + 1..half) {
+        lower[j] = both(fa[j] * ka[j], fb[j * step] * kb[j * step]).0;
+    }
+    let pairs = lower[1..=mirrored].iter_mut().zip(upper.iter_mut().rev()).zip(&fa[1..]).zip(&ka[1..]);
+    if step == 1 {
+        for ((((lo, up), a), x), (b, y)) in pairs.zip(fb[1..].iter().zip(&kb[1..])) {
+            (*lo, *up) = both(a * x, b * y);
+        }
+    } else {
+        for (((lo, up), a), x) in pairs {
+            (*lo, *up) = both(a * x, Complex64::new(0.0, 0.0));
+        }
+    }
+}
+
 /// The sample's H, S and I planes as 1-D spectra of every column and every row, with the plans.
 struct Spectra {
     w: usize,
     h: usize,
-    /// `cols[k][x·h + v]`: frequency `v` of column `x` of plane `k` (H, S, I).
+    /// `cols[k][x·(h/2 + 1) + v]`: frequency `v` of column `x` of plane `k` (H, S, I), for
+    /// `v ≤ h/2` (the rest are their conjugates: the planes are real).
     cols: [Vec<Complex64>; 3],
-    /// `rows[k][y·w + u]`: frequency `u` of row `y`.
+    /// `rows[k][y·(w/2 + 1) + u]`: frequency `u ≤ w/2` of row `y`.
     rows: [Vec<Complex64>; 3],
     /// Euclidean norm of each plane.
     norms: [f64; 3],
+    /// The largest absolute value in each plane.
+    peaks: [f64; 3],
     /// Forward and inverse plans along columns (length `h`) and rows (length `w`).
     col: [Arc<dyn Fft<f64>>; 2],
     row: [Arc<dyn Fft<f64>>; 2],
@@ -1442,36 +1560,73 @@ impl Spectra {
         let cols = ps.map(|p| {
             let mut z: Vec<Complex64> = (0..w).flat_map(|x| (0..h).map(move |y| Complex64::new(p[y * w + x], 0.0))).collect();
             col[0].process(&mut z);
-            z
+            z.chunks_exact(h).flat_map(|c| &c[..h / 2 + 1]).copied().collect()
         });
         let rows = ps.map(|p| {
             let mut z: Vec<Complex64> = p.iter().map(|&v| Complex64::new(v, 0.0)).collect();
             row[0].process(&mut z);
-            z
+            z.chunks_exact(w).flat_map(|r| &r[..w / 2 + 1]).copied().collect()
         });
         let norms = ps.map(|p| p.iter().map(|v| v * v).sum::<f64>().sqrt());
-        Spectra { w, h, cols, rows, norms, col, row }
+        let peaks = ps.map(|p| p.iter().fold(0.0, |m: f64, v| m.max(v.abs())));
+        Spectra { w, h, cols, rows, norms, peaks, col, row }
     }
 }
 
-/// Edge mismatches of one line at `m.len()` consecutive candidates starting at sample index
-/// `base` (plus each line offset).
-fn edge_mismatch_row(edges: &[u8], line: &[u8], offsets: &[isize], base: usize, m: &mut [u32]) {
-    let n = m.len();
-    // Counted in 8 bits (sixteen lanes per instruction without widening), in runs short enough
-    // not to overflow.
-    let mut m8 = vec![0u8; n];
-    for (offs, bits) in offsets.chunks(u8::MAX as usize).zip(line.chunks(u8::MAX as usize)) {
-        m8.fill(0);
-        for (&off, &e1) in offs.iter().zip(bits) {
-            let b = (base as isize + off) as usize;
-            // Edge bits are 0 or 1: a mismatch is their exclusive or.
-            for (mm, &e2) in m8.iter_mut().zip(&edges[b..b + n]) {
-                *mm += e1 ^ e2;
-            }
+/// How far [`Prepared::edges`] extends past the sample: one register block of [`MismatchCounter::row`].
+const EDGE_PAD: usize = 32;
+
+/// The edge mismatches of one line at every candidate. With `n₁` edge pixels on the output line
+/// and `S` on the candidate's, the mismatches are `n₁ + S − 2·T`, `T` the candidate's edge bits
+/// under the line's edge pixels, or equally `n₁ − S + 2·Z` over its non-edge pixels: `S` is a few
+/// prefix-sum lookups per run ([`Prefixes::add_edge_run`]), so only the smaller of the two pixel
+/// sets is read per candidate, at most half the line.
+struct MismatchCounter {
+    runs: Vec<Run>,
+    /// The line offsets of the pixels summed, and whether they are the edge pixels.
+    summed: Vec<isize>,
+    ones: bool,
+    n1: u32,
+}
+
+impl MismatchCounter {
+    fn new(line: &[(i32, i32)], offsets: &[isize], edges: &[u8]) -> MismatchCounter {
+        let n1 = edges.iter().filter(|&&e| e == 1).count();
+        let ones = 2 * n1 <= edges.len();
+        let summed = offsets.iter().zip(edges).filter(|&(_, &e)| (e == 1) == ones).map(|(&o, _)| o).collect();
+        MismatchCounter { runs: runs_of(line), summed, ones, n1: n1 as u32 }
+    }
+
+    /// The mismatches of `m.len()` consecutive candidates from `(x, y)`, whose line pixels are at
+    /// sample index `base` plus each offset (`sums`: scratch of the same length).
+    fn row(&self, prep: &Prepared, (x, y): (i32, i32), base: usize, sums: &mut [u32], m: &mut [u32]) {
+        const LANES: usize = 32;
+        let n = m.len();
+        sums.fill(0);
+        for run in &self.runs {
+            prep.prefixes.add_edge_run(run, x, y, sums);
         }
-        for (a, &b) in m.iter_mut().zip(&m8) {
-            *a += u32::from(b);
+        // Counted in 8 bits, LANES candidates at a time in registers, in runs of pixels short
+        // enough not to overflow; the last block reads past the row into the padding.
+        for x in (0..n).step_by(LANES) {
+            let mut count = [0u32; LANES];
+            for part in self.summed.chunks(u8::MAX as usize) {
+                let mut acc = [0u8; LANES];
+                for &off in part {
+                    let b = (base as isize + off) as usize + x;
+                    let bits: &[u8; LANES] = prep.edges[b..b + LANES].try_into().expect("lanes");
+                    for (a, &e) in acc.iter_mut().zip(bits) {
+                        *a += e;
+                    }
+                }
+                for (c, &a) in count.iter_mut().zip(&acc) {
+                    *c += u32::from(a);
+                }
+            }
+            let lanes = LANES.min(n - x);
+            for ((mm, &s), &c) in m[x..x + lanes].iter_mut().zip(&sums[x..x + lanes]).zip(&count) {
+                *mm = if self.ones { self.n1 + s - 2 * c } else { self.n1 + 2 * c - s };
+            }
         }
     }
 }
@@ -1792,6 +1947,35 @@ mod tests {
     }
 
     #[test]
+    fn pruned_choice_on_an_odd_sized_sample_equals_scoring_every_candidate() {
+        // Odd transform lengths along both axes: the spectra keep frequencies 0..=n/2 only and
+        // the products mirror the others, which must hold without a Nyquist frequency too.
+        let sample = RgbImage::from_fn(95, 97, |x, y| {
+            let v = ((x * 7 + y * 13) % 23 * 9 + if x % 19 < 3 { 50 } else { 0 }) as u8;
+            [v, v / 2 + (y % 5) as u8 * 9, 255 - v]
+        });
+        let prep = Prepared::of(&sample);
+        let mut out = Canvas::new(60, 60, (95, 97), false);
+        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
+        out.paste(&prep, (30, 5), (20, 0), 4, 0, 24);
+        out.paste(&prep, (10, 25), (0, 20), 0, 4, 24);
+        let s = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
+        for (case, origin) in [(Case::Horizontal, (20, 0)), (Case::L, (20, 20)), (Case::Vertical, (0, 20))] {
+            let ls = lines(case, s.block, s.g, s.a);
+            let stats = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
+            let (positions, scores) = score_all(&prep, &s, case, &stats, &out, origin);
+            let shape = Shape::new(&prep, ls, admissible(&prep, &s, case));
+            for seed in [1u64, 2] {
+                let want = pick(&s, &positions, &scores, seed, 1, 1).unwrap();
+                for hints in [vec![], vec![(40, 40)]] {
+                    let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                    assert_eq!((got.0, got.1, got.2.to_bits()), (want.0, want.1, want.2.to_bits()), "{case:?} {hints:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn runs_cover_a_line_in_order() {
         for line in [
             lines(Case::L, 24, 4, -1)[0].clone(),
@@ -1825,21 +2009,20 @@ mod tests {
             let nx = (ranges.0.end() - x0 + 1) as usize;
             for li in 0..2 {
                 let offsets: Vec<isize> = ls[li].iter().map(|&(c, r)| (r * 96 + c) as isize).collect();
-                assert_eq!(exact[li].len(), bounds.lines[li].len());
-                for (k, (e, b)) in exact[li].iter().zip(&bounds.lines[li]).enumerate() {
+                assert_eq!(3 * exact[li].len(), bounds.lines[li].len());
+                for (k, e) in exact[li].iter().enumerate() {
+                    let b: [f64; 3] = std::array::from_fn(|ch| bounds.inv_hi(li, k / nx, ch)[k % nx]);
                     let base = ((y0 + (k / nx) as i32) * 96 + x0 + (k % nx) as i32) as isize;
-                    let lazy = exact_line_stats(&prep, &offsets, base);
+                    let [lazy] = exact_line_stats(&prep, &offsets, [base]);
                     assert_eq!(lazy.map(f64::to_bits), e.map(f64::to_bits), "{case:?} line {li} candidate {k}");
                     for ch in 0..3 {
-                        assert!((b[3 * ch] - e[2 * ch]).abs() < 1e-12, "mean");
                         let v = e[2 * ch + 1];
-                        if b[3 * ch + 1] == f64::INFINITY {
+                        if b[ch] == f64::INFINITY {
                             flat_lines += 1;
                         } else {
                             assert!(v >= FLAT, "a flat line not marked");
                             let inv = 1.0 / v.sqrt();
-                            assert!(b[3 * ch + 2] <= inv && inv <= b[3 * ch + 1], "{} {inv} {}", b[3 * ch + 2], b[3 * ch + 1]);
-                            assert!(b[3 * ch + 1] - b[3 * ch + 2] <= 2e-3 * inv, "interval too wide");
+                            assert!(b[ch] * (1.0 - INV_SPREAD) <= inv && inv <= b[ch], "{inv} {}", b[ch]);
                         }
                     }
                 }
