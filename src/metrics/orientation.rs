@@ -303,25 +303,26 @@ mod tests {
         let kernel = gaussian_kernel(sigma);
         let r = (kernel.len() / 2) as isize;
         let blur = |p: &[f64]| {
-            let mut tmp = vec![0.0; w * h];
-            for i in 0..w * h {
-                let (x, y) = ((i % w) as isize, (i / w) as isize);
-                let mut acc = 0.0;
-                for (k, &wt) in kernel.iter().enumerate() {
-                    acc += wt * at(p, x + k as isize - r, y);
-                }
-                tmp[i] = acc;
-            }
-            let mut out = vec![0.0; w * h];
-            for i in 0..w * h {
-                let (x, y) = ((i % w) as isize, (i / w) as isize);
-                let mut acc = 0.0;
-                for (k, &wt) in kernel.iter().enumerate() {
-                    acc += wt * at(&tmp, x, y + k as isize - r);
-                }
-                out[i] = acc;
-            }
-            out
+            let tmp: Vec<f64> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as isize, (i / w) as isize);
+                    let mut acc = 0.0;
+                    for (k, &wt) in kernel.iter().enumerate() {
+                        acc += wt * at(p, x + k as isize - r, y);
+                    }
+                    acc
+                })
+                .collect();
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as isize, (i / w) as isize);
+                    let mut acc = 0.0;
+                    for (k, &wt) in kernel.iter().enumerate() {
+                        acc += wt * at(&tmp, x, y + k as isize - r);
+                    }
+                    acc
+                })
+                .collect::<Vec<f64>>()
         };
         let prod = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(&a, &b)| a * b).collect::<Vec<f64>>();
         StructureTensor { width: w, height: h, sxx: blur(&prod(&ix, &ix)), sxy: blur(&prod(&ix, &iy)), syy: blur(&prod(&iy, &iy)) }
