@@ -120,6 +120,12 @@ fn fft_size(n: usize) -> usize {
 /// Panics if `plane.len() != w·h`.
 pub fn autocorrelation_sums(plane: &[Complex64], w: usize, h: usize, rx: usize, ry: usize) -> Result<Acf<Complex64>, AcfError> {
     assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
+    sums_of_rows(w, h, rx, ry, |y, row| row.copy_from_slice(&plane[y * w..(y + 1) * w]))
+}
+
+/// [`autocorrelation_sums`] of the plane whose row `y` `fill(y, row)` writes into `row`: a plane
+/// made on the fly (a real one, as complex) goes straight into the FFT buffer, with no copy.
+fn sums_of_rows(w: usize, h: usize, rx: usize, ry: usize, fill: impl Fn(usize, &mut [Complex64])) -> Result<Acf<Complex64>, AcfError> {
     if rx >= w || ry >= h {
         return Err(AcfError::OffsetsOutsidePlane);
     }
@@ -130,7 +136,7 @@ pub fn autocorrelation_sums(plane: &[Complex64], w: usize, h: usize, rx: usize, 
     // Padded plane, row-major, ph rows of pw.
     let mut buf = vec![zero; pw * ph];
     for y in 0..h {
-        buf[y * pw..y * pw + w].copy_from_slice(&plane[y * w..(y + 1) * w]);
+        fill(y, &mut buf[y * pw..y * pw + w]);
     }
     let mut planner = FftPlannerScalar::<f64>::new();
     let row_fwd = planner.plan_fft_forward(pw);
@@ -141,10 +147,17 @@ pub fn autocorrelation_sums(plane: &[Complex64], w: usize, h: usize, rx: usize, 
     // Forward along rows (rows h.. are zero and stay zero).
     row_fwd.process(&mut buf[..h * pw]);
     // Transpose to pw rows of ph, forward along columns, power spectrum, inverse along columns.
+    // Copied in square tiles so that both planes are walked a cache line at a time; rows h.. are
+    // zero, as `t` starts.
     let mut t = vec![zero; pw * ph];
-    for y in 0..ph {
-        for x in 0..pw {
-            t[x * ph + y] = buf[y * pw + x];
+    const TILE: usize = 32;
+    for y0 in (0..h).step_by(TILE) {
+        for x0 in (0..pw).step_by(TILE) {
+            for y in y0..(y0 + TILE).min(h) {
+                for x in x0..(x0 + TILE).min(pw) {
+                    t[x * ph + y] = buf[y * pw + x];
+                }
+            }
         }
     }
     col_fwd.process(&mut t);
@@ -219,8 +232,11 @@ fn normalise(sums: Acf<Complex64>, w: usize, h: usize, form: AcfForm, plane_is_z
 /// for a normalised form of an identically zero plane. Panics if `plane.len() != w·h`.
 pub fn autocorrelation(plane: &[f64], w: usize, h: usize, rx: usize, ry: usize, form: AcfForm) -> Result<Acf<f64>, AcfError> {
     assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
-    let complex: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
-    let sums = autocorrelation_sums(&complex, w, h, rx, ry)?;
+    let sums = sums_of_rows(w, h, rx, ry, |y, row| {
+        for (c, &v) in row.iter_mut().zip(&plane[y * w..(y + 1) * w]) {
+            *c = Complex64::new(v, 0.0);
+        }
+    })?;
     let is_zero = plane.iter().all(|&v| v == 0.0);
     Ok(normalise(sums, w, h, form, is_zero)?.map(|c| c.re))
 }

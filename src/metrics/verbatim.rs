@@ -6,6 +6,11 @@
 //! output window counts only after an exact byte comparison with a sample window of equal hash, so
 //! hash collisions can cost time but never change the result. The count is an integer, so the
 //! value does not depend on the number of threads.
+//!
+//! Two shortcuts keep the lookups cheap without touching the count: the sorted table is indexed
+//! by the top bits of the hash (about one window per bucket, instead of a binary search through
+//! cache misses), and an output window right of a matched one is first compared with the sample
+//! window right of its match, which settles most windows of a copied region with one comparison.
 
 use crate::image::RgbImage;
 use rayon::prelude::*;
@@ -55,6 +60,12 @@ fn row_hashes(img: &RgbImage, k: usize) -> Vec<u64> {
     out
 }
 
+/// The bucket of a hash: its top `64 − shift` bits.
+#[inline]
+fn bucket(hsh: u64, shift: u32) -> usize {
+    hsh.checked_shr(shift).unwrap_or(0) as usize
+}
+
 #[inline]
 fn window_hash(rows: &[u64], nx: usize, x: usize, y: usize, k: usize) -> u64 {
     let mut hsh = 0u64;
@@ -89,8 +100,14 @@ fn verbatim_fraction_masked(sample: &RgbImage, output: &RgbImage, k: usize, hash
 pub struct SampleWindows {
     k: usize,
     hash_mask: u64,
+    /// Number of window positions along `x` in the sample.
+    nx: usize,
     /// `(hash, x, y)` of every window, sorted; empty when the sample is smaller than a window.
     table: Vec<(u64, u32, u32)>,
+    /// `table[starts[b]..starts[b + 1]]` are the windows whose hash has top bits `b`.
+    starts: Vec<u32>,
+    /// How far a hash is shifted right to give its bucket (64: a single bucket).
+    shift: u32,
 }
 
 impl SampleWindows {
@@ -103,8 +120,10 @@ impl SampleWindows {
         assert!(k > 0, "window side must be positive");
         let (sw, sh) = (sample.width() as usize, sample.height() as usize);
         let mut table = Vec::new();
+        let mut nx = 0;
         if sw >= k && sh >= k {
             let (snx, sny) = (sw + 1 - k, sh + 1 - k);
+            nx = snx;
             let srows = row_hashes(sample, k);
             table.reserve_exact(snx * sny);
             for y in 0..sny {
@@ -114,7 +133,21 @@ impl SampleWindows {
             }
             table.sort_unstable();
         }
-        SampleWindows { k, hash_mask, table }
+        let shift = 64 - table.len().next_power_of_two().trailing_zeros();
+        let mut starts = vec![0u32; (1usize << (64 - shift)) + 1];
+        for e in &table {
+            starts[bucket(e.0, shift) + 1] += 1;
+        }
+        for b in 1..starts.len() {
+            starts[b] += starts[b - 1];
+        }
+        SampleWindows { k, hash_mask, nx, table, starts, shift }
+    }
+
+    /// The windows whose hash is `hsh`, among a few others of its bucket.
+    fn bucket_of(&self, hsh: u64) -> &[(u64, u32, u32)] {
+        let b = bucket(hsh, self.shift);
+        &self.table[self.starts[b] as usize..self.starts[b + 1] as usize]
     }
 
     /// The window side.
@@ -135,20 +168,29 @@ impl SampleWindows {
         if self.table.is_empty() {
             return Some(0.0);
         }
-        let table = &self.table;
         let orows = row_hashes(output, k);
         let matches: u64 = (0..ony)
             .into_par_iter()
             .map(|y| {
                 let mut n = 0u64;
+                // The sample window equal to the previous output window, if there was one.
+                let mut previous: Option<(usize, usize)> = None;
                 for x in 0..onx {
+                    if let Some((sx, sy)) = previous
+                        && sx + 1 < self.nx
+                        && windows_equal(output, x, y, sample, sx + 1, sy, k)
+                    {
+                        previous = Some((sx + 1, sy));
+                        n += 1;
+                        continue;
+                    }
                     let hsh = window_hash(&orows, onx, x, y, k) & self.hash_mask;
-                    let start = table.partition_point(|e| e.0 < hsh);
-                    let found = table[start..]
+                    previous = self
+                        .bucket_of(hsh)
                         .iter()
-                        .take_while(|e| e.0 == hsh)
-                        .any(|e| windows_equal(output, x, y, sample, e.1 as usize, e.2 as usize, k));
-                    n += found as u64;
+                        .find(|e| e.0 == hsh && windows_equal(output, x, y, sample, e.1 as usize, e.2 as usize, k))
+                        .map(|e| (e.1 as usize, e.2 as usize));
+                    n += previous.is_some() as u64;
                 }
                 n
             })
