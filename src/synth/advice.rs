@@ -127,10 +127,10 @@ pub const TONE_LINE: usize = 50;
 /// Tone spread from which double-seam is told to set `level_penalty`. Its Pearson correlations
 /// ignore a line's mean tone, so where tone varies between regions more than within lines, a block
 /// of another tone passes as consistent and leaves a step. Seen at 384² from 256²: two-tone floor
-/// tiles (1.33), large cream tiles (4.98), a wall lit from one side (2.92) and a framed tile grid
-/// (1.47) come out with hard tone steps at block edges, and look right with `level_penalty = 10`;
-/// every bundled sample and fixture is at most 1.14 (terracotta, which looks right), stochastic
-/// ones at most 0.71.
+/// tiles (1.32), large cream tiles (5.5), a wall lit from one side (2.95) and a framed tile grid
+/// (1.63) come out with hard tone steps at block edges, and look right with `level_penalty = 10`;
+/// every other bundled sample and fixture is at most 1.14 (terracotta, which looks right),
+/// stochastic ones at most 0.82.
 pub const TONE_SPREAD_FROM: f64 = 1.25;
 
 /// An overlap band counts as flat when its gray standard deviation is below this fraction of the
@@ -159,9 +159,8 @@ struct Contrast {
 }
 
 impl Contrast {
-    fn of(img: &RgbImage) -> Self {
-        let (w, h) = (img.width() as usize, img.height() as usize);
-        let gray = centred_gray(img);
+    /// Of the centred gray plane `gray` (`w × h`).
+    fn of(gray: &[f64], w: usize, h: usize) -> Self {
         let (mut sum, mut sq) = (vec![0.0; (w + 1) * (h + 1)], vec![0.0; (w + 1) * (h + 1)]);
         for y in 0..h {
             let (mut row, mut row_sq) = (0.0, 0.0);
@@ -238,14 +237,12 @@ impl Contrast {
 }
 
 /// [`GridRepeat`] of a sample on its lattice.
-fn grid_repeat(img: &RgbImage, l: &Lattice) -> GridRepeat {
+fn grid_repeat(gray: &[f64], w: usize, h: usize, l: &Lattice) -> GridRepeat {
     use crate::synth::methods::near_regular::grid::Geometry;
     use crate::synth::methods::tiles::align::{Alignment, residual_px};
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let gray = centred_gray(img);
     let (x0, x1, y0, y1) = Geometry::new(l.t1, l.t2).bbox;
     let block = (x1 - x0 + 1, y1 - y0 + 1);
-    let at = |v| self_correlation(&gray, w, h, v);
+    let at = |v| self_correlation(gray, w, h, v);
     let miss_px = Alignment::new(l.t1, l.t2, "extracted").map_or(f64::INFINITY, |al| residual_px(&al, [(block.0, 0), (0, block.1)]));
     GridRepeat { block, across: at((block.0, 0)), down: at((0, block.1)), along_lattice: at(l.t1).min(at(l.t2)), miss_px }
 }
@@ -362,8 +359,10 @@ pub fn analyse(img: &RgbImage) -> Analysis {
     } else {
         Kind::Stochastic
     };
-    let grid_repeat = lattice.as_ref().map(|l| grid_repeat(img, l));
-    let contrast = Contrast::of(img);
+    let (w, h) = (width as usize, height as usize);
+    let gray = centred_gray(img);
+    let grid_repeat = lattice.as_ref().map(|l| grid_repeat(&gray, w, h, l));
+    let contrast = Contrast::of(&gray, w, h);
     Analysis {
         width,
         height,
@@ -465,14 +464,6 @@ fn int(p: &Params, name: &str) -> Option<i64> {
     }
 }
 
-fn float(p: &Params, name: &str) -> Option<f64> {
-    match p.get(name)? {
-        ParamValue::Float(v) => Some(*v),
-        ParamValue::Int(v) => Some(*v as f64),
-        _ => None,
-    }
-}
-
 fn word<'p>(p: &'p Params, name: &str) -> Option<&'p str> {
     match p.get(name)? {
         ParamValue::Str(s) => Some(s),
@@ -506,13 +497,9 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 set.push(("continuations".to_string(), "true".to_string()));
                 why.push("the swarm misses the exact continuations of neighbouring patches on a lattice, so rows drift".into());
             }
-            // Double-seam (which judges a block by two seam lines) and patch sampling (a swarm
-            // search, then a feathered zone) keep whole texels only when a block holds one.
-            // Quilting's exhaustive overlap search finds in-phase continuations with blocks a
-            // little smaller than the texel, but not with much smaller ones (QUILTING_TEXEL_PER_BLOCK).
             // Pearson correlations ignore a line's mean tone: where tone varies between regions
             // more than within lines, blocks of another tone pass as consistent.
-            if method == "double-seam" && a.tone_spread >= TONE_SPREAD_FROM && float(p, "level_penalty") == Some(0.0) {
+            if method == "double-seam" && a.tone_spread >= TONE_SPREAD_FROM && p.float("level_penalty").ok() == Some(0.0) {
                 set.push(("level_penalty".to_string(), "10".to_string()));
                 why.push(format!(
                     "its correlations ignore brightness, and the mean tone of this sample's {TONE_LINE}-px lines varies {:.1}× as \
