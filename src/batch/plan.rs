@@ -269,9 +269,6 @@ fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
     plan
 }
 
-/// What the output directory already records: its manifest and any shard fragments, by job id
-/// (for an id recorded twice, the more recently finished record). Unreadable files count as
-/// absent: the jobs they described simply run again.
 /// Whether each job's method fits its sample (`texsyn advise`): the `warnings` of its record. The
 /// analysis runs once per distinct sample pixels, and only for samples with a job that runs or
 /// whose earlier record another build wrote: an up-to-date job recorded by this very build keeps
@@ -294,8 +291,10 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
     }
 }
 
-/// The records of the manifest and fragments already in `out`, by job id (the latest where a job
-/// appears twice), and the ids of those written by this build of texsyn (same version and commit).
+/// What the output directory already records: its manifest and any shard fragments, by job id
+/// (for an id recorded twice, the more recently finished record), and the ids of the records this
+/// build of texsyn wrote (same version and commit). Unreadable files count as absent: the jobs
+/// they described simply run again.
 pub fn previous_records(out: &Path) -> (BTreeMap<String, JobRecord>, BTreeSet<String>) {
     let mut files = vec![out.join(manifest::FILE_NAME)];
     if let Ok(entries) = std::fs::read_dir(out) {
