@@ -50,6 +50,8 @@ pub struct Analysis {
     pub orientation: f64,
     /// With a lattice: how well the sample repeats along TES's rectangular grid ([`GridRepeat`]).
     pub grid_repeat: Option<GridRepeat>,
+    /// With a lattice: how the sample repeats along `t1` and `t2` ([`VectorRepeat`]).
+    pub along_vectors: Vec<VectorRepeat>,
     /// How far the mean tone of [`TONE_LINE`]-pixel lines varies, over how much the lines vary
     /// within themselves (the standard deviation of their means over their median standard
     /// deviation): what double-seam's Pearson correlations cannot see ([`TONE_SPREAD_FROM`]).
@@ -247,6 +249,81 @@ fn grid_repeat(gray: &[f64], w: usize, h: usize, l: &Lattice) -> GridRepeat {
     GridRepeat { block, across: at((block.0, 0)), down: at((0, block.1)), along_lattice: at(l.t1).min(at(l.t2)), miss_px }
 }
 
+/// A lattice vector along which the gray plane repeats ([`RIDGE_REPEATS`]) while the edges that
+/// cross it do not ([`RIDGE_CROSSING`]) is no period: the sample is uniform along it (courses of
+/// a wall, planks), and the joints across it (blocks and planks of random lengths) fall anywhere.
+/// The lattice extraction still finds a peak on such a ridge of the autocorrelation, and texels or
+/// tiles cut on it chop the rows. Seen at 384² from 256²: a sandstone wall of random-length blocks
+/// (gray 0.77 along (48, 0), crossing edges 0.09), wooden planks (0.54 along (4, 117), −0.01) and
+/// a grey block wall (0.77, 0.10): coevolution, TES and both tile methods break courses, chop
+/// planks and end mortar lines in mid-air; quilting looks right. Every other lattice among the
+/// bundled samples, fixtures and held-out textures has crossing edges of at least 0.28 wherever
+/// gray repeats at 0.5 or more (red bricks 0.50 / 0.28, beige bricks 0.68 / 0.30), and is at most
+/// 0.40 in gray where its crossing edges are under 0.15 (a clay roof, a stone wall, a brick road).
+pub const RIDGE_REPEATS: f64 = 0.5;
+pub const RIDGE_CROSSING: f64 = 0.15;
+
+/// How the sample repeats along one lattice vector.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VectorRepeat {
+    pub vector: (i64, i64),
+    /// The gray plane's normalised correlation with itself shifted by the vector, or by a quarter,
+    /// half or three quarters of it, whichever is highest: how uniform the sample is that way.
+    pub gray: f64,
+    /// The same for the magnitude of the gray gradient along the vector (the edges that cross
+    /// it), at the best of the vector and its eight neighbours (lattice vectors are rounded).
+    pub crossing_edges: f64,
+}
+
+impl VectorRepeat {
+    fn is_ridge(&self) -> bool {
+        self.gray >= RIDGE_REPEATS && self.crossing_edges < RIDGE_CROSSING
+    }
+}
+
+/// [`VectorRepeat`] of `t1` and `t2` on the centred gray plane.
+fn vector_repeats(gray: &[f64], w: usize, h: usize, l: &Lattice) -> Vec<VectorRepeat> {
+    // A [1 2 1]/4 blur each way keeps single-pixel noise out of the gradient; central differences
+    // then give the gradient, both clamped at the border.
+    let at = |p: &[f64], x: isize, y: isize| p[(y.clamp(0, h as isize - 1) as usize) * w + x.clamp(0, w as isize - 1) as usize];
+    let blur = |p: &[f64], (dx, dy): (isize, isize)| -> Vec<f64> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as isize, (i / w) as isize);
+                (at(p, x - dx, y - dy) + 2.0 * at(p, x, y) + at(p, x + dx, y + dy)) / 4.0
+            })
+            .collect()
+    };
+    let smooth = blur(&blur(gray, (1, 0)), (0, 1));
+    let diff = |(dx, dy): (isize, isize)| -> Vec<f64> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as isize, (i / w) as isize);
+                (at(&smooth, x + dx, y + dy) - at(&smooth, x - dx, y - dy)) / 2.0
+            })
+            .collect()
+    };
+    let (gx, gy) = (diff((1, 0)), diff((0, 1)));
+    [l.t1, l.t2]
+        .into_iter()
+        .map(|t| {
+            let n = vector_length(t);
+            let (ux, uy) = (t.0 as f64 / n, t.1 as f64 / n);
+            let crossing: Vec<f64> = gx.iter().zip(&gy).map(|(&x, &y)| (x * ux + y * uy).abs()).collect();
+            let crossing_edges = (-1..=1)
+                .flat_map(|j| (-1..=1).map(move |i| (t.0 + i, t.1 + j)))
+                .map(|v| self_correlation(&crossing, w, h, v))
+                .fold(f64::NEG_INFINITY, f64::max);
+            // A quarter of the way is enough where the vector leans off the ridge (planks at
+            // (4, 117): 0.54 at (1, 29), 0.14 at the vector itself).
+            let gray = (1..=4)
+                .map(|k| self_correlation(gray, w, h, (((k * t.0) as f64 / 4.0).round() as i64, ((k * t.1) as f64 / 4.0).round() as i64)))
+                .fold(f64::NEG_INFINITY, f64::max);
+            VectorRepeat { vector: t, gray, crossing_edges }
+        })
+        .collect()
+}
+
 impl Analysis {
     /// One line: `near-regular: lattice t1 = (32, 0), t2 = (16, 24) …`.
     pub fn describe(&self) -> String {
@@ -280,6 +357,11 @@ impl Analysis {
     /// does not follow the joints), and the oriented structure is what tiles and texels break.
     pub fn weak_lattice_on_oriented(&self) -> Option<&'static str> {
         self.lattice.as_ref().and_then(|l| l.found_in).filter(|_| self.orientation >= ORIENTED_FROM)
+    }
+
+    /// A lattice vector that is a ridge rather than a period ([`RIDGE_REPEATS`]).
+    pub fn ridge(&self) -> Option<&VectorRepeat> {
+        self.along_vectors.iter().find(|v| v.is_ridge())
     }
 
     /// The fraction of flat overlap bands at `block` (at the nearest even side below it, within
@@ -337,6 +419,7 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         no_lattice: Some(why.into()),
         orientation: 0.0,
         grid_repeat: None,
+        along_vectors: Vec::new(),
         tone_spread: 0.0,
         flat_bands: Vec::new(),
     };
@@ -362,6 +445,7 @@ pub fn analyse(img: &RgbImage) -> Analysis {
     let (w, h) = (width as usize, height as usize);
     let gray = centred_gray(img);
     let grid_repeat = lattice.as_ref().map(|l| grid_repeat(&gray, w, h, l));
+    let along_vectors = lattice.as_ref().map_or_else(Vec::new, |l| vector_repeats(&gray, w, h, l));
     let contrast = Contrast::of(&gray, w, h);
     Analysis {
         width,
@@ -371,6 +455,7 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         no_lattice,
         orientation,
         grid_repeat,
+        along_vectors,
         tone_spread: contrast.tone_spread(),
         flat_bands: contrast.flat_bands(),
     }
@@ -578,6 +663,8 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     ),
                     instead: "quilting",
                 }
+            } else if let (Some(r), false) = (a.ridge(), lattice_given(p)) {
+                Fit::NotFor { because: ridge_reason(r, "texels cut on that lattice"), instead: "quilting" }
             } else if let (Some(g), "tes", false) = (out_of_phase, method, lattice_given(p)) {
                 let (step, name, r) = if g.across <= g.down { (g.block.0, "across", g.across) } else { (g.block.1, "down", g.down) };
                 let why = if g.miss_px > PHASE_TOLERANCE * shortest {
@@ -620,6 +707,9 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     ),
                     instead: "quilting",
                 },
+                _ if let Some(r) = a.ridge().filter(|_| !lattice_given(p)) => {
+                    Fit::NotFor { because: ridge_reason(r, "tiles cut on it, aligned or not,"), instead: "quilting" }
+                }
                 Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
                     set: vec![("align".into(), "lattice".into())],
                     because: "tiles cut at random positions scramble the texels of a lattice; aligned tiles keep them in phase".into(),
@@ -684,6 +774,16 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
         ),
         _ => Fit::Fits,
     }
+}
+
+/// Why a lattice method is not for a sample whose lattice vector is a ridge ([`RIDGE_REPEATS`]).
+fn ridge_reason(r: &VectorRepeat, cut: &str) -> String {
+    format!(
+        "the sample repeats along its lattice vector ({}, {}) only because it is uniform that way (gray correlation {:.2}), \
+         not because it is periodic: the edges that cross it do not repeat (correlation {:.2}), as with courses of \
+         random-length blocks or planks, and {cut} chop them and end their joints in mid-air",
+        r.vector.0, r.vector.1, r.gray, r.crossing_edges
+    )
 }
 
 /// Double-seam judges a block by a true seam line and an auxiliary one `aux_dist` pixels further
@@ -921,6 +1021,63 @@ mod tests {
         // A lattice the job gives is the user's call.
         let given = params(&[("t1_x", ParamValue::Int(30)), ("t1_y", ParamValue::Int(12)), ("t2_y", ParamValue::Int(32))]);
         assert_eq!(fit(&sheared, "tes", &given), Fit::Fits);
+    }
+
+    /// Courses 12 px high under a dark mortar line, each with joints at its own pseudo-random
+    /// places (`random`), or every 20 px in a running bond (not random).
+    fn courses(random: bool) -> RgbImage {
+        let mut state = 7u32;
+        let mut joints: Vec<Vec<u32>> = Vec::new();
+        for row in 0..10 {
+            let mut xs = Vec::new();
+            let mut x = if random { 0 } else { (row % 2) * 10 };
+            while x < 120 {
+                xs.push(x);
+                state = state.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                x += if random { 9 + (state >> 16) % 31 } else { 20 };
+            }
+            joints.push(xs);
+        }
+        RgbImage::from_fn(
+            120,
+            120,
+            |x, y| {
+                if y % 12 == 0 || joints[(y / 12) as usize].contains(&x) { [60, 50, 40] } else { [200, 170, 110] }
+            },
+        )
+    }
+
+    fn lattice(t1: (i64, i64), t2: (i64, i64)) -> Lattice {
+        Lattice { t1, t2, peak1: 0.5, peak2: 0.5, candidates: 16, explained: 16, found_in: None }
+    }
+
+    #[test]
+    fn a_lattice_vector_along_courses_of_random_joints_is_a_ridge() {
+        let repeats = |img: &RgbImage, l: &Lattice| vector_repeats(&centred_gray(img), 120, 120, l);
+        // Along the courses the gray plane repeats, but the joints crossing (20, 0) do not.
+        let random = repeats(&courses(true), &lattice((20, 0), (0, 12)));
+        assert!(random[0].is_ridge(), "{random:?}");
+        assert!(!random[1].is_ridge(), "the mortar lines repeat down: {random:?}");
+        // In a running bond they do: (20, 0) is a period.
+        let bond = repeats(&courses(false), &lattice((20, 0), (10, 12)));
+        assert!(bond.iter().all(|v| !v.is_ridge() && v.crossing_edges > 0.5), "{bond:?}");
+
+        // A ridge sends the lattice methods to quilting, unless the job gives its lattice.
+        let mut a = analyse(&bricks());
+        assert!(a.ridge().is_none() && a.lattice.is_some(), "{}", a.describe());
+        a.along_vectors = random;
+        for method in ["coevolution", "tes", "wang-tiles", "rw-tiles"] {
+            match fit(&a, method, &params(&[])) {
+                Fit::NotFor { because, instead } => {
+                    assert_eq!(instead, "quilting");
+                    assert!(because.contains("(20, 0) only because it is uniform that way"), "{because}");
+                }
+                other => panic!("{method} on a ridge: {other:?}"),
+            }
+        }
+        let given = params(&[("t1_x", ParamValue::Int(16)), ("t2_x", ParamValue::Int(8)), ("t2_y", ParamValue::Int(8))]);
+        assert!(!matches!(fit(&a, "tes", &given), Fit::NotFor { .. }));
+        assert_eq!(fit(&a, "quilting", &params(&[])), Fit::Fits);
     }
 
     #[test]
