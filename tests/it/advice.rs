@@ -213,13 +213,26 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
 
 #[test]
 fn advise_says_what_fits_and_refuses_what_it_cannot_read() {
-    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/bricks_gray.png")));
+    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/metal_tread_studs.png")));
     let t = text(&o);
     assert!(t.contains("near-regular: lattice t1 = "), "{t}");
     let line = |m: &str| t.lines().find(|l| l.trim_start().starts_with(m)).unwrap_or_else(|| panic!("no line for {m}:\n{t}")).to_string();
     // `align` and `tile` are `auto`: the tiles are aligned, at a size in phase with the lattice.
     assert!(line("rw-tiles").contains("fits with its defaults"), "{t}");
     assert!(line("wang-tiles").contains("fits with its defaults"), "{t}");
+    // Gray bricks stand in columns with joints at random heights: the lattice's t1 − t2 runs
+    // along a column, which repeats only because it is uniform that way; the texel and tile
+    // methods are sent to quilting.
+    let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/bricks_gray.png")));
+    let b = text(&o);
+    for m in ["coevolution", "tes", "wang-tiles", "rw-tiles"] {
+        let l = line_of(&b, m);
+        assert!(
+            l.contains("not for this sample") && l.contains("only because it is uniform that way") && l.contains("use quilting"),
+            "{l}"
+        );
+    }
+    assert!(line_of(&b, "quilting").contains("fits with its defaults"), "{b}");
     // The weave's lattice has no Wang tile size in phase that leaves a cell to spare: `auto`
     // keeps 64, and the advice says so.
     let o = run_ok(texsyn().arg("advise").arg(repo().join("jobs/samples/weave_gray.png")));
