@@ -6,7 +6,8 @@
 //! same analysis backs `texsyn advise SAMPLE` and the `warnings` of a run's jobs. It looks at three
 //! things that are cheap to measure and explain: whether the sample has a lattice (the extraction
 //! the near-regular methods use), how strongly its local orientations agree, and — failing both —
-//! calls it stochastic, where every method is fine and nothing is said.
+//! calls it stochastic, where every method is fine and nothing is said unless the sample's
+//! features are large next to a tile (then the unaligned tiles repeat them as a patchwork).
 
 use crate::image::RgbImage;
 use crate::metrics::{MetricParams, centred_gray, orientation_acf};
@@ -62,6 +63,14 @@ pub struct Analysis {
     /// quotes the fraction at the job's block.
     #[serde(skip)]
     pub flat_bands: Vec<(i64, f64)>,
+    /// `(side, share)` for box sides 4, 8, 16, 32 and 64 up to a quarter of the sample's shorter
+    /// side: the share of the sample's colour variance left in the means of `side × side` windows,
+    /// i.e. carried by features that large ([`LARGE_FEATURES_FROM`]).
+    pub large_features: Vec<(i64, f64)>,
+    /// With a lattice: how the sample's [`BLOTCH_SIDE`]-pixel window means repeat along `t1` and
+    /// `t2` (the larger normalised correlation): whether its large features follow the lattice
+    /// ([`BLOTCH_REPEAT`]).
+    pub large_features_repeat: Option<f64>,
 }
 
 /// TES abuts the texel's bounding box on a rectangular grid, so its blocks join in phase only
@@ -91,6 +100,73 @@ pub struct GridRepeat {
 /// samples where both hold (tread plate, tiles, terracotta, a clay roof, a brick road, a stone
 /// wall, beige bricks: at most 0.15 of the vector off, correlation ratios 0.68–1.06).
 pub const GRID_REPEAT_MIN: f64 = 0.5;
+
+/// Box sides at which [`Analysis::large_features`] is measured.
+const LARGE_FEATURE_SIDES: [usize; 5] = [4, 8, 16, 32, 64];
+
+/// Tiles (Wang or RW, not aligned to a lattice) repeat a handful of sample patches; where the
+/// sample's features are large next to a tile, each tile carries a blotch of its own and the
+/// output becomes a regular patchwork of them. Measured as the colour-variance share left in the
+/// means of windows a quarter of the tile wide ([`Analysis::large_features`]); seen at 384² from
+/// 256², tile 64 (windows of 16): weathered wood 0.39, mossy stone 0.39, sand 0.38, gray and brown
+/// rock 0.37 and 0.51, a mossy rock 0.34, rock 0.34 and ground 0.30 come out as a visible grid of
+/// repeated blotches (quilting looks right); cork, grass, gravel, hedge, pebbles, plaster, dirt,
+/// lava and a dirt-brick wall at most 0.27 look right (their repeats are fine-grained).
+pub const LARGE_FEATURES_FROM: f64 = 0.285;
+
+/// The window side at which a lattice sample's large features are checked against its lattice.
+pub const BLOTCH_SIDE: usize = 16;
+
+/// A lattice whose large features do not follow it: the lattice comes from fine structure (a
+/// stone grain on a texture that was itself tiled) while blotches over it fall anywhere. Texels
+/// and tiles cut on the lattice then cut the blotches at their edges. A sample counts as such
+/// when [`BLOTCH_SIDE`]-px windows carry at least [`BLOTCH_SHARE`] of its colour variance and
+/// their means repeat along neither lattice vector better than [`BLOTCH_REPEAT`]. Seen on a
+/// purple stone (share 0.54, repeat 0.11 at 384² from 256²: TES, both tile methods and, faintly,
+/// co-evolution cut its blotches at straight edges). Every other lattice sample either repeats its
+/// window means along a lattice vector (terracotta 0.38 at share 0.46, red bricks 0.58 at 0.37)
+/// or has smaller large features (a brick road 0.38 at repeat 0.09, which looks right).
+pub const BLOTCH_SHARE: f64 = 0.45;
+pub const BLOTCH_REPEAT: f64 = 0.2;
+
+/// [`Analysis::large_features`]: per box side, the variance of the window means over all windows
+/// inside the sample, summed over the channels, over the channels' summed variance.
+fn large_feature_shares(img: &RgbImage) -> Vec<(i64, f64)> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let raw = img.as_raw();
+    let sides: Vec<usize> = LARGE_FEATURE_SIDES.into_iter().filter(|&s| s <= w.min(h) / 4).collect();
+    let (mut total, mut low) = (0.0, vec![0.0; sides.len()]);
+    for c in 0..3 {
+        // Summed-area table of the channel, (w + 1) × (h + 1); integer, so exact.
+        let mut sat = vec![0u64; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0u64;
+            for x in 0..w {
+                row += u64::from(raw[(y * w + x) * 3 + c]);
+                sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
+            }
+        }
+        let sq: u64 = raw.iter().skip(c).step_by(3).map(|&v| u64::from(v) * u64::from(v)).sum();
+        let n = (w * h) as f64;
+        let mean = sat[(w + 1) * (h + 1) - 1] as f64 / n;
+        total += (sq as f64 / n - mean * mean).max(0.0);
+        for (k, &b) in sides.iter().enumerate() {
+            let (mut s, mut s2, mut count) = (0.0, 0.0, 0.0);
+            for y in 0..=h - b {
+                for x in 0..=w - b {
+                    let (a, d) = (y * (w + 1), (y + b) * (w + 1));
+                    let m = (sat[d + x + b] + sat[a + x] - sat[d + x] - sat[a + x + b]) as f64 / (b * b) as f64;
+                    s += m;
+                    s2 += m * m;
+                    count += 1.0;
+                }
+            }
+            let m = s / count;
+            low[k] += (s2 / count - m * m).max(0.0);
+        }
+    }
+    sides.into_iter().zip(low).map(|(b, l)| (b as i64, if total > 0.0 { l / total } else { 0.0 })).collect()
+}
 
 /// The normalised correlation of `plane` (`w × h`, row-major) with itself shifted by `(dx, dy)`,
 /// over the pixels both cover; 0 when they cover none or one side is flat.
@@ -188,6 +264,17 @@ impl Contrast {
         let n = (bw * bh) as f64;
         let mean = at(&self.sum) / n;
         (mean, (at(&self.sq) / n - mean * mean).max(0.0).sqrt())
+    }
+
+    /// The larger normalised correlation, along `t1` and `t2`, of the means of `side × side`
+    /// windows inside the sample; `None` for a sample under twice that side.
+    fn window_means_repeat(&self, side: usize, l: &Lattice) -> Option<f64> {
+        if self.w < 2 * side || self.h < 2 * side {
+            return None;
+        }
+        let (mw, mh) = (self.w - side + 1, self.h - side + 1);
+        let means: Vec<f64> = (0..mh).flat_map(|y| (0..mw).map(move |x| (x, y))).map(|(x, y)| self.window(x, y, side, side).0).collect();
+        Some(self_correlation(&means, mw, mh, l.t1).max(self_correlation(&means, mw, mh, l.t2)))
     }
 
     /// `len × thick` bands along rows and `thick × len` bands along columns, on a grid of about
@@ -381,6 +468,17 @@ impl Analysis {
         Some(self.flat_bands.iter().find(|e| e.0 > block && e.1 <= FLAT_BANDS_OK).map_or(last, |e| e.0))
     }
 
+    /// [`Analysis::large_features`] at the largest measured side up to `side`.
+    pub fn large_features_at(&self, side: i64) -> Option<f64> {
+        self.large_features.iter().take_while(|e| e.0 <= side).last().map(|e| e.1)
+    }
+
+    /// Large features that do not follow the lattice ([`BLOTCH_SHARE`]): the share they carry.
+    pub fn blotches_off_lattice(&self) -> Option<f64> {
+        let share = self.large_features_at(BLOTCH_SIDE as i64)?;
+        (share >= BLOTCH_SHARE && self.large_features_repeat? < BLOTCH_REPEAT).then_some(share)
+    }
+
     /// The length of the longer lattice vector, in pixels.
     pub fn longest_vector(&self) -> Option<f64> {
         let l = self.lattice.as_ref()?;
@@ -426,6 +524,8 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         along_vectors: Vec::new(),
         tone_spread: 0.0,
         flat_bands: Vec::new(),
+        large_features: Vec::new(),
+        large_features_repeat: None,
     };
     if width < 8 || height < 8 {
         return flat("the sample is smaller than 8 × 8 pixels");
@@ -455,13 +555,15 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         width,
         height,
         kind,
-        lattice,
         no_lattice,
         orientation,
         grid_repeat,
         along_vectors,
         tone_spread: contrast.tone_spread(),
         flat_bands: contrast.flat_bands(),
+        large_features: large_feature_shares(img),
+        large_features_repeat: lattice.as_ref().and_then(|l| contrast.window_means_repeat(BLOTCH_SIDE, l)),
+        lattice,
     }
 }
 
@@ -611,7 +713,8 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 // search, then a feathered zone) keep whole texels only when a block holds one.
                 // Quilting's exhaustive overlap search finds in-phase continuations with blocks a
                 // little smaller than the texel, but not with much smaller ones (QUILTING_TEXEL_PER_BLOCK).
-                if let Some(texel) = a.longest_vector() {
+                // A lattice of fine grain under blotches that ignore it says nothing of the texel.
+                if let Some(texel) = a.longest_vector().filter(|_| a.blotches_off_lattice().is_none()) {
                     let shortest = a.shortest_vector().unwrap_or(texel);
                     let room = i64::from(a.width.min(a.height)) / 2;
                     let wanted = ((texel.ceil() as i64 + 1) / 2 * 2).min(room);
@@ -669,6 +772,8 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 }
             } else if let (Some(r), false) = (a.ridge(), lattice_given(p)) {
                 Fit::NotFor { because: ridge_reason(r, "texels cut on that lattice"), instead: "quilting" }
+            } else if let (Some(share), false) = (a.blotches_off_lattice(), lattice_given(p)) {
+                Fit::NotFor { because: blotch_reason(share, "texels"), instead: "quilting" }
             } else if let (Some(g), "tes", false) = (out_of_phase, method, lattice_given(p)) {
                 let (step, name, r) = if g.across <= g.down { (g.block.0, "across", g.across) } else { (g.block.1, "down", g.down) };
                 let why = if g.miss_px > PHASE_TOLERANCE * shortest {
@@ -713,6 +818,9 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                 },
                 _ if let Some(r) = a.ridge().filter(|_| !lattice_given(p)) => {
                     Fit::NotFor { because: ridge_reason(r, "tiles cut on it, aligned or not,"), instead: "quilting" }
+                }
+                _ if let Some(share) = a.blotches_off_lattice().filter(|_| !lattice_given(p)) => {
+                    Fit::NotFor { because: blotch_reason(share, "tiles"), instead: "quilting" }
                 }
                 Kind::NearRegular if word(p, "align") == Some("none") => Fit::FitsWith {
                     set: vec![("align".into(), "lattice".into())],
@@ -773,11 +881,36 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
                     instead: "quilting",
                 },
+                // Unaligned tiles are 64 px unless given (`auto` keeps 64 without a lattice).
+                Kind::Stochastic
+                    if let tile = int(p, "tile").unwrap_or(64)
+                        && let Some(share) = a.large_features_at(tile / 4).filter(|&s| s >= LARGE_FEATURES_FROM) =>
+                {
+                    Fit::NotFor {
+                        because: format!(
+                            "{:.0} % of the sample's colour variance is in features {} px and more across, and each of the \
+                             handful of {tile}-px tiles carries its own, so the tiling repeats them in a visible regular patchwork",
+                            100.0 * share,
+                            tile / 4
+                        ),
+                        instead: "quilting",
+                    }
+                }
                 _ => Fit::Fits,
             },
         ),
         _ => Fit::Fits,
     }
+}
+
+/// Why a lattice method is not for a sample whose large features do not follow its lattice
+/// ([`BLOTCH_SHARE`]).
+fn blotch_reason(share: f64, pieces: &str) -> String {
+    format!(
+        "its lattice comes from fine structure, while the blotches that carry {:.0} % of its colour variance ({BLOTCH_SIDE} px \
+         and more across) do not repeat with it, so {pieces} cut on that lattice cut the blotches at straight edges",
+        100.0 * share
+    )
 }
 
 /// Why a lattice method is not for a sample whose lattice vector is a ridge ([`RIDGE_REPEATS`]).
@@ -946,11 +1079,33 @@ mod tests {
         assert!(w.contains("set level_penalty = 10"), "{w}");
         let given = params(&[("level_penalty", ParamValue::Float(10.0))]);
         assert!(warning(&a, "double-seam", &given).is_none_or(|w| !w.contains("level_penalty")));
-        // The tile methods, drawing patches at random, are told to choose among candidates.
+        // Unaligned tiles would repeat the two halves as a patchwork whatever the candidates:
+        // not for this sample.
         for method in ["wang-tiles", "rw-tiles"] {
-            let w = warning(&a, method, &params(&[("patch_candidates", ParamValue::Int(1))])).expect("two tones");
+            for candidates in [1, 16] {
+                let w = warning(&a, method, &params(&[("patch_candidates", ParamValue::Int(candidates))])).expect("two tones");
+                assert!(w.contains("visible regular patchwork") && w.contains("use quilting"), "{w}");
+            }
+        }
+        // A brick wall lit from one side: aligned tiles keep the bricks, and drawing patches at
+        // random would tile a patchwork of the two tones; they are told to choose among candidates.
+        let lit = RgbImage::from_fn(128, 128, |x, y| {
+            let row = y / 8;
+            let xs = (x + if row % 2 == 1 { 8 } else { 0 }) % 16;
+            let v: u8 = if y % 8 == 0 || xs == 0 { 40 } else { 150 };
+            let v = if y < 64 { v / 2 } else { v } + noise(x, y, 8);
+            [v, v, v]
+        });
+        let a = analyse(&lit);
+        assert!(a.lattice.is_some() && a.tone_spread >= TONE_SPREAD_FROM, "{a:?}");
+        for method in ["wang-tiles", "rw-tiles"] {
+            let w = warning(
+                &a,
+                method,
+                &params(&[("patch_candidates", ParamValue::Int(1)), ("overlap", ParamValue::Int(4)), ("tile", ParamValue::Int(32))]),
+            )
+            .expect("two tones");
             assert!(w.contains("set patch_candidates = 16"), "{w}");
-            assert_eq!(warning(&a, method, &params(&[("patch_candidates", ParamValue::Int(16))])), None);
         }
         // One tone, the same grain: nothing to say.
         let grain = RgbImage::from_fn(128, 128, |x, y| {
@@ -961,6 +1116,73 @@ mod tests {
         assert!(a.tone_spread < TONE_SPREAD_FROM, "{}", a.tone_spread);
         assert_eq!(warning(&a, "double-seam", &params(&[("level_penalty", ParamValue::Float(0.0))])), None);
         assert_eq!(warning(&a, "rw-tiles", &params(&[("patch_candidates", ParamValue::Int(1))])), None);
+    }
+
+    /// Soft round blotches of `radius` px at pseudo-random places over a fine grain, or over
+    /// `under` where given.
+    fn blotches(size: u32, radius: f64, under: impl Fn(u32, u32) -> u8) -> RgbImage {
+        let centres: Vec<(f64, f64)> = (0..(size as f64 / radius).powi(2) as u32 / 3)
+            .map(|i| {
+                // splitmix64's finaliser: places with no pattern a lattice could find.
+                let mix = |mut z: u64| {
+                    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+                    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+                    z ^ (z >> 31)
+                };
+                let h = mix(u64::from(i).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                ((h % u64::from(size)) as f64, ((h >> 32) % u64::from(size)) as f64)
+            })
+            .collect();
+        RgbImage::from_fn(size, size, |x, y| {
+            let near =
+                centres.iter().map(|&(cx, cy)| ((x as f64 - cx).powi(2) + (y as f64 - cy).powi(2)).sqrt()).fold(f64::INFINITY, f64::min);
+            let lift = (70.0 * (1.0 - near / radius)).max(0.0) as u8;
+            let v = under(x, y) + lift;
+            [v, v / 2 + 40, v]
+        })
+    }
+
+    #[test]
+    fn unaligned_tiles_are_told_off_where_features_are_large_next_to_a_tile() {
+        let tiles = params(&[("patch_candidates", ParamValue::Int(1))]);
+        // Blotches of 20 px over grain: each 64-px tile carries its own, repeated as a patchwork.
+        let large = analyse(&blotches(256, 20.0, |x, y| 60 + noise(x, y, 40)));
+        assert_eq!(large.kind, Kind::Stochastic);
+        assert!(large.large_features_at(16).unwrap() >= LARGE_FEATURES_FROM, "{:?}", large.large_features);
+        for method in ["wang-tiles", "rw-tiles"] {
+            let w = warning(&large, method, &tiles).expect("large features");
+            assert!(w.contains("visible regular patchwork") && w.contains("use quilting"), "{w}");
+        }
+        // The patch methods search every placement: nothing to say.
+        assert_eq!(warning(&large, "quilting", &params(&[("block", ParamValue::Int(48))])), None);
+        // Blotches of 3 px: fine grain, no warning.
+        let fine = analyse(&blotches(256, 3.0, |x, y| 60 + noise(x, y, 40)));
+        assert!(fine.large_features_at(16).unwrap() < LARGE_FEATURES_FROM, "{:?}", fine.large_features);
+        for method in ["wang-tiles", "rw-tiles"] {
+            assert_eq!(warning(&fine, method, &tiles), None);
+        }
+    }
+
+    #[test]
+    fn a_lattice_of_fine_grain_under_blotches_that_ignore_it_is_told_off() {
+        // A grid of thin lines every 40 px under blotches at random places.
+        let grid = |x: u32, y: u32| if x % 40 < 2 || y % 40 < 2 { 40 } else { 70 };
+        let a = analyse(&blotches(256, 18.0, grid));
+        assert!(a.lattice.is_some(), "{:?}", a.no_lattice);
+        assert!(a.blotches_off_lattice().is_some(), "{:?} {:?}", a.large_features, a.large_features_repeat);
+        for method in ["coevolution", "tes", "wang-tiles", "rw-tiles"] {
+            let w = warning(&a, method, &params(&[])).expect("blotches");
+            assert!(w.contains("do not repeat with it") && w.contains("use quilting"), "{method}: {w}");
+        }
+        // Given a lattice, the user has chosen it.
+        let given = params(&[("t1_x", ParamValue::Int(40)), ("t2_y", ParamValue::Int(40))]);
+        assert!(warning(&a, "coevolution", &given).is_none_or(|w| !w.contains("do not repeat with it")));
+        // The same bricks without blotches: their lattice holds everything.
+        let plain = analyse(&RgbImage::from_fn(256, 256, |x, y| {
+            let v = grid(x, y) + noise(x, y, 8);
+            [v, v / 2 + 40, v]
+        }));
+        assert!(plain.lattice.is_some() && plain.blotches_off_lattice().is_none(), "{:?}", plain.large_features);
     }
 
     #[test]
