@@ -863,11 +863,12 @@ impl Canvas {
     }
 
     fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), c0: u32, r0: u32, block: u32) {
+        // Wrapped, for a torus; the plain canvas holds every block, so there it changes nothing.
+        let dxs: Vec<u32> = (c0..block).map(|c| (dst.0 + c) % self.w as u32).collect();
         for r in r0..block {
-            for c in c0..block {
+            let dy = (dst.1 + r) % self.rows as u32;
+            for (c, &dx) in (c0..block).zip(&dxs) {
                 let (sx, sy) = (src.0 + c, src.1 + r);
-                // Wrapped, for a torus; the plain canvas holds every block, so there it changes nothing.
-                let (dx, dy) = ((dst.0 + c) % self.w as u32, (dst.1 + r) % self.rows as u32);
                 self.rgb.copy(dx, dy, prep.rgb, sx, sy);
                 let si = sy as usize * prep.w + sx as usize;
                 let di = dy as usize * self.w + dx as usize;
@@ -1141,11 +1142,14 @@ fn choose(
     if theta_low > cap + BOUND_SLACK {
         // Below that a candidate with one perfect line can always reach θ: the edge bound
         // rules nothing out.
-        survivors = (0..mism.len())
-            .filter(|&k| {
-                let u = cap / (1.0 + s.mu * (mism[k][0] as f64 / ns[0])) + cap / (1.0 + s.mu * (mism[k][1] as f64 / ns[1]));
-                may_reach(u, theta_low)
-            })
+        // Each line's term depends on its mismatch count alone: one table per line, the same
+        // bits as computing it per candidate.
+        let edge_cap: [Vec<f64>; 2] = [0, 1].map(|li| (0..=ls[li].len()).map(|m| cap / (1.0 + s.mu * (m as f64 / ns[li]))).collect());
+        survivors = mism
+            .iter()
+            .enumerate()
+            .filter(|&(_, m)| may_reach(edge_cap[0][m[0] as usize] + edge_cap[1][m[1] as usize], theta_low))
+            .map(|(k, _)| k)
             .collect();
     }
     if survivors.is_empty() || survivors.len() * FFT_BEYOND > mism.len() {
@@ -1157,7 +1161,14 @@ fn choose(
         let mut u = if history.1 * 2 > history.0 { fb.all() } else { fb.intensity() };
         let mut hs = history.1 * 2 > history.0;
         loop {
-            let best = (0..u.len()).max_by(|&a, &b| u[a].total_cmp(&u[b])).expect("candidates");
+            // The last of the largest, as `max_by` would pick.
+            assert!(!u.is_empty(), "candidates");
+            let mut best = 0;
+            for (k, v) in u.iter().enumerate().skip(1) {
+                if v.total_cmp(&u[best]) != std::cmp::Ordering::Less {
+                    best = k;
+                }
+            }
             f_low = f_low.max(full(best, mism[best]));
             let theta_low = s.tau.min(f_low - s.eps);
             survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
@@ -1385,11 +1396,14 @@ impl<'p> FftBounds<'p> {
         let sp = &self.prep.spectra;
         let (w, h) = (sp.w, sp.h);
         let y = y0 + row0 as i32;
-        cross.iter_mut().flatten().for_each(|c| c.fill(0.0));
+        // Only the sums some term adds to are read (the others' channels are not bounded).
+        for term in &self.terms {
+            cross[self.groups[term.group].li][term.k][..nx * rows].fill(0.0);
+        }
         for term in &self.terms {
             let g = &self.groups[term.group];
             let buf = &self.buffers[term.buffer];
-            let acc = &mut cross[g.li][term.k];
+            let acc = &mut cross[g.li][term.k][..nx * rows];
             let add = |part: fn(&Complex64) -> f64, acc: &mut [f64]| {
                 if g.vertical {
                     let (col, r) = ((x0 + g.at) as usize, (y + g.from) as usize);
@@ -1463,16 +1477,17 @@ impl<'p> FftBounds<'p> {
         let (_, _, nx, ny) = self.area;
         let mut u = vec![0.0; nx * ny];
         const ROWS: usize = 16;
-        u.par_chunks_mut(nx * ROWS).enumerate().for_each(|(chunk, us)| {
-            let rows = us.len() / nx;
-            let mut cross = [0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx * rows]));
-            self.cross_sums(chunk * ROWS, rows, &mut cross);
-            let mut d = vec![0.0; nx];
-            for (r, u) in us.chunks_exact_mut(nx).enumerate() {
-                let c = [0, 1].map(|li| [0, 1, 2].map(|k| &cross[li][k][r * nx..(r + 1) * nx]));
-                self.bound_row(chunk * ROWS + r, hs, u, c, &mut d);
-            }
-        });
+        u.par_chunks_mut(nx * ROWS).enumerate().for_each_init(
+            || ([0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx * ROWS])), vec![0.0; nx]),
+            |(cross, d), (chunk, us)| {
+                let rows = us.len() / nx;
+                self.cross_sums(chunk * ROWS, rows, cross);
+                for (r, u) in us.chunks_exact_mut(nx).enumerate() {
+                    let c = [0, 1].map(|li| [0, 1, 2].map(|k| &cross[li][k][r * nx..(r + 1) * nx]));
+                    self.bound_row(chunk * ROWS + r, hs, u, c, d);
+                }
+            },
+        );
         u
     }
 
