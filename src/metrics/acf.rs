@@ -119,87 +119,242 @@ fn fft_size(n: usize) -> usize {
 ///
 /// Panics if `plane.len() != w·h`.
 pub fn autocorrelation_sums(plane: &[Complex64], w: usize, h: usize, rx: usize, ry: usize) -> Result<Acf<Complex64>, AcfError> {
-    assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
-    sums_of_rows(w, h, rx, ry, |y, row| row.copy_from_slice(&plane[y * w..(y + 1) * w]))
+    AcfPlanner::new().sums(plane, w, h, rx, ry)
 }
 
-/// [`autocorrelation_sums`] of the plane whose row `y` `fill(y, row)` writes into `row`: a plane
-/// made on the fly (a real one, as complex) goes straight into the FFT buffer, with no copy.
-fn sums_of_rows(w: usize, h: usize, rx: usize, ry: usize, fill: impl Fn(usize, &mut [Complex64])) -> Result<Acf<Complex64>, AcfError> {
-    if rx >= w || ry >= h {
-        return Err(AcfError::OffsetsOutsidePlane);
-    }
-    let pw = fft_size(w + rx);
-    let ph = fft_size(h + ry);
-    let zero = Complex64::new(0.0, 0.0);
+/// Autocorrelation of a real plane (`w × h`, row-major) in the requested form (B9).
+///
+/// Errors: [`AcfError::OffsetsOutsidePlane`] when `rx ≥ w` or `ry ≥ h`; [`AcfError::ZeroPlane`]
+/// for a normalised form of an identically zero plane. Panics if `plane.len() != w·h`.
+pub fn autocorrelation(plane: &[f64], w: usize, h: usize, rx: usize, ry: usize, form: AcfForm) -> Result<Acf<f64>, AcfError> {
+    AcfPlanner::new().real(plane, w, h, rx, ry, form)
+}
 
-    // Padded plane, row-major, ph rows of pw.
-    let mut buf = vec![zero; pw * ph];
-    for y in 0..h {
-        fill(y, &mut buf[y * pw..y * pw + w]);
-    }
-    let mut planner = FftPlannerScalar::<f64>::new();
-    let row_fwd = planner.plan_fft_forward(pw);
-    let row_inv = planner.plan_fft_inverse(pw);
-    let col_fwd = planner.plan_fft_forward(ph);
-    let col_inv = planner.plan_fft_inverse(ph);
+/// Autocorrelation of a complex plane (`w × h`, row-major) in the requested form (B9); the value
+/// at `−d` is the conjugate of the value at `d`.
+///
+/// Errors and panics as for [`autocorrelation`].
+pub fn autocorrelation_complex(
+    plane: &[Complex64],
+    w: usize,
+    h: usize,
+    rx: usize,
+    ry: usize,
+    form: AcfForm,
+) -> Result<Acf<Complex64>, AcfError> {
+    AcfPlanner::new().complex(plane, w, h, rx, ry, form)
+}
 
-    // Forward along rows (rows h.. are zero and stay zero).
-    row_fwd.process(&mut buf[..h * pw]);
-    // Transpose to pw rows of ph, forward along columns, power spectrum, inverse along columns.
-    // Copied in square tiles so that both planes are walked a cache line at a time; rows h.. are
-    // zero, as `t` starts.
-    let mut t = vec![zero; pw * ph];
-    const TILE: usize = 32;
-    for y0 in (0..h).step_by(TILE) {
-        for x0 in (0..pw).step_by(TILE) {
-            for y in y0..(y0 + TILE).min(h) {
-                for x in x0..(x0 + TILE).min(pw) {
-                    t[x * ph + y] = buf[y * pw + x];
+/// Computes several autocorrelations with the same FFT plans and buffers: a caller taking the
+/// autocorrelations of several planes (the lattice extraction's views of one sample) plans each
+/// FFT length once and allocates its buffers once. The values are those of the free functions
+/// ([`autocorrelation`], [`autocorrelation_complex`], [`autocorrelation_sums`]), bit for bit: the
+/// same FFTs on the same data, and the same operations on each value.
+pub struct AcfPlanner {
+    planner: FftPlannerScalar<f64>,
+    /// The padded plane transformed along rows, `h × pw`.
+    rows_fwd: Vec<Complex64>,
+    /// Its transpose, `pw × ph`.
+    cols: Vec<Complex64>,
+    /// The rows `dy ∈ 0..=ry` of the inverse transform, `(ry + 1) × pw`.
+    rows_inv: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl std::default::Default for AcfPlanner {
+    fn default() -> Self {
+        AcfPlanner::new()
+    }
+}
+
+impl AcfPlanner {
+    pub fn new() -> Self {
+        AcfPlanner { planner: FftPlannerScalar::new(), rows_fwd: Vec::new(), cols: Vec::new(), rows_inv: Vec::new(), scratch: Vec::new() }
+    }
+
+    /// [`autocorrelation`].
+    pub fn real(&mut self, plane: &[f64], w: usize, h: usize, rx: usize, ry: usize, form: AcfForm) -> Result<Acf<f64>, AcfError> {
+        assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
+        let (r, pw, scale) = self.transform(w, h, rx, ry, |y, row| {
+            for (c, &v) in row.iter_mut().zip(&plane[y * w..(y + 1) * w]) {
+                *c = Complex64::new(v, 0.0);
+            }
+        })?;
+        // As `sums_to_acf` then `normalise` then `.re`, on the real parts only: `S(d)` is
+        // `conj R(d)` (`d` in the canonical half) or `R(−d)`, with `R` scaled by `1 / scale`
+        // per part, and dividing a complex value by a real one divides each part.
+        let s00 = r[0].re / scale;
+        let is_zero = plane.iter().all(|&v| v == 0.0);
+        if form != AcfForm::RawOverlapMean && (is_zero || s00.is_nan() || s00 <= 0.0) {
+            return Err(AcfError::ZeroPlane);
+        }
+        let (aw, ah) = (2 * rx + 1, 2 * ry + 1);
+        let whf = (w * h) as f64;
+        let mut values = vec![0.0; aw * ah];
+        // The rows dy ≥ 0, dx ascending from −rx: `R` at (dx, dy) in the canonical half (dy > 0,
+        // or dy = 0 and dx ≥ 0), at (−dx, 0) on the rest of row 0 (dx < 0: column pw + dx of
+        // R's rows).
+        for dy in 0..=ry {
+            let r_row = &r[dy * pw..(dy + 1) * pw];
+            let out = &mut values[(ry + dy) * aw..(ry + dy + 1) * aw];
+            let (neg, nonneg) = out.split_at_mut(rx);
+            let neg_src: Vec<f64> =
+                if dy == 0 { r_row[1..=rx].iter().rev().map(|c| c.re).collect() } else { r_row[pw - rx..].iter().map(|c| c.re).collect() };
+            let rows_n = h - dy;
+            for (i, (o, &re)) in neg.iter_mut().zip(&neg_src).enumerate() {
+                let adx = rx - i;
+                *o = finish(re / scale, s00, form, || ((w - adx) * rows_n) as f64, whf);
+            }
+            for (adx, (o, c)) in nonneg.iter_mut().zip(&r_row[..=rx]).enumerate() {
+                *o = finish(c.re / scale, s00, form, || ((w - adx) * rows_n) as f64, whf);
+            }
+        }
+        // The rows dy < 0 mirror them: the value at −d is computed from the same `R` value with
+        // the same overlap, so it is the same.
+        for dy in 1..=ry {
+            let (top, bottom) = values.split_at_mut(ry * aw);
+            let src = &bottom[dy * aw..(dy + 1) * aw];
+            let dst = &mut top[(ry - dy) * aw..(ry - dy + 1) * aw];
+            for (d, &v) in dst.iter_mut().zip(src.iter().rev()) {
+                *d = v;
+            }
+        }
+        Ok(Acf { rx, ry, values })
+    }
+
+    /// [`autocorrelation_complex`].
+    pub fn complex(
+        &mut self,
+        plane: &[Complex64],
+        w: usize,
+        h: usize,
+        rx: usize,
+        ry: usize,
+        form: AcfForm,
+    ) -> Result<Acf<Complex64>, AcfError> {
+        let sums = self.sums(plane, w, h, rx, ry)?;
+        let is_zero = plane.iter().all(|v| v.re == 0.0 && v.im == 0.0);
+        normalise(sums, w, h, form, is_zero)
+    }
+
+    /// [`autocorrelation_sums`].
+    pub fn sums(&mut self, plane: &[Complex64], w: usize, h: usize, rx: usize, ry: usize) -> Result<Acf<Complex64>, AcfError> {
+        assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
+        let (r, pw, scale) = self.transform(w, h, rx, ry, |y, row| row.copy_from_slice(&plane[y * w..(y + 1) * w]))?;
+        // R(dx, dy) = Σ_p f(p + d) · conj f(p) (circular, but no wrap thanks to the padding);
+        // S(d) = conj R(d), and S(−d) = conj S(d) = R(d): every value comes from a row dy ≥ 0.
+        let r_at = |dx: i64, dy: i64| -> Complex64 {
+            debug_assert!(dy >= 0);
+            let v = r[dy as usize * pw + dx.rem_euclid(pw as i64) as usize];
+            Complex64::new(v.re / scale, v.im / scale)
+        };
+        let aw = 2 * rx + 1;
+        let ah = 2 * ry + 1;
+        let mut values = vec![Complex64::new(0.0, 0.0); aw * ah];
+        let (rxi, ryi) = (rx as i64, ry as i64);
+        for dy in -ryi..=ryi {
+            for dx in -rxi..=rxi {
+                // Canonical half: dy > 0, or dy = 0 and dx ≥ 0; the other half mirrors it.
+                let canonical = dy > 0 || (dy == 0 && dx >= 0);
+                let s = if canonical { r_at(dx, dy).conj() } else { r_at(-dx, -dy) };
+                values[(dy + ryi) as usize * aw + (dx + rxi) as usize] = s;
+            }
+        }
+        // S(0,0) = Σ |f|² is real.
+        values[ry * aw + rx].im = 0.0;
+        Ok(Acf { rx, ry, values })
+    }
+
+    /// The unscaled circular autocorrelation `R` of the plane whose row `y` `fill(y, row)` writes
+    /// into `row`, zero-padded to `pw × ph`: its rows `dy ∈ 0..=ry` (`(ry + 1) × pw`, row-major),
+    /// with `pw` and the scale `pw·ph` that divides it.
+    fn transform(
+        &mut self,
+        w: usize,
+        h: usize,
+        rx: usize,
+        ry: usize,
+        fill: impl Fn(usize, &mut [Complex64]),
+    ) -> Result<(&[Complex64], usize, f64), AcfError> {
+        if rx >= w || ry >= h {
+            return Err(AcfError::OffsetsOutsidePlane);
+        }
+        let pw = fft_size(w + rx);
+        let ph = fft_size(h + ry);
+        let zero = Complex64::new(0.0, 0.0);
+        let row_fwd = self.planner.plan_fft_forward(pw);
+        let row_inv = self.planner.plan_fft_inverse(pw);
+        let col_fwd = self.planner.plan_fft_forward(ph);
+        let col_inv = self.planner.plan_fft_inverse(ph);
+        let scratch_len = [&row_fwd, &row_inv, &col_fwd, &col_inv].iter().map(|f| f.get_inplace_scratch_len()).max().unwrap_or(0);
+        if self.scratch.len() < scratch_len {
+            self.scratch.resize(scratch_len, zero);
+        }
+        let scratch = &mut self.scratch[..scratch_len];
+
+        // The padded plane's rows 0..h (rows h.. are zero, and stay zero along rows), forward
+        // along rows.
+        let buf = &mut self.rows_fwd;
+        buf.clear();
+        buf.resize(h * pw, zero);
+        for y in 0..h {
+            fill(y, &mut buf[y * pw..y * pw + w]);
+        }
+        row_fwd.process_with_scratch(buf, scratch);
+        // Transpose to pw rows of ph, forward along columns, power spectrum, inverse along columns.
+        // Copied in square tiles so that both planes are walked a cache line at a time; rows h..
+        // are zero.
+        let t = &mut self.cols;
+        t.resize(pw * ph, zero);
+        let t = &mut t[..pw * ph];
+        const TILE: usize = 32;
+        for y0 in (0..h).step_by(TILE) {
+            for x0 in (0..pw).step_by(TILE) {
+                for y in y0..(y0 + TILE).min(h) {
+                    let src = &buf[y * pw..(y + 1) * pw];
+                    for x in x0..(x0 + TILE).min(pw) {
+                        t[x * ph + y] = src[x];
+                    }
                 }
             }
         }
-    }
-    col_fwd.process(&mut t);
-    for v in t.iter_mut() {
-        *v = Complex64::new(v.re * v.re + v.im * v.im, 0.0);
-    }
-    col_inv.process(&mut t);
-    // Back to row-major, but only the rows dy ∈ 0..=ry and −ry..−1 (mod ph) are needed.
-    // ph ≥ h + ry > 2·ry, so the two ranges are disjoint.
-    let needed_rows: Vec<usize> = (0..=ry).chain(ph - ry..ph).collect();
-    let mut rows = vec![zero; needed_rows.len() * pw];
-    for (i, &r) in needed_rows.iter().enumerate() {
-        for x in 0..pw {
-            rows[i * pw + x] = t[x * ph + r];
+        for column in t.chunks_exact_mut(ph) {
+            column[h..].fill(zero);
         }
-    }
-    row_inv.process(&mut rows);
-    let scale = (pw * ph) as f64;
-    // R(dx, dy) = Σ_p f(p + d) · conj f(p) (circular, but no wrap thanks to the padding);
-    // S(d) = conj R(d).
-    let r_at = |dx: i64, dy: i64| -> Complex64 {
-        let row = if dy >= 0 { dy as usize } else { ry + 1 + (ry as i64 + dy) as usize };
-        debug_assert_eq!(needed_rows[row], dy.rem_euclid(ph as i64) as usize);
-        let col = dx.rem_euclid(pw as i64) as usize;
-        let v = rows[row * pw + col];
-        Complex64::new(v.re / scale, v.im / scale)
-    };
-    let aw = 2 * rx + 1;
-    let ah = 2 * ry + 1;
-    let mut values = vec![zero; aw * ah];
-    let (rxi, ryi) = (rx as i64, ry as i64);
-    for dy in -ryi..=ryi {
-        for dx in -rxi..=rxi {
-            // Canonical half: dy > 0, or dy = 0 and dx ≥ 0; the other half mirrors it.
-            let canonical = dy > 0 || (dy == 0 && dx >= 0);
-            let s = if canonical { r_at(dx, dy).conj() } else { r_at(-dx, -dy) };
-            values[(dy + ryi) as usize * aw + (dx + rxi) as usize] = s;
+        col_fwd.process_with_scratch(t, scratch);
+        for v in t.iter_mut() {
+            *v = Complex64::new(v.re * v.re + v.im * v.im, 0.0);
         }
+        col_inv.process_with_scratch(t, scratch);
+        // Back to row-major, but only the rows dy ∈ 0..=ry are needed: the autocorrelation of
+        // the other half of the window is read off these (`S(−d) = conj S(d)`).
+        let rows = &mut self.rows_inv;
+        rows.clear();
+        rows.resize((ry + 1) * pw, zero);
+        for r0 in (0..=ry).step_by(TILE) {
+            for x0 in (0..pw).step_by(TILE) {
+                for x in x0..(x0 + TILE).min(pw) {
+                    let src = &t[x * ph..(x + 1) * ph];
+                    for r in r0..(r0 + TILE).min(ry + 1) {
+                        rows[r * pw + x] = src[r];
+                    }
+                }
+            }
+        }
+        row_inv.process_with_scratch(rows, scratch);
+        Ok((&self.rows_inv, pw, (pw * ph) as f64))
     }
-    // S(0,0) = Σ |f|² is real.
-    values[ry * aw + rx].im = 0.0;
-    Ok(Acf { rx, ry, values })
+}
+
+/// The real part of [`normalise`]'s value from the real part `s` of a sum, `s00` the origin's
+/// and `n` the overlap: dividing a complex value by a real one divides each part alone.
+#[inline(always)]
+fn finish(s: f64, s00: f64, form: AcfForm, n: impl Fn() -> f64, whf: f64) -> f64 {
+    match form {
+        AcfForm::Biased => s / s00,
+        AcfForm::OverlapMean => (s / n()) / (s00 / whf),
+        AcfForm::RawOverlapMean => s / n(),
+    }
 }
 
 fn normalise(sums: Acf<Complex64>, w: usize, h: usize, form: AcfForm, plane_is_zero: bool) -> Result<Acf<Complex64>, AcfError> {
@@ -224,38 +379,6 @@ fn normalise(sums: Acf<Complex64>, w: usize, h: usize, form: AcfForm, plane_is_z
         }
     }
     Ok(out)
-}
-
-/// Autocorrelation of a real plane (`w × h`, row-major) in the requested form (B9).
-///
-/// Errors: [`AcfError::OffsetsOutsidePlane`] when `rx ≥ w` or `ry ≥ h`; [`AcfError::ZeroPlane`]
-/// for a normalised form of an identically zero plane. Panics if `plane.len() != w·h`.
-pub fn autocorrelation(plane: &[f64], w: usize, h: usize, rx: usize, ry: usize, form: AcfForm) -> Result<Acf<f64>, AcfError> {
-    assert_eq!(plane.len(), w * h, "plane length does not match {w}x{h}");
-    let sums = sums_of_rows(w, h, rx, ry, |y, row| {
-        for (c, &v) in row.iter_mut().zip(&plane[y * w..(y + 1) * w]) {
-            *c = Complex64::new(v, 0.0);
-        }
-    })?;
-    let is_zero = plane.iter().all(|&v| v == 0.0);
-    Ok(normalise(sums, w, h, form, is_zero)?.map(|c| c.re))
-}
-
-/// Autocorrelation of a complex plane (`w × h`, row-major) in the requested form (B9); the value
-/// at `−d` is the conjugate of the value at `d`.
-///
-/// Errors and panics as for [`autocorrelation`].
-pub fn autocorrelation_complex(
-    plane: &[Complex64],
-    w: usize,
-    h: usize,
-    rx: usize,
-    ry: usize,
-    form: AcfForm,
-) -> Result<Acf<Complex64>, AcfError> {
-    let sums = autocorrelation_sums(plane, w, h, rx, ry)?;
-    let is_zero = plane.iter().all(|v| v.re == 0.0 && v.im == 0.0);
-    normalise(sums, w, h, form, is_zero)
 }
 
 /// Euclidean norm of the element-wise difference of two equally shaped arrays, summed in index
@@ -369,6 +492,25 @@ mod tests {
                     assert_eq!(got, acf.get(-dx, -dy).conj(), "complex ACF must be conjugate-symmetric");
                     i += 1;
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_real_path_is_the_complex_one_bit_for_bit_and_a_planner_can_be_reused() {
+        let mut planner = AcfPlanner::new();
+        for (k, (w, h, rx, ry)) in
+            [(11usize, 7usize, 4usize, 6usize), (40, 33, 20, 16), (9, 10, 8, 3), (40, 33, 20, 16), (64, 48, 0, 24)].into_iter().enumerate()
+        {
+            let plane = lcg_plane(w * h, 10 + k as u64);
+            let cplx: Vec<Complex64> = plane.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+            for form in [AcfForm::Biased, AcfForm::OverlapMean, AcfForm::RawOverlapMean] {
+                let real = planner.real(&plane, w, h, rx, ry, form).unwrap();
+                let complex = AcfPlanner::new().complex(&cplx, w, h, rx, ry, form).unwrap();
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(real.values()), bits(complex.map(|c| c.re).values()), "{w}x{h} ±({rx}, {ry}) {form:?}");
+                assert_eq!(real, autocorrelation(&plane, w, h, rx, ry, form).unwrap());
+                assert_eq!(planner.complex(&cplx, w, h, rx, ry, form).unwrap(), complex);
             }
         }
     }

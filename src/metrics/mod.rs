@@ -32,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use crate::image::RgbImage;
 use crate::image::seam_grid::SeamGrid;
 
-pub use acf::{Acf, AcfError, AcfForm, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance};
+pub use acf::{Acf, AcfError, AcfForm, AcfPlanner, autocorrelation, autocorrelation_complex, autocorrelation_sums, euclidean_distance};
 pub use histogram::{KL_EPSILON, gray_counts, gray_level, kl_divergence, kl_divergence_eps, normalise};
 pub use orientation::{StructureTensor, orientation_bin, orientation_counts, structure_tensor};
 pub use seams::{seam_visibility, wrap_visibility};

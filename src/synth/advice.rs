@@ -535,7 +535,9 @@ pub fn analyse(img: &RgbImage) -> Analysis {
         return flat("the sample is one flat colour");
     }
     let orientation = orientation_coherence(img);
-    let (lattice, no_lattice) = match lattice::extract(img, &LatticeOptions::default()) {
+    let (w, h) = (width as usize, height as usize);
+    let gray = centred_gray(img);
+    let (lattice, no_lattice) = match lattice::extract_centred(&gray, w, h, &LatticeOptions::default()) {
         Ok(l) => (Some(l), None),
         Err(e) => (None, Some(e.to_string())),
     };
@@ -546,8 +548,6 @@ pub fn analyse(img: &RgbImage) -> Analysis {
     } else {
         Kind::Stochastic
     };
-    let (w, h) = (width as usize, height as usize);
-    let gray = centred_gray(img);
     let grid_repeat = lattice.as_ref().map(|l| grid_repeat(&gray, w, h, l));
     let along_vectors = lattice.as_ref().map_or_else(Vec::new, |l| vector_repeats(&gray, w, h, l));
     let contrast = Contrast::of(&gray, w, h);

@@ -13,7 +13,7 @@
 //! test. A sample the gray plane already explains never reaches them, so its lattice is unchanged.
 
 use crate::image::RgbImage;
-use crate::metrics::{AcfForm, autocorrelation, centred_gray};
+use crate::metrics::{AcfForm, AcfPlanner, centred_gray};
 use crate::synth::error::SynthError;
 use crate::synth::params::{Default, ParamKind, ParamSpec, Params};
 
@@ -135,12 +135,15 @@ impl FallbackView {
 
     /// The view of the centred gray `plane` (`w × h`), itself centred.
     pub fn of(self, plane: &[f64], w: usize, h: usize) -> Vec<f64> {
-        // Radius 1 (three passes, σ ≈ 1.4 px) removes pixel grain but not a 2-pixel joint;
-        // radius 16 (σ ≈ 16 px) is below the shortest texel this matters for, so subtracting it
+        self.of_grain_free(plane, &grain_free(plane, w, h), w, h)
+    }
+
+    /// [`FallbackView::of`], given `fine`, the plane's [`grain_free`] smoothing (shared by the
+    /// views).
+    fn of_grain_free(self, plane: &[f64], fine: &[f64], w: usize, h: usize) -> Vec<f64> {
+        // Radius 16 (σ ≈ 16 px) is below the shortest texel this matters for, so subtracting it
         // removes shading without flattening the texels themselves.
-        const GRAIN_RADIUS: usize = 1;
         const SHADING_RADIUS: usize = 16;
-        let fine = smooth(plane, w, h, GRAIN_RADIUS);
         let view: Vec<f64> = match self {
             FallbackView::BandPassed => {
                 let coarse = smooth(plane, w, h, SHADING_RADIUS);
@@ -164,24 +167,51 @@ impl FallbackView {
     }
 }
 
+/// The smoothing of the centred gray `plane` both views start from: radius 1 (three passes,
+/// σ ≈ 1.4 px) removes pixel grain but not a 2-pixel joint.
+fn grain_free(plane: &[f64], w: usize, h: usize) -> Vec<f64> {
+    const GRAIN_RADIUS: usize = 1;
+    smooth(plane, w, h, GRAIN_RADIUS)
+}
+
 /// Three passes of a `(2·radius + 1)`-pixel box mean along rows, then along columns, with the
 /// border pixels repeated: close to a Gaussian, and as cheap for a wide radius as a narrow one.
 fn smooth(plane: &[f64], w: usize, h: usize, radius: usize) -> Vec<f64> {
     let mut out = plane.to_vec();
     let mut line = Vec::new();
+    let mut copy = vec![0.0; w * h];
+    let mut sums = vec![0.0; w];
     for _ in 0..3 {
         for y in 0..h {
             line.clear();
             line.extend((0..w).map(|x| out[y * w + x]));
             box_mean(&line, radius, |x, v| out[y * w + x] = v);
         }
-        for x in 0..w {
-            line.clear();
-            line.extend((0..h).map(|y| out[y * w + x]));
-            box_mean(&line, radius, |y, v| out[y * w + x] = v);
-        }
+        copy.copy_from_slice(&out);
+        box_mean_columns(&copy, w, h, radius, &mut sums, &mut out);
     }
     out
+}
+
+/// [`box_mean`] down every column of `src` (`w × h`) into `out`, a row at a time: each column's
+/// running sum takes the same values, in the same order, as [`box_mean`] of the column would, but
+/// the plane is walked along its rows. `sums` is `w` long.
+fn box_mean_columns(src: &[f64], w: usize, h: usize, radius: usize, sums: &mut [f64], out: &mut [f64]) {
+    let n = h as i64;
+    let r = radius as i64;
+    let row = |i: i64| &src[i.clamp(0, n - 1) as usize * w..][..w];
+    for (x, sum) in sums.iter_mut().enumerate() {
+        *sum = (-r..=r).map(|i| row(i)[x]).sum();
+    }
+    let width = (2 * r + 1) as f64;
+    for i in 0..n {
+        let (add, sub) = (row(i + r + 1), row(i - r));
+        let dst = &mut out[i as usize * w..][..w];
+        for (((d, s), &a), &b) in dst.iter_mut().zip(sums.iter_mut()).zip(add).zip(sub) {
+            *d = *s / width;
+            *s += a - b;
+        }
+    }
 }
 
 /// The running mean of `line` over `i − radius ..= i + radius` (indices clamped to the line),
@@ -210,64 +240,92 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
     if w < 8 || h < 8 {
         return Err(SynthError::Sample(format!("{NONE} (the sample is too small to show a period)")));
     }
-    let plane = centred_gray(img);
-    let by_distance = offsets_by_distance(w, h);
-    let gray_reason = match extract_from(&plane, w, h, opts, &by_distance, None) {
+    extract_centred(&centred_gray(img), w, h, opts)
+}
+
+/// [`extract`] of a sample of at least 8 × 8 pixels given as its [`centred_gray`] plane.
+pub(crate) fn extract_centred(plane: &[f64], w: usize, h: usize, opts: &LatticeOptions) -> Result<Lattice, SynthError> {
+    let mut planner = AcfPlanner::new();
+    let gray_reason = match extract_from(plane, w, h, opts, &mut planner, None) {
         Ok(l) => return Ok(l),
         Err(e) => e,
     };
     let longest = w.min(h) as f64 / 3.0;
+    let fine = grain_free(plane, w, h);
     for view in FallbackView::ALL {
-        let viewed = view.of(&plane, w, h);
-        if let Ok(l) = extract_from(&viewed, w, h, opts, &by_distance, Some(longest)) {
+        let viewed = view.of_grain_free(plane, &fine, w, h);
+        if let Ok(l) = extract_from(&viewed, w, h, opts, &mut planner, Some(longest)) {
             return Ok(Lattice { found_in: Some(view.name()), ..l });
         }
     }
     Err(gray_reason)
 }
 
-/// Every offset that can separate two points of the ACF window of a `w × h` plane, as
-/// `(squared length, dx, dy)`, nearest first (ties in a fixed order).
-fn offsets_by_distance(w: usize, h: usize) -> Vec<(i64, i64, i64)> {
-    let (rx, ry) = ((w / 2) as i64, (h / 2) as i64);
-    // A counting sort on the squared length: visiting `dx` then `dy` in increasing order fills each
-    // length's bucket in tuple order, so the result is the sorted list of `(d², dx, dy)` in linear
-    // time (a comparison sort of these ~4·w·h offsets was a fifth of an extraction).
-    let max_d2 = (4 * rx * rx + 4 * ry * ry) as usize;
-    let mut starts = vec![0usize; max_d2 + 2];
-    for oy in -2 * ry..=2 * ry {
-        for ox in -2 * rx..=2 * rx {
-            starts[(ox * ox + oy * oy) as usize + 1] += 1;
+/// The squared distance from `(px, py)` to the nearest point of the `aw × ah` grid `values`
+/// (row-major) whose value is above `v`, if any.
+///
+/// Searched ring by ring (the points at Chebyshev distance `k`, for `k = 1, 2, …`), stopping once
+/// a ring can hold no point nearer than the nearest found (every point of ring `k` is at least
+/// `k` away) or lies wholly outside the grid: the same minimum as a scan of the whole grid, but a
+/// noisy sample's thousands of peaks each find a higher value a few pixels away.
+fn nearest_higher(values: &[f64], aw: usize, ah: usize, (px, py): (usize, usize), v: f64) -> Option<i64> {
+    let (aw, ah, px, py) = (aw as i64, ah as i64, px as i64, py as i64);
+    let mut best: Option<i64> = None;
+    let consider = |x: i64, y: i64, best: &mut Option<i64>| {
+        if values[(y * aw + x) as usize] > v {
+            let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+            if best.is_none_or(|b| d2 < b) {
+                *best = Some(d2);
+            }
+        }
+    };
+    for k in 1.. {
+        if best.is_some_and(|b| b <= k * k) {
+            break;
+        }
+        let (left, right, top, bottom) = (px - k, px + k, py - k, py + k);
+        if left < 0 && right >= aw && top < 0 && bottom >= ah {
+            break;
+        }
+        let (x0, x1) = (left.max(0), right.min(aw - 1));
+        if top >= 0 {
+            for x in x0..=x1 {
+                consider(x, top, &mut best);
+            }
+        }
+        if bottom < ah {
+            for x in x0..=x1 {
+                consider(x, bottom, &mut best);
+            }
+        }
+        let (y0, y1) = ((top + 1).max(0), (bottom - 1).min(ah - 1));
+        if left >= 0 {
+            for y in y0..=y1 {
+                consider(left, y, &mut best);
+            }
+        }
+        if right < aw {
+            for y in y0..=y1 {
+                consider(right, y, &mut best);
+            }
         }
     }
-    for i in 1..starts.len() {
-        starts[i] += starts[i - 1];
-    }
-    let mut by_distance = vec![(0i64, 0i64, 0i64); starts[max_d2 + 1]];
-    for ox in -2 * rx..=2 * rx {
-        for oy in -2 * ry..=2 * ry {
-            let d2 = ox * ox + oy * oy;
-            let slot = &mut starts[d2 as usize];
-            by_distance[*slot] = (d2, ox, oy);
-            *slot += 1;
-        }
-    }
-    by_distance
+    best
 }
 
-/// Steps 3–9 on one centred plane (`w × h`); `by_distance` is [`offsets_by_distance`] (sorted
-/// once for all the views), `longest` bounds both vectors' lengths.
+/// Steps 3–9 on one centred plane (`w × h`); `planner` serves all the views' autocorrelations,
+/// `longest` bounds both vectors' lengths.
 fn extract_from(
     plane: &[f64],
     w: usize,
     h: usize,
     opts: &LatticeOptions,
-    by_distance: &[(i64, i64, i64)],
+    planner: &mut AcfPlanner,
     longest: Option<f64>,
 ) -> Result<Lattice, SynthError> {
     let (rx, ry) = (w / 2, h / 2);
-    let acf = autocorrelation(plane, w, h, rx, ry, AcfForm::Biased)
-        .map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
+    let acf =
+        planner.real(plane, w, h, rx, ry, AcfForm::Biased).map_err(|e| SynthError::Sample(format!("{NONE} ({e}: the sample is flat)")))?;
     let (rx, ry) = (rx as i64, ry as i64);
     let a = |dx: i64, dy: i64| acf.get(dx, dy);
     let inside = |dx: i64, dy: i64| dx.abs() <= rx && dy.abs() <= ry;
@@ -276,44 +334,43 @@ fn extract_from(
     // 3. Strict local maxima (plateaus: only their first pixel in row-major order). Only offsets
     // with all 8 neighbours in the window qualify: at the window's edge a value is "maximal" merely
     // because the window ends, and would then dominate a huge region.
+    let (aw, ah) = (acf.width(), acf.height());
+    let values = acf.values();
     let mut peaks = Vec::new();
-    for dy in -ry + 1..ry {
-        for dx in -rx + 1..rx {
-            if dx == 0 && dy == 0 {
+    for row in 1..ah - 1 {
+        for col in 1..aw - 1 {
+            if (col, row) == (rx as usize, ry as usize) {
                 continue;
             }
-            let v = a(dx, dy);
+            // Row-major index order is `order`'s.
+            let i = row * aw + col;
+            let v = values[i];
             let mut is_max = true;
-            'n: for ny in -1..=1 {
-                for nx in -1..=1 {
+            'n: for ny in [-1isize, 0, 1] {
+                for nx in [-1isize, 0, 1] {
                     if (nx, ny) == (0, 0) {
                         continue;
                     }
-                    let q = a(dx + nx, dy + ny);
-                    if q > v || (q == v && order(dx + nx, dy + ny) < order(dx, dy)) {
+                    let j = i.wrapping_add_signed(ny * aw as isize + nx);
+                    let q = values[j];
+                    if q > v || (q == v && j < i) {
                         is_max = false;
                         break 'n;
                     }
                 }
             }
             if is_max {
-                peaks.push((dx, dy));
+                peaks.push((col, row));
             }
         }
     }
-    // 4. Region of dominance: distance to the nearest higher value. Offsets are visited nearest
-    // first, so the first higher value found is the nearest: a noisy sample has thousands of
-    // peaks, each with a higher neighbour a few pixels away, and scanning the whole window for
-    // every one of them made extraction take most of a second.
+    // 4. Region of dominance: distance to the nearest higher value ([`nearest_higher`]).
     let mut ranked: Vec<((i64, i64), f64, f64)> = peaks
         .iter()
-        .map(|&(dx, dy)| {
-            let v = a(dx, dy);
-            let best = by_distance
-                .iter()
-                .find(|&&(_, ox, oy)| inside(dx + ox, dy + oy) && a(dx + ox, dy + oy) > v)
-                .map_or(f64::INFINITY, |&(d2, _, _)| (d2 as f64).sqrt());
-            ((dx, dy), best, v)
+        .map(|&(col, row)| {
+            let v = values[row * aw + col];
+            let best = nearest_higher(values, aw, ah, (col, row), v).map_or(f64::INFINITY, |d2| (d2 as f64).sqrt());
+            ((col as i64 - rx, row as i64 - ry), best, v)
         })
         .collect();
     // 5. Dominant peaks.
@@ -566,9 +623,9 @@ mod tests {
         let img = periodic(160, 160, (20, 0), (0, 16));
         let plane = centred_gray(&img);
         let opts = LatticeOptions::default();
-        let by_distance = offsets_by_distance(160, 160);
-        assert!(extract_from(&plane, 160, 160, &opts, &by_distance, Some(20.0)).is_ok());
-        let err = extract_from(&plane, 160, 160, &opts, &by_distance, Some(19.0)).unwrap_err().to_string();
+        let mut planner = AcfPlanner::new();
+        assert!(extract_from(&plane, 160, 160, &opts, &mut planner, Some(20.0)).is_ok());
+        let err = extract_from(&plane, 160, 160, &opts, &mut planner, Some(19.0)).unwrap_err().to_string();
         assert!(err.contains("repeats fewer than three times"), "{err}");
     }
 
@@ -580,13 +637,38 @@ mod tests {
     }
 
     #[test]
-    fn offsets_come_in_tuple_order() {
-        for (w, h) in [(8, 8), (9, 14), (31, 20)] {
-            let (rx, ry) = ((w / 2) as i64, (h / 2) as i64);
-            let mut want: Vec<(i64, i64, i64)> =
-                (-2 * ry..=2 * ry).flat_map(|oy| (-2 * rx..=2 * rx).map(move |ox| (ox * ox + oy * oy, ox, oy))).collect();
-            want.sort_unstable();
-            assert_eq!(offsets_by_distance(w, h), want, "{w}x{h}");
+    fn the_ring_search_finds_the_nearest_higher_value_of_a_whole_scan() {
+        let mut st = crate::synth::rng::Stream::new(2, "ring");
+        for (aw, ah, levels) in [(9, 9, 3), (17, 11, 5), (33, 21, 40), (21, 33, 1000)] {
+            let values: Vec<f64> = (0..aw * ah).map(|_| st.below(levels) as f64).collect();
+            for py in 0..ah {
+                for px in 0..aw {
+                    let v = values[py * aw + px];
+                    let scan = (0..aw * ah)
+                        .filter(|&j| values[j] > v)
+                        .map(|j| {
+                            let (dx, dy) = ((j % aw) as i64 - px as i64, (j / aw) as i64 - py as i64);
+                            dx * dx + dy * dy
+                        })
+                        .min();
+                    assert_eq!(nearest_higher(&values, aw, ah, (px, py), v), scan, "{aw}x{ah} at ({px}, {py})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn column_smoothing_is_the_per_column_running_mean() {
+        let mut st = crate::synth::rng::Stream::new(3, "columns");
+        let (w, h) = (13, 29);
+        let src: Vec<f64> = (0..w * h).map(|_| st.below(1000) as f64 / 7.0 - 60.0).collect();
+        for radius in [1, 4, 16, 40] {
+            let mut out = vec![0.0; w * h];
+            box_mean_columns(&src, w, h, radius, &mut vec![0.0; w], &mut out);
+            for x in 0..w {
+                let line: Vec<f64> = (0..h).map(|y| src[y * w + x]).collect();
+                box_mean(&line, radius, |y, v| assert_eq!(out[y * w + x].to_bits(), v.to_bits(), "r {radius} at ({x}, {y})"));
+            }
         }
     }
 }
