@@ -881,9 +881,9 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     because: "tiles cut at random positions break the sample's oriented structure at every tile edge".into(),
                     instead: "quilting",
                 },
-                // Unaligned tiles are 64 px unless given (`auto` keeps 64 without a lattice).
+                // Unaligned tiles are `auto`'s fallback size unless given (`auto` keeps it without a lattice).
                 Kind::Stochastic
-                    if let tile = int(p, "tile").unwrap_or(64)
+                    if let tile = int(p, "tile").unwrap_or(crate::synth::methods::tiles::align::FALLBACK_TILE)
                         && let Some(share) = a.large_features_at(tile / 4).filter(|&s| s >= LARGE_FEATURES_FROM) =>
                 {
                     Fit::NotFor {
