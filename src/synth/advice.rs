@@ -202,7 +202,8 @@ fn self_correlation(plane: &[f64], w: usize, h: usize, (dx, dy): (i64, i64)) -> 
 /// The seam length at which [`Analysis::tone_spread`] is measured: double-seam's default block.
 pub const TONE_LINE: usize = 50;
 
-/// Tone spread from which double-seam is told to set `level_penalty`. Its Pearson correlations
+/// Tone spread from which double-seam given the paper's `level_penalty = 0` is told to set it
+/// (its default, 10, weighs tone already). Its Pearson correlations
 /// ignore a line's mean tone, so where tone varies between regions more than within lines, a block
 /// of another tone passes as consistent and leaves a step. Seen at 384² from 256²: two-tone floor
 /// tiles (1.32), large cream tiles (5.5), a wall lit from one side (2.95) and a framed tile grid

@@ -95,8 +95,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "level_penalty",
         kind: ParamKind::Float { min: 0.0, max: 1000.0 },
-        default: Default::Float(0.0),
-        doc: "0 = faithful. Pearson ignores brightness offsets, so blocks of another tone pass as consistent and leave colour steps; > 0 subtracts level_penalty·|mean I difference| per line (try 10)",
+        default: Default::Float(10.0),
+        doc: "0 = faithful (paper 003). Pearson ignores brightness offsets, so blocks of another tone pass as consistent and leave colour steps; > 0 subtracts level_penalty·|mean I difference| per line (default 10)",
     },
 ];
 
@@ -137,7 +137,9 @@ pub struct DoubleSeamConfig {
     pub hue_mode: HueMode,
     /// `clamp_negative`: use `max(D_HSI, 0)`.
     pub clamp_negative: bool,
-    /// `level_penalty`: subtract `level_penalty·|mean I difference|` per line; 0 is faithful (0..=1000).
+    /// `level_penalty`: subtract `level_penalty·|mean I difference|` per line; 0 is faithful
+    /// (0..=1000). The default is 10, not the paper's 0: without it, blocks of another tone leave
+    /// steps on most real samples (docs/methods.md §5, gap 5).
     pub level_penalty: f64,
 }
 
@@ -155,7 +157,7 @@ impl std::default::Default for DoubleSeamConfig {
             eps_f: 0.05,
             hue_mode: HueMode::Linear,
             clamp_negative: false,
-            level_penalty: 0.0,
+            level_penalty: 10.0,
         }
     }
 }
@@ -1810,7 +1812,11 @@ mod tests {
     fn scores_equal_a_direct_evaluation_of_the_formula() {
         // Recompute F for a few candidates straight from the definition (B8, eqs. 6–10).
         let sample = structured();
-        let p = params(&[("block", ParamValue::Int(24)), ("clamp_negative", ParamValue::Bool(false))]);
+        let p = params(&[
+            ("block", ParamValue::Int(24)),
+            ("clamp_negative", ParamValue::Bool(false)),
+            ("level_penalty", ParamValue::Float(0.0)),
+        ]);
         let s = Settings {
             block: 24,
             g: 4,
@@ -2079,7 +2085,7 @@ mod tests {
             eps_f: 0.1,
             hue_mode: HueMode::Circular,
             clamp_negative: true,
-            level_penalty: 10.0,
+            level_penalty: 4.0,
         };
         let d = DoubleSeamConfig::default();
         assert!(cfg.block != d.block && cfg.overlap != d.overlap && cfg.aux_dist != d.aux_dist);
