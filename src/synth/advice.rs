@@ -114,6 +114,17 @@ const LARGE_FEATURE_SIDES: [usize; 5] = [4, 8, 16, 32, 64];
 /// lava and a dirt-brick wall at most 0.27 look right (their repeats are fine-grained).
 pub const LARGE_FEATURES_FROM: f64 = 0.285;
 
+/// Patch sampling's swarm search (cpso, pso) on a stochastic sample whose windows half a block
+/// across carry this share of its colour variance or more ([`Analysis::large_features`]) is told to
+/// search exhaustively. Seen at 384² from 256², block 30 (windows of 16): paving stones 0.33
+/// (joints fade to a few stubs; gray-histogram KL to the sample 0.16, exhaustive 0.05), a wall lit
+/// from one side 0.84 (its dark half is gone; KL 3.1 against 0.26), mossy stone 0.39, weathered
+/// wood 0.39 and brown rock 0.51 (washed out, KL 0.06–0.16 against 0.001–0.08): the exhaustive
+/// search with `tolerance = 0` keeps them, at about twice the time. cork, grass, gravel, hedge,
+/// pebbles and plaster, at most 0.16, look right with the swarm. As [`LARGE_FEATURES_FROM`], the
+/// same measure's bound for tiles.
+pub const SWARM_DRIFT_FROM: f64 = LARGE_FEATURES_FROM;
+
 /// The window side at which a lattice sample's large features are checked against its lattice.
 pub const BLOTCH_SIDE: usize = 16;
 
@@ -474,6 +485,13 @@ impl Analysis {
         self.large_features.iter().take_while(|e| e.0 <= side).last().map(|e| e.1)
     }
 
+    /// [`Analysis::large_features`] at the measured side nearest `side` (by ratio, ties to the
+    /// larger), with that side.
+    pub fn large_features_near(&self, side: i64) -> Option<(i64, f64)> {
+        let off = |s: i64| (s as f64 / side.max(1) as f64).ln().abs();
+        self.large_features.iter().copied().min_by(|a, b| off(a.0).total_cmp(&off(b.0)).then(b.0.cmp(&a.0)))
+    }
+
     /// Large features that do not follow the lattice ([`BLOTCH_SHARE`]): the share they carry.
     pub fn blotches_off_lattice(&self) -> Option<f64> {
         let share = self.large_features_at(BLOTCH_SIDE as i64)?;
@@ -688,6 +706,25 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
             if method == "patch-sampling" && a.kind == Kind::NearRegular && p.get("continuations") == Some(&ParamValue::Bool(false)) {
                 set.push(("continuations".to_string(), "true".to_string()));
                 why.push("the swarm misses the exact continuations of neighbouring patches on a lattice, so rows drift".into());
+            }
+            // A swarm finds the broad basins of a sample's plain areas (where many positions match
+            // roughly) and misses the narrow matches that continue its joints and edges; where large
+            // features carry much of the sample, the output drifts into the plain areas. An
+            // exhaustive search takes the best match wherever it lies ([`SWARM_DRIFT_FROM`]).
+            if method == "patch-sampling"
+                && a.kind == Kind::Stochastic
+                && matches!(word(p, "search"), Some("cpso" | "pso"))
+                && let Some(block) = int(p, "block")
+                && let Some((side, share)) = a.large_features_near(block / 2).filter(|&(_, s)| s >= SWARM_DRIFT_FROM)
+            {
+                set.push(("search".to_string(), "exhaustive".to_string()));
+                set.push(("tolerance".to_string(), "0".to_string()));
+                why.push(format!(
+                    "{:.0} % of the sample's colour variance is in features {side} px and more across: the swarm settles where \
+                     plain areas match many positions roughly and misses the narrow matches that continue joints and edges, so \
+                     the output drifts into the plain areas (joints fade, tones go missing)",
+                    100.0 * share
+                ));
             }
             // Pearson correlations ignore a line's mean tone: where tone varies between regions
             // more than within lines, blocks of another tone pass as consistent.
@@ -1154,8 +1191,17 @@ mod tests {
             let w = warning(&large, method, &tiles).expect("large features");
             assert!(w.contains("visible regular patchwork") && w.contains("use quilting"), "{w}");
         }
-        // The patch methods search every placement: nothing to say.
+        // Quilting searches every placement: nothing to say.
         assert_eq!(warning(&large, "quilting", &params(&[("block", ParamValue::Int(48))])), None);
+        // Patch sampling's swarm drifts into the plain areas between large features: it is told
+        // to search exhaustively, and nothing is said once it does.
+        let swarm = |search: &str| params(&[("block", ParamValue::Int(30)), ("search", ParamValue::Str(search.into()))]);
+        for search in ["cpso", "pso"] {
+            let w = warning(&large, "patch-sampling", &swarm(search)).expect("large features");
+            assert!(w.contains("swarm settles") && w.contains("set search = \"exhaustive\", tolerance = 0"), "{w}");
+        }
+        assert_eq!(warning(&large, "patch-sampling", &swarm("exhaustive")), None);
+        assert_eq!(warning(&analyse(&blotches(256, 3.0, |x, y| 60 + noise(x, y, 40))), "patch-sampling", &swarm("cpso")), None);
         // Blotches of 3 px: fine grain, no warning.
         let fine = analyse(&blotches(256, 3.0, |x, y| 60 + noise(x, y, 40)));
         assert!(fine.large_features_at(16).unwrap() < LARGE_FEATURES_FROM, "{:?}", fine.large_features);

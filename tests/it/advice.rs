@@ -7,8 +7,9 @@
 //! sample, every output either stays within a factor [`FACTOR`] of quilting or carries a warning;
 //! the near-regular methods may instead refuse a sample without a lattice (with the reason). And
 //! no job on a fine-grained stochastic sample carries a warning; on other stochastic samples only
-//! the tile methods do, where features are large next to a tile (sent to quilting: each tile's
-//! blotch repeats in a visible patchwork). Double-seam weighs tone by default; given the paper's
+//! the tile methods (sent to quilting: each tile's blotch repeats in a visible patchwork) and
+//! patch sampling's swarm (told to search exhaustively: it drifts into plain areas) do, where
+//! features are large next to a tile or a block. Double-seam weighs tone by default; given the paper's
 //! `level_penalty = 0` on a wall lit from one side, it is told to weigh it. The score is the geometric mean
 //! of `kl_orientation / max(quilting's, 0.01)` (quilting's KL is often ~0.002, too small to divide
 //! by) and `acf_orientation / quilting's`. When this test fails, open the outputs: either a method
@@ -109,7 +110,10 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
             let t = tally.entry(method).or_default();
             let tone_or_patchwork = j["warnings"].as_array().into_iter().flatten().all(|w| {
                 let w = w.as_str().unwrap();
-                w.contains("ignore brightness") || w.contains("patchwork of tones") || w.contains("visible regular patchwork")
+                w.contains("ignore brightness")
+                    || w.contains("patchwork of tones")
+                    || w.contains("visible regular patchwork")
+                    || w.contains("swarm settles")
             });
             if kind == "stochastic" && warned && !tone_or_patchwork {
                 problems.push(format!("{} {method}: warned on a stochastic sample: {}", stem(&s), j["warnings"]));
@@ -200,6 +204,12 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
         assert!(warnings(s, "double-seam-paper").contains("set level_penalty = 10"), "{s}: {}", warnings(s, "double-seam-paper"));
         assert!(!warnings(s, "double-seam").contains("level_penalty"), "{s}: the default weighs tone: {}", warnings(s, "double-seam"));
     }
+    // Patch sampling's swarm drifts into the plain areas of samples with large features (paving
+    // stones lose their joints, the lit wall its dark half): it is told to search exhaustively.
+    for s in ["Paving_stones_2", "racetrack_wall", "mossy_stone", "rock_brown", "wood_weathered"] {
+        let w = warnings(s, "patch-sampling");
+        assert!(w.contains("swarm settles") && w.contains("exhaustive"), "{s}: {w}");
+    }
     // The lit wall's two tones are also large features: unaligned tiles repeat them as a
     // patchwork whatever the patch candidates, so they are sent to quilting.
     for m in ["wang-tiles", "rw-tiles"] {
@@ -210,7 +220,8 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
             for m in METHODS {
                 let w = warnings_of(jobs[&format!("{s}__{m}.toml")]);
                 let patchwork = matches!(m, "wang-tiles" | "rw-tiles") && w.contains("visible regular patchwork");
-                assert!(w.is_empty() || patchwork, "{s} {m}: {w}");
+                let drift = m == "patch-sampling" && w.contains("swarm settles");
+                assert!(w.is_empty() || patchwork || drift, "{s} {m}: {w}");
             }
         }
     }
