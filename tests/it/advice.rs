@@ -201,7 +201,7 @@ fn every_output_is_near_quilting_or_warned_and_stochastic_samples_get_no_warning
         }
     }
     for s in ["stktex_generic_tilesB", "racetrack_wall"] {
-        assert!(warnings(s, "double-seam-paper").contains("set level_penalty = 10"), "{s}: {}", warnings(s, "double-seam-paper"));
+        assert!(warnings(s, "double-seam-paper").contains("set level_penalty = 4"), "{s}: {}", warnings(s, "double-seam-paper"));
         assert!(!warnings(s, "double-seam").contains("level_penalty"), "{s}: the default weighs tone: {}", warnings(s, "double-seam"));
     }
     // Patch sampling's swarm drifts into the plain areas of samples with large features (paving
