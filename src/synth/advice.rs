@@ -215,7 +215,7 @@ fn self_correlation(plane: &[f64], w: usize, h: usize, (dx, dy): (i64, i64)) -> 
 pub const TONE_LINE: usize = 50;
 
 /// Tone spread from which double-seam given the paper's `level_penalty = 0` is told to set it
-/// (its default, 10, weighs tone already). Its Pearson correlations
+/// (its default, [`DEFAULT_LEVEL_PENALTY`], weighs tone already). Its Pearson correlations
 /// ignore a line's mean tone, so where tone varies between regions more than within lines, a block
 /// of another tone passes as consistent and leaves a step. Seen at 384² from 256²: two-tone floor
 /// tiles (1.32), large cream tiles (5.5), a wall lit from one side (2.95) and a framed tile grid
@@ -1203,9 +1203,9 @@ mod tests {
             assert!(w.contains("swarm settles") && w.contains("set search = \"exhaustive\", tolerance = 0"), "{w}");
         }
         assert_eq!(warning(&large, "patch-sampling", &swarm("exhaustive")), None);
-        assert_eq!(warning(&analyse(&blotches(256, 3.0, |x, y| 60 + noise(x, y, 40))), "patch-sampling", &swarm("cpso")), None);
         // Blotches of 3 px: fine grain, no warning.
         let fine = analyse(&blotches(256, 3.0, |x, y| 60 + noise(x, y, 40)));
+        assert_eq!(warning(&fine, "patch-sampling", &swarm("cpso")), None);
         assert!(fine.large_features_at(16).unwrap() < LARGE_FEATURES_FROM, "{:?}", fine.large_features);
         for method in ["wang-tiles", "rw-tiles"] {
             assert_eq!(warning(&fine, method, &tiles), None);
