@@ -20,7 +20,7 @@ use crate::synth::primitives::edges::{otsu_edges, sobel4};
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
-use rustfft::num_complex::Complex64;
+use rustfft::num_complex::{Complex32, Complex64};
 use rustfft::{Fft, FftPlanner};
 use std::f64::consts::TAU;
 use std::sync::Arc;
@@ -255,7 +255,7 @@ struct Prepared<'a> {
     /// Run sums of the planes, for [`BoundStats`].
     prefixes: Prefixes,
     /// [`FftBounds`]' buffers, kept from one grid position to the next.
-    fft_buffers: std::sync::Mutex<Vec<Vec<Complex64>>>,
+    fft_buffers: std::sync::Mutex<Vec<Vec<Complex32>>>,
 }
 
 impl<'a> Prepared<'a> {
@@ -1288,7 +1288,7 @@ struct FftBounds<'p> {
     /// Per correlated (group, channel): where its correlations are (see [`FftBounds::correlate`]).
     terms: Vec<Term>,
     /// One plane-sized buffer per pair of terms (taken from `prep` and given back on drop).
-    buffers: Vec<Vec<Complex64>>,
+    buffers: Vec<Vec<Complex32>>,
     /// Per line and channel: Σ centred and the error margin of the cross sum.
     sum_c: [[f64; 3]; 2],
     margin: [[f64; 3]; 2],
@@ -1352,7 +1352,6 @@ impl<'p> FftBounds<'p> {
             let skip = (start - groups[g].from) as usize;
             groups[g].pixels.extend((0..len as usize).map(|t| (skip + t, i + t)));
         }
-        let log = ((w * h) as f64).log2().max(1.0);
         let mut sum_c = [[0.0; 3]; 2];
         let mut margin = [[0.0; 3]; 2];
         for li in 0..2 {
@@ -1360,7 +1359,17 @@ impl<'p> FftBounds<'p> {
                 let c = &outs[li].centred[k];
                 sum_c[li][k] = c.iter().sum::<f64>();
                 let abs: f64 = c.iter().map(|v| v.abs()).sum();
-                margin[li][k] = 1e-9 * (sp.norms[k] * outs[li].ss[k].sqrt() * log + abs + 1e-3);
+                // The exact sums' rounding, as before the transforms were single precision.
+                margin[li][k] = 1e-9 * (abs + 1e-3);
+            }
+        }
+        // Each group's correlation errs by at most its transform's bound times the norms of the
+        // sample column (row) and of the group's kernel ([`Spectra::error_per_norms`]).
+        for g in &groups {
+            let (n, peak_norm) = if g.vertical { (h, &sp.col_norms) } else { (w, &sp.row_norms) };
+            for k in 0..3 {
+                let kernel = g.pixels.iter().map(|&(_, i)| outs[g.li].centred[k][i].powi(2)).sum::<f64>().sqrt();
+                margin[g.li][k] += Spectra::error_per_norms(n) * peak_norm[k] * kernel;
             }
         }
         let inv_out = [0, 1].map(|li| outs[li].ss.map(|v| if v >= FLAT { 1.0 / v.sqrt() } else { 0.0 }));
@@ -1394,7 +1403,7 @@ impl<'p> FftBounds<'p> {
             }
         }
         while self.buffers.len() < next {
-            self.buffers.push(vec![Complex64::new(0.0, 0.0); w * h]);
+            self.buffers.push(vec![Complex32::new(0.0, 0.0); w * h]);
         }
         for b in first_buffer..next {
             let pair: Vec<&Term> = self.terms[first..].iter().filter(|u| u.buffer == b).collect();
@@ -1410,34 +1419,35 @@ impl<'p> FftBounds<'p> {
             };
             let mut lo = count;
             let mut hi = 0;
-            let mut kernels: Vec<(usize, Vec<Complex64>)> = Vec::new();
+            let mut kernels: Vec<(usize, Vec<Complex32>)> = Vec::new();
             for term in &pair {
                 let g = &self.groups[term.group];
                 let r = reach(g);
                 lo = lo.min(r.start);
                 hi = hi.max(r.end);
-                let mut z = vec![Complex64::new(0.0, 0.0); n];
+                let mut z = vec![Complex32::new(0.0, 0.0); n];
                 for &(j, i) in &g.pixels {
-                    z[j].re = self.outs[g.li].centred[term.k][i];
+                    z[j].re = self.outs[g.li].centred[term.k][i] as f32;
                 }
                 fwd.process(&mut z);
-                // Conjugated for a correlation, and scaled by 1/n (exact for a power of two) for
-                // the unnormalised inverse transform.
-                let scale = 1.0 / n as f64;
+                // Conjugated for a correlation, and scaled by 1/n for the unnormalised inverse
+                // transform.
+                let scale = 1.0 / n as f32;
                 kernels.push((term.k, z[..half].iter().map(|v| v.conj() * scale).collect::<Vec<_>>()));
             }
             let out = &mut self.buffers[b][lo * n..hi * n];
-            out.par_chunks_mut(n * 16).enumerate().for_each(|(ci, chunk)| {
-                for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
-                    let line = lo + ci * 16 + cj;
-                    let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * half..(line + 1) * half]);
-                    match kernels.get(1) {
-                        Some((k, kb)) => hermitian_products(fa, ka, Some((&planes[*k][line * half..(line + 1) * half], kb)), dst),
-                        None => hermitian_products(fa, ka, None, dst),
+            out.par_chunks_mut(n * 16).enumerate().for_each_init(
+                || vec![0.0f32; 4 * half],
+                |scratch, (ci, chunk)| {
+                    for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
+                        let line = lo + ci * 16 + cj;
+                        let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * half..(line + 1) * half]);
+                        let b = kernels.get(1).map(|(k, kb)| (&planes[*k][line * half..(line + 1) * half], &kb[..]));
+                        hermitian_products(fa, ka, b, dst, scratch);
                     }
-                }
-                inv.process(chunk);
-            });
+                    inv.process(chunk);
+                },
+            );
         }
     }
 
@@ -1457,7 +1467,7 @@ impl<'p> FftBounds<'p> {
             let g = &self.groups[term.group];
             let buf = &self.buffers[term.buffer];
             let acc = &mut cross[g.li][term.k][..nx * rows];
-            let add = |part: fn(&Complex64) -> f64, acc: &mut [f64]| {
+            let add = |part: fn(&Complex32) -> f64, acc: &mut [f64]| {
                 if g.vertical {
                     let (col, r) = ((x0 + g.at) as usize, (y + g.from) as usize);
                     for x in 0..nx {
@@ -1476,9 +1486,9 @@ impl<'p> FftBounds<'p> {
                 }
             };
             if term.imag {
-                add(|v| v.im, acc);
+                add(|v| f64::from(v.im), acc);
             } else {
-                add(|v| v.re, acc);
+                add(|v| f64::from(v.re), acc);
             }
         }
     }
@@ -1506,9 +1516,10 @@ impl<'p> FftBounds<'p> {
                         *dd += wk * if inv_hi == f64::INFINITY { cap } else { 0.0 };
                     }
                 } else {
-                    // The cross sum is Σ c·(v − m2) = Σ c·v − m2·Σ c, and Σ c (the output line's
-                    // centred values) is all but zero: −m2·Σ c ≤ peak·|Σ c| joins the margin, so
-                    // the candidate's mean is not needed.
+                    // The cross sum is Σ c·(v − m2) = Σ c·(v − μ) + (μ − m2)·Σ c, the transforms
+                    // giving the first term (μ the plane's mean), and Σ c (the output line's
+                    // centred values) is all but zero: |μ − m2|·|Σ c| ≤ peak·|Σ c| joins the
+                    // margin, so the candidate's mean is not needed.
                     let mg = (mg + self.prep.spectra.peaks[k] * sc.abs()) * io;
                     for ((dd, &c), &inv_hi) in d.iter_mut().zip(cross[li][k]).zip(inv_his) {
                         let c = c * io + mg;
@@ -1572,72 +1583,119 @@ impl Drop for FftBounds<'_> {
 /// `dst = A + i·B` for `A = fa·ka` and `B = fb·kb` (pointwise; `B = 0` without `b`), from
 /// frequencies `0..=n/2` of four spectra of real sequences (`n = dst.len()`): `A` and `B` are
 /// then spectra of real sequences too, so frequency `n − j` is `conj(A_j) + i·conj(B_j)` and each
-/// product is computed for half of the frequencies only.
-fn hermitian_products(fa: &[Complex64], ka: &[Complex64], b: Option<(&[Complex64], &[Complex64])>, dst: &mut [Complex64]) {
+/// product is computed for half of the frequencies only. The products go through `scratch`
+/// (at least `4·(n/2 + 1)` values) as separate real and imaginary parts, so that every loop runs
+/// on whole vectors, the mirrored half's reversed order included.
+fn hermitian_products(
+    fa: &[Complex32],
+    ka: &[Complex32],
+    b: Option<(&[Complex32], &[Complex32])>,
+    dst: &mut [Complex32],
+    scratch: &mut [f32],
+) {
     let n = dst.len();
     let half = n / 2 + 1;
+    let (ar, rest) = scratch.split_at_mut(half);
+    let (ai, rest) = rest.split_at_mut(half);
+    let (br, rest) = rest.split_at_mut(half);
+    let bi = &mut rest[..half];
+    let product = |f: &[Complex32], k: &[Complex32], re: &mut [f32], im: &mut [f32]| {
+        for (((re, im), f), k) in re.iter_mut().zip(im.iter_mut()).zip(&f[..half]).zip(&k[..half]) {
+            *re = f.re * k.re - f.im * k.im;
+            *im = f.re * k.im + f.im * k.re;
+        }
+    };
+    product(fa, ka, ar, ai);
+    match b {
+        Some((fb, kb)) => product(fb, kb, br, bi),
+        None => {
+            br.fill(0.0);
+            bi.fill(0.0);
+        }
+    }
+    let (lower, upper) = dst.split_at_mut(half);
+    for (j, lo) in lower.iter_mut().enumerate() {
+        *lo = Complex32::new(ar[j] - bi[j], ai[j] + br[j]);
+    }
     // Frequencies 1..=mirrored have their partner n − j in the upper part, in reverse order;
     // 0 and (for even n) n/2 are their own.
     let mirrored = n - half;
-    let (lower, upper) = dst.split_at_mut(half);
-    let both = |p: Complex64, q: Complex64| (Complex64::new(p.re - q.im, p.im + q.re), Complex64::new(p.re + q.im, q.re - p.im));
-    let zero = [Complex64::new(0.0, 0.0)];
-    let (fb, kb, step) = match b {
-        Some((fb, kb)) => (fb, kb, 1),
-        None => (&zero[..], &zero[..], 0),
-    };
-    for j in std::iter::once(0).chain(mirrored + 1..half) {
-        lower[j] = both(fa[j] * ka[j], fb[j * step] * kb[j * step]).0;
-    }
-    let pairs = lower[1..=mirrored].iter_mut().zip(upper.iter_mut().rev()).zip(&fa[1..]).zip(&ka[1..]);
-    if step == 1 {
-        for ((((lo, up), a), x), (b, y)) in pairs.zip(fb[1..].iter().zip(&kb[1..])) {
-            (*lo, *up) = both(a * x, b * y);
-        }
-    } else {
-        for (((lo, up), a), x) in pairs {
-            (*lo, *up) = both(a * x, Complex64::new(0.0, 0.0));
-        }
+    for (i, up) in upper.iter_mut().enumerate() {
+        let j = mirrored - i;
+        *up = Complex32::new(ar[j] + bi[j], br[j] - ai[j]);
     }
 }
 
-/// The sample's H, S and I planes as 1-D spectra of every column and every row, with the plans.
+/// The sample's H, S and I planes, less their means, as 1-D spectra of every column and every
+/// row, in single precision, with the plans. The bounds only need the cross sums within a proven
+/// margin, and single precision halves the memory the correlations stream through and doubles the
+/// lanes of each vector operation; centring keeps the planes' large constant part (and with it
+/// the rounding error) out of the transforms.
 struct Spectra {
     w: usize,
     h: usize,
     /// `cols[k][x·(h/2 + 1) + v]`: frequency `v` of column `x` of plane `k` (H, S, I), for
     /// `v ≤ h/2` (the rest are their conjugates: the planes are real).
-    cols: [Vec<Complex64>; 3],
+    cols: [Vec<Complex32>; 3],
     /// `rows[k][y·(w/2 + 1) + u]`: frequency `u ≤ w/2` of row `y`.
-    rows: [Vec<Complex64>; 3],
-    /// Euclidean norm of each plane.
-    norms: [f64; 3],
-    /// The largest absolute value in each plane.
+    rows: [Vec<Complex32>; 3],
+    /// The largest Euclidean norm of a centred column (row) of each plane.
+    col_norms: [f64; 3],
+    row_norms: [f64; 3],
+    /// The largest absolute value in each centred plane.
     peaks: [f64; 3],
     /// Forward and inverse plans along columns (length `h`) and rows (length `w`).
-    col: [Arc<dyn Fft<f64>>; 2],
-    row: [Arc<dyn Fft<f64>>; 2],
+    col: [Arc<dyn Fft<f32>>; 2],
+    row: [Arc<dyn Fft<f32>>; 2],
 }
 
 impl Spectra {
     fn new(planes: &HsiPlanes, w: usize, h: usize) -> Spectra {
+        // The spectra are computed in double precision and rounded once.
         let mut planner = FftPlanner::<f64>::new();
+        let (col64, row64) = (planner.plan_fft_forward(h), planner.plan_fft_forward(w));
+        let mut planner = FftPlanner::<f32>::new();
         let col = [planner.plan_fft_forward(h), planner.plan_fft_inverse(h)];
         let row = [planner.plan_fft_forward(w), planner.plan_fft_inverse(w)];
-        let ps = [&planes.h, &planes.s, &planes.i];
-        let cols = ps.map(|p| {
+        let centred = [&planes.h, &planes.s, &planes.i].map(|p| {
+            let mean = p.iter().sum::<f64>() / p.len() as f64;
+            p.iter().map(|v| v - mean).collect::<Vec<f64>>()
+        });
+        let single = |z: &[Complex64], n: usize| -> Vec<Complex32> {
+            z.chunks_exact(n).flat_map(|c| &c[..n / 2 + 1]).map(|v| Complex32::new(v.re as f32, v.im as f32)).collect()
+        };
+        let cols = [0, 1, 2].map(|k| {
+            let p = &centred[k];
             let mut z: Vec<Complex64> = (0..w).flat_map(|x| (0..h).map(move |y| Complex64::new(p[y * w + x], 0.0))).collect();
-            col[0].process(&mut z);
-            z.chunks_exact(h).flat_map(|c| &c[..h / 2 + 1]).copied().collect()
+            col64.process(&mut z);
+            single(&z, h)
         });
-        let rows = ps.map(|p| {
-            let mut z: Vec<Complex64> = p.iter().map(|&v| Complex64::new(v, 0.0)).collect();
-            row[0].process(&mut z);
-            z.chunks_exact(w).flat_map(|r| &r[..w / 2 + 1]).copied().collect()
+        let rows = [0, 1, 2].map(|k| {
+            let mut z: Vec<Complex64> = centred[k].iter().map(|&v| Complex64::new(v, 0.0)).collect();
+            row64.process(&mut z);
+            single(&z, w)
         });
-        let norms = ps.map(|p| p.iter().map(|v| v * v).sum::<f64>().sqrt());
-        let peaks = ps.map(|p| p.iter().fold(0.0, |m: f64, v| m.max(v.abs())));
-        Spectra { w, h, cols, rows, norms, peaks, col, row }
+        let col_norms =
+            centred.each_ref().map(|p| (0..w).map(|x| (0..h).map(|y| p[y * w + x] * p[y * w + x]).sum::<f64>().sqrt()).fold(0.0, f64::max));
+        let row_norms =
+            centred.each_ref().map(|p| p.chunks_exact(w).map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt()).fold(0.0, f64::max));
+        let peaks = centred.each_ref().map(|p| p.iter().fold(0.0, |m: f64, v| m.max(v.abs())));
+        Spectra { w, h, cols, rows, col_norms, row_norms, peaks, col, row }
+    }
+
+    /// A bound of the absolute error of one single-precision correlation of length `n` (a column
+    /// or row `x` with a kernel `k`: the kernel's transform, the product with `x`'s rounded
+    /// spectrum, the inverse transform) per `‖x‖₂·‖k‖₂`. A transform of length `n` errs by at most
+    /// `log₂(n)·η` relative to its output's 2-norm (Higham, *Accuracy and Stability of Numerical
+    /// Algorithms*, §24.1; `η ≈ 7u` for single precision's `u = 2⁻²⁴` with accurate twiddles).
+    /// Through the product (`‖X‖∞ ≤ √n·‖x‖₂`, the same for `k`) and the scaled inverse transform
+    /// that gives at most `(2·log₂(n)·η + 6u)·√n` for any one output; this takes
+    /// `64·u·log₂(n)·√n`, over four times that (transforms of lengths with large prime factors
+    /// take a few more steps).
+    fn error_per_norms(n: usize) -> f64 {
+        let u = f64::from(f32::EPSILON) / 2.0;
+        let log = (n as f64).log2().max(1.0);
+        64.0 * u * log * (n as f64).sqrt()
     }
 }
 
