@@ -471,16 +471,18 @@ impl BoundStats {
     /// a penalty are loose by the penalty itself, and most candidates survive to be scored in
     /// full (double-seam at 512² from pebbles: 0.3 → 1.1 s with `level_penalty = 10`, 0.4 s with the bound).
     fn penalty_low(&self, lambda: f64, out_means: [f64; 2]) -> Vec<f64> {
-        let n = self.mean_i[0].len();
-        (0..n)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|k| {
-                let line = |li: usize| (out_means[li] - self.mean_i[li][k]).abs() - self.mean_err[li];
-                // The full score's products and differences round relatively: 1e-12 is far above.
-                lambda * (line(0).max(0.0) + line(1).max(0.0)) * (1.0 - 1e-12)
-            })
-            .collect()
+        const CHUNK: usize = 4096;
+        let mut low = vec![0.0; self.mean_i[0].len()];
+        low.par_chunks_mut(CHUNK).zip(self.mean_i[0].par_chunks(CHUNK)).zip(self.mean_i[1].par_chunks(CHUNK)).for_each(
+            |((low, m0), m1)| {
+                for ((l, &m0), &m1) in low.iter_mut().zip(m0).zip(m1) {
+                    let line = |li: usize, m: f64| ((out_means[li] - m).abs() - self.mean_err[li]).max(0.0);
+                    // The full score's products and differences round relatively: 1e-12 is far above.
+                    *l = lambda * (line(0, m0) + line(1, m1)) * (1.0 - 1e-12);
+                }
+            },
+        );
+        low
     }
 
     /// Channel `k`'s `inv_hi` of line `li` at candidate row `row`.
