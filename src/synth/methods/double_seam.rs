@@ -17,6 +17,7 @@ use crate::synth::primitives::canvas::Canvas as PixelCanvas;
 use crate::synth::primitives::color::HsiPlanes;
 use crate::synth::primitives::correlation::{FLAT, pearson_from};
 use crate::synth::primitives::edges::{otsu_edges, sobel4};
+use crate::synth::primitives::simd::with_avx2;
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -323,6 +324,7 @@ impl Prefixes {
     }
 
     /// Adds the number of edge pixels on `run` placed at candidates `(x0 + j, y)` to `acc[j]`.
+    #[inline(always)]
     fn add_edge_run(&self, run: &Run, x0: i32, y: i32, acc: &mut [u32]) {
         let (c, r) = ((x0 + run.c) as usize, (y + run.r) as usize);
         let (len, n) = (run.len as usize, acc.len());
@@ -1175,12 +1177,17 @@ fn choose(
     mism.par_chunks_mut(nx).enumerate().for_each_init(
         || (vec![0u32; nx], vec![0u32; nx]),
         |(sums, m), (row, dst)| {
-            for (li, counter) in counters.iter().enumerate() {
-                counter.row(prep, (x0, y0 + row as i32), base_of(row * nx) as usize, sums, m);
-                for (d, &v) in dst.iter_mut().zip(m.iter()) {
-                    d[li] = v;
-                }
-            }
+            with_avx2(
+                #[inline(always)]
+                || {
+                    for (li, counter) in counters.iter().enumerate() {
+                        counter.row(prep, (x0, y0 + row as i32), base_of(row * nx) as usize, sums, m);
+                        for (d, &v) in dst.iter_mut().zip(m.iter()) {
+                            d[li] = v;
+                        }
+                    }
+                },
+            )
         },
     );
     // The level penalty is subtracted from every bound below (zero without one).
@@ -1441,12 +1448,17 @@ impl<'p> FftBounds<'p> {
             out.par_chunks_mut(n * 16).enumerate().for_each_init(
                 || vec![0.0f32; 4 * half],
                 |scratch, (ci, chunk)| {
-                    for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
-                        let line = lo + ci * 16 + cj;
-                        let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * half..(line + 1) * half]);
-                        let b = kernels.get(1).map(|(k, kb)| (&planes[*k][line * half..(line + 1) * half], &kb[..]));
-                        hermitian_products(fa, ka, b, dst, scratch);
-                    }
+                    with_avx2(
+                        #[inline(always)]
+                        || {
+                            for (cj, dst) in chunk.chunks_exact_mut(n).enumerate() {
+                                let line = lo + ci * 16 + cj;
+                                let (ka, fa) = (&kernels[0].1, &planes[kernels[0].0][line * half..(line + 1) * half]);
+                                let b = kernels.get(1).map(|(k, kb)| (&planes[*k][line * half..(line + 1) * half], &kb[..]));
+                                hermitian_products(fa, ka, b, dst, scratch);
+                            }
+                        },
+                    );
                     inv.process(chunk);
                 },
             );
@@ -1456,6 +1468,7 @@ impl<'p> FftBounds<'p> {
     /// The cross sums of candidate rows `row0..row0 + rows`, per line and channel correlated,
     /// term by term into `cross[li][k][r·nx + x]`: a vertical term's values lie down a column of its
     /// buffer, so they are read a column run at a time.
+    #[inline(always)]
     fn cross_sums(&self, row0: usize, rows: usize, cross: &mut [[Vec<f64>; 3]; 2]) {
         let (x0, y0, nx, _) = self.area;
         let sp = &self.prep.spectra;
@@ -1497,6 +1510,7 @@ impl<'p> FftBounds<'p> {
 
     /// The bounds of one row of candidates from its cross sums `cross[li][k]`, with the H and S
     /// channels when `hs` (else `ρ_H, ρ_S ≤ 1`).
+    #[inline(always)]
     fn bound_row(&self, row: usize, hs: bool, u: &mut [f64], cross: [[&[f64]; 3]; 2], d: &mut [f64]) {
         let nx = self.area.2;
         let cap = 1.0 + 1e-9;
@@ -1546,12 +1560,17 @@ impl<'p> FftBounds<'p> {
         u.par_chunks_mut(nx * ROWS).enumerate().for_each_init(
             || ([0, 1].map(|_| [0, 1, 2].map(|_| vec![0.0; nx * ROWS])), vec![0.0; nx]),
             |(cross, d), (chunk, us)| {
-                let rows = us.len() / nx;
-                self.cross_sums(chunk * ROWS, rows, cross);
-                for (r, u) in us.chunks_exact_mut(nx).enumerate() {
-                    let c = [0, 1].map(|li| [0, 1, 2].map(|k| &cross[li][k][r * nx..(r + 1) * nx]));
-                    self.bound_row(chunk * ROWS + r, hs, u, c, d);
-                }
+                with_avx2(
+                    #[inline(always)]
+                    || {
+                        let rows = us.len() / nx;
+                        self.cross_sums(chunk * ROWS, rows, cross);
+                        for (r, u) in us.chunks_exact_mut(nx).enumerate() {
+                            let c = [0, 1].map(|li| [0, 1, 2].map(|k| &cross[li][k][r * nx..(r + 1) * nx]));
+                            self.bound_row(chunk * ROWS + r, hs, u, c, d);
+                        }
+                    },
+                )
             },
         );
         u
@@ -1588,6 +1607,7 @@ impl Drop for FftBounds<'_> {
 /// product is computed for half of the frequencies only. The products go through `scratch`
 /// (at least `4·(n/2 + 1)` values) as separate real and imaginary parts, so that every loop runs
 /// on whole vectors, the mirrored half's reversed order included.
+#[inline(always)]
 fn hermitian_products(
     fa: &[Complex32],
     ka: &[Complex32],
@@ -1727,6 +1747,7 @@ impl MismatchCounter {
 
     /// The mismatches of `m.len()` consecutive candidates from `(x, y)`, whose line pixels are at
     /// sample index `base` plus each offset (`sums`: scratch of the same length).
+    #[inline(always)]
     fn row(&self, prep: &Prepared, (x, y): (i32, i32), base: usize, sums: &mut [u32], m: &mut [u32]) {
         const LANES: usize = 32;
         let n = m.len();

@@ -11,5 +11,6 @@ pub mod overlap;
 pub mod overlap_search;
 pub mod pso;
 pub mod shortest_path;
+pub mod simd;
 pub mod torus;
 pub mod zone_ssd;

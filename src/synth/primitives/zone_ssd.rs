@@ -136,12 +136,8 @@ impl PackedZone {
     }
 }
 
-/// Whether this CPU has AVX2, detected once.
 #[cfg(target_arch = "x86_64")]
-fn has_avx2() -> bool {
-    static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2"))
-}
+use super::simd::has_avx2;
 
 /// The masked SSD of one strip. Each line is summed in 16 lanes of `i32`, one per byte of a
 /// chunk, added up once per line: the lanes map onto 16-bit multiply-adds, and a horizontal sum
@@ -167,13 +163,14 @@ fn strip_ssd(layout: &[u8], stride: usize, start: usize, s: &Strip) -> u64 {
     total
 }
 
-/// The AVX2 strip kernel: the only `unsafe` code of the crate (the crate denies `unsafe_code`;
-/// this module alone allows it). Patch sampling scores a few million zone positions per output,
-/// and this kernel is most of that time; the portable kernel is held to SSE2's 16 bytes a step,
-/// because code compiled for baseline x86-64 may not use AVX2 without a run-time check, and
-/// calling a `#[target_feature]` function or loading through a pointer needs `unsafe`. Every
-/// load is of 16 or 32 bytes inside a slice whose bounds were checked (see the `SAFETY`
-/// comments), so nothing here reads outside memory safe code could read.
+/// The AVX2 strip kernel: with [`crate::synth::primitives::simd::with_avx2`], the only `unsafe`
+/// code of the crate (the crate denies `unsafe_code`; these two alone allow it). Patch sampling
+/// scores a few million zone positions per output, and this kernel is most of that time; the
+/// portable kernel is held to SSE2's 16 bytes a step, because code compiled for baseline x86-64
+/// may not use AVX2 without a run-time check, and calling a `#[target_feature]` function or
+/// loading through a pointer needs `unsafe`. Every load is of 16 or 32 bytes inside a slice
+/// whose bounds were checked (see the `SAFETY` comments), so nothing here reads outside memory
+/// safe code could read.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod avx2 {
