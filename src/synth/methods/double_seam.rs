@@ -1281,10 +1281,10 @@ fn choose(
 /// straight groups of pixels (one column or one row each), so its cross sums at every position
 /// are a sum of 1-D correlations along columns or rows: one 1-D inverse transform per sample
 /// column or row a candidate reaches, per pair of groups, from the sample's 1-D spectra
-/// ([`Spectra`]). The FFT's absolute error is far below `1e-9·‖plane‖·‖line‖·log₂(W·H)` (the
-/// usual bound is about `1e-16` times that per group, and a line has a handful), and the margin
-/// added per correlation covers that and the rounding of the exact sums; degenerate lines take
-/// B8's values, which do not depend on the cross sum.
+/// ([`Spectra`]), in single precision. The margin added per line and channel covers each group's
+/// transform error ([`Spectra::error_per_norms`] times the largest column or row norm and the
+/// group's kernel norm) and the rounding of the exact sums; degenerate lines take B8's values,
+/// which do not depend on the cross sum.
 struct FftBounds<'p> {
     prep: &'p Prepared<'p>,
     s: &'p Settings,
