@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// Top-level layers, lowest first. A module may import its own layer's modules and lower ones.
-const LAYERS: &[&str] = &["digest", "image", "metrics", "synth", "error", "synthesizer", "batch", "report"];
+const LAYERS: &[&str] = &["files", "digest", "image", "metrics", "synth", "error", "synthesizer", "batch", "report"];
 
 /// Inside `synth`, the same rule between its modules.
 const SYNTH_LAYERS: &[&[&str]] = &[

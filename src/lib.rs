@@ -42,6 +42,7 @@
 pub mod batch;
 pub mod digest;
 mod error;
+pub mod files;
 pub mod image;
 pub mod metrics;
 pub mod report;

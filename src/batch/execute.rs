@@ -70,7 +70,8 @@ impl LoadedSample {
 
 /// Reads and decodes a sample; the error names the file and the reason.
 pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::Image { path: path.to_path_buf(), source: ImageError::Io(e) })?;
+    let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
+        .map_err(|e| Error::Image { path: path.to_path_buf(), source: ImageError::Io(e) })?;
     let native =
         imageio::decode_native(&bytes, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
     let image = imageio::native_to_rgb8(&native);
@@ -441,9 +442,7 @@ pub fn extra_path(output_path: &str, name: &str) -> Result<String, JobFailure> {
     if bad {
         return Err(JobFailure::ExtraName(name.to_string()));
     }
-    let file_start = output_path.rfind('/').map_or(0, |i| i + 1);
-    let stem_end = output_path[file_start..].rfind('.').map_or(output_path.len(), |i| file_start + i);
-    Ok(format!("{}.{name}", &output_path[..stem_end]))
+    Ok(format!("{}.{name}", crate::batch::job::output_stem(output_path)))
 }
 
 /// Encodes an extra output and describes it for the manifest. A JSON document's "pixel digest" is
@@ -507,7 +506,7 @@ pub fn outputs_intact(out_dir: &Path, rec: &JobRecord) -> Result<(), OutputsProb
         return Err(OutputsProblem::NoneRecorded);
     }
     for o in &rec.outputs {
-        match std::fs::read(out_dir.join(&o.path)) {
+        match crate::files::read_limited(&out_dir.join(&o.path), crate::files::MAX_IMAGE_FILE_BYTES) {
             Err(_) => return Err(OutputsProblem::Missing(o.path.clone())),
             Ok(bytes) if Digest::of_bytes(&bytes) != o.file_digest => return Err(OutputsProblem::Modified(o.path.clone())),
             Ok(_) => {}

@@ -14,14 +14,35 @@ use std::path::{Path, PathBuf};
 /// job id → output path → pixel digest.
 pub type GoldenFile = BTreeMap<String, BTreeMap<String, Digest>>;
 
-fn golden_path(dir: &Path, rec: &JobRecord) -> PathBuf {
+/// The golden file of a job: `dir/<id's file part without .toml>.json`. The id comes from a
+/// manifest, which may have been made elsewhere: [`Manifest::load`] refuses ids that are not
+/// relative paths inside the job root, and this checks again, so that no id ever names a file
+/// outside `dir`.
+fn golden_path(dir: &Path, rec: &JobRecord) -> Result<PathBuf, Error> {
+    crate::batch::manifest::check_id(&rec.id).map_err(|reason| Error::manifest(dir, format!("job `{}`: {reason}", rec.id.escape_debug())))?;
     let file_part = rec.id.split('#').next().unwrap_or(&rec.id);
     let stem = file_part.strip_suffix(".toml").unwrap_or(file_part);
-    dir.join(format!("{stem}.json"))
+    Ok(dir.join(format!("{stem}.json")))
+}
+
+/// Creates the golden file's directory and checks that it resolves inside `dir` (a symlink in
+/// the golden tree must not carry a write elsewhere).
+fn contained(dir: &Path, path: &Path) -> Result<(), Error> {
+    let parent = path.parent().unwrap_or(dir);
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, "create", e))?;
+    let root = dir.canonicalize().map_err(|e| Error::io(dir, "resolve", e))?;
+    let real = parent.canonicalize().map_err(|e| Error::io(parent, "resolve", e))?;
+    if !real.starts_with(&root) {
+        return Err(Error::Containment {
+            path: path.to_path_buf(),
+            reason: format!("would be written to {}, outside the golden directory {} (a symlink?); refusing", real.display(), root.display()),
+        });
+    }
+    Ok(())
 }
 
 fn read_golden(path: &Path) -> Result<GoldenFile, Error> {
-    match std::fs::read(path) {
+    match crate::files::read_limited(path, crate::files::MAX_JSON_BYTES) {
         Ok(b) => serde_json::from_slice(&b).map_err(|e| Error::manifest(path, format!("not a golden file: {e}"))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(GoldenFile::new()),
         Err(e) => Err(Error::io(path, "read", e)),
@@ -53,7 +74,7 @@ pub fn check(dir: &Path, manifest: &Manifest) -> Result<CheckReport, Error> {
             report.not_checked.push(format!("{}: {} in this run, nothing to compare", rec.id, rec.status.name()));
             continue;
         }
-        let path = golden_path(dir, rec);
+        let path = golden_path(dir, rec)?;
         if !cache.contains_key(&path) {
             cache.insert(path.clone(), read_golden(&path)?);
         }
@@ -88,7 +109,7 @@ pub fn bless(dir: &Path, manifest: &Manifest) -> Result<Vec<String>, Error> {
             changes.push(format!("skipped {}: {} in this run", rec.id, rec.status.name()));
             continue;
         }
-        let path = golden_path(dir, rec);
+        let path = golden_path(dir, rec)?;
         if !files.contains_key(&path) {
             files.insert(path.clone(), read_golden(&path)?);
         }
@@ -105,10 +126,12 @@ pub fn bless(dir: &Path, manifest: &Manifest) -> Result<Vec<String>, Error> {
             entry.insert(o.path.clone(), o.pixel_digest.clone());
         }
     }
+    // Every destination is checked before the first is written: a bad one writes nothing.
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create", e))?;
+    for path in files.keys() {
+        contained(dir, path)?;
+    }
     for (path, content) in files {
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, "create", e))?;
-        }
         let mut text = serde_json::to_string_pretty(&content).expect("golden serialises");
         text.push('\n');
         crate::batch::outdir::write_atomic(&path, text.as_bytes())?;

@@ -191,6 +191,15 @@ pub struct RunFacts {
     /// where the platform reports it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_rss_bytes: Option<u64>,
+    /// The job roots (absolute directories; job ids are paths relative to them) whose jobs this
+    /// manifest records. A run from another root into the same directory is refused unless asked
+    /// for (`--allow-other-root`), since equal ids from two roots would replace each other's records.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub job_roots: Vec<String>,
+    /// While a run is in progress: jobs being re-run whose record is still the previous run's
+    /// (their files on disk are still the previous ones until they finish).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rerunning: Vec<String>,
 }
 
 /// Which part of a split run a fragment holds, and what the scheduler called it.
@@ -239,7 +248,7 @@ impl Manifest {
     }
 
     pub fn load(path: &Path) -> Result<Manifest, Error> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, "read manifest", e))?;
+        let bytes = crate::files::read_limited(path, crate::files::MAX_MANIFEST_BYTES).map_err(|e| Error::io(path, "read manifest", e))?;
         Manifest::parse(path, &bytes)
     }
 
@@ -256,7 +265,16 @@ impl Manifest {
 
     /// Problems that make a manifest unusable, found before anything acts on it: a job id recorded
     /// twice, two jobs claiming one output file, an output path that leaves the output directory.
+    ///
+    /// A manifest travels (shard fragments from other nodes, CI artifacts, a colleague's run), so
+    /// it is untrusted input: every value that some command turns into a file name (job ids become
+    /// golden files and report sections, output paths become files to read or write) or into an
+    /// allocation (sizes) is checked here, once, for every command that loads one. Each problem
+    /// names the job and the key.
     pub fn check(&self) -> Result<(), String> {
+        for j in &self.jobs {
+            check_record(j).map_err(|reason| format!("job `{}`: {reason}", j.id.escape_debug()))?;
+        }
         let mut ids = std::collections::BTreeSet::new();
         let mut dup_ids = std::collections::BTreeSet::new();
         for j in &self.jobs {
@@ -335,8 +353,112 @@ pub fn content_key(method: &str, algorithm_version: u32, params: &Value, seed: u
     }))
 }
 
+/// The largest side recorded for an output or a sample: what job files accept
+/// ([`crate::batch::job::MAX_OUTPUT_SIDE`]).
+const MAX_SIDE: u64 = crate::batch::job::MAX_OUTPUT_SIDE as u64;
+
+/// Whether a job id can be used to name files: the part before `#` (the job file's path relative to
+/// its root) is a relative `/`-separated path that stays inside the root, and no part of the id has
+/// control characters. Golden files and report sections are named after it.
+pub fn check_id(id: &str) -> Result<(), String> {
+    if id.chars().any(char::is_control) {
+        return Err("`id`: has control characters".into());
+    }
+    let file = id.split('#').next().unwrap_or(id);
+    if !is_inside(file) {
+        return Err(format!(
+            "`id`: `{}` is not a relative path inside the job root (no leading `/`, no `..`, `.` or empty parts, no `\\`)",
+            file
+        ));
+    }
+    Ok(())
+}
+
+/// The checks of [`Manifest::check`] that concern one record alone.
+fn check_record(j: &JobRecord) -> Result<(), String> {
+    check_id(&j.id)?;
+    for (k, o) in j.outputs.iter().enumerate() {
+        if !matches!(o.bit_depth, 0 | 8 | 16 | 32) {
+            return Err(format!("`outputs[{k}].bit_depth`: {} is not 0, 8, 16 or 32", o.bit_depth));
+        }
+        side(&format!("outputs[{k}]"), u64::from(o.width), u64::from(o.height), true)?;
+    }
+    if let Some(s) = &j.sample {
+        side("sample", u64::from(s.width), u64::from(s.height), false)?;
+    }
+    for (k, c) in j.companions.iter().enumerate() {
+        side(&format!("companions[{k}]"), u64::from(c.width), u64::from(c.height), false)?;
+    }
+    if let Some(spec) = &j.output_spec {
+        check_output_spec(spec)?;
+    }
+    if let Some(seams) = &j.seams {
+        for (axis, bands) in [("columns", &seams.columns), ("rows", &seams.rows)] {
+            if let Some(b) = bands.iter().find(|b| u64::from(b.start) + u64::from(b.len) > MAX_SIDE + 1) {
+                return Err(format!("`seams.{axis}`: a band at {}..{} lies beyond any output side", b.start, u64::from(b.start) + u64::from(b.len)));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Width and height of something recorded: at most [`MAX_SIDE`] (and not 0 where `zero_ok` is
+/// false and the record is an image; JSON extras record 0×0).
+fn side(key: &str, w: u64, h: u64, zero_ok: bool) -> Result<(), String> {
+    for (k, v) in [("width", w), ("height", h)] {
+        if v > MAX_SIDE || (!zero_ok && v == 0) {
+            return Err(format!("`{key}.{k}`: {v} is out of range {}..={MAX_SIDE}", u8::from(!zero_ok)));
+        }
+    }
+    Ok(())
+}
+
+/// The recorded output spec: what `verify` rebuilds a job's output from. Sizes within what job
+/// files accept, every path inside the output directory.
+fn check_output_spec(spec: &Value) -> Result<(), String> {
+    let Some(obj) = spec.as_object() else { return Err("`output_spec`: is not a table".into()) };
+    for k in ["width", "height"] {
+        match obj.get(k) {
+            None => {}
+            Some(v) => match v.as_u64() {
+                Some(n) if (1..=MAX_SIDE).contains(&n) => {}
+                _ => return Err(format!("`output_spec.{k}`: {v} is out of range 1..={MAX_SIDE}")),
+            },
+        }
+    }
+    if let Some(v) = obj.get("bit_depth")
+        && !v.as_u64().is_some_and(|d| matches!(d, 8 | 16 | 32))
+    {
+        return Err(format!("`output_spec.bit_depth`: {v} is not 8, 16 or 32"));
+    }
+    let path = |key: &str, v: &Value| -> Result<(), String> {
+        match v.as_str() {
+            Some(p) if is_inside(p) => Ok(()),
+            _ => Err(format!("`{key}`: {v} is not a path inside the output directory")),
+        }
+    };
+    for k in ["path", "source_map"] {
+        if let Some(v) = obj.get(k).filter(|v| !v.is_null()) {
+            path(&format!("output_spec.{k}"), v)?;
+        }
+    }
+    if let Some(c) = obj.get("companions") {
+        let Some(list) = c.as_array() else { return Err("`output_spec.companions`: is not a list".into()) };
+        for (k, c) in list.iter().enumerate() {
+            let key = format!("output_spec.companions[{k}].path");
+            path(&key, c.get("path").unwrap_or(&Value::Null))?;
+            if let Some(v) = c.get("bit_depth")
+                && !v.as_u64().is_some_and(|d| matches!(d, 8 | 16 | 32))
+            {
+                return Err(format!("`output_spec.companions[{k}].bit_depth`: {v} is not 8, 16 or 32"));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Whether a recorded output path is relative, `/`-separated and stays inside its directory.
-fn is_inside(path: &str) -> bool {
+pub fn is_inside(path: &str) -> bool {
     !path.is_empty() && !path.starts_with('/') && !path.contains('\\') && path.split('/').all(|c| !c.is_empty() && c != "." && c != "..")
 }
 

@@ -186,6 +186,8 @@ pub fn merge(dir: &Path, jobs: Option<&[PathBuf]>) -> Result<Merged, Error> {
         merged_from: facts,
         max_memory_bytes: runs.iter().filter_map(|r| r.max_memory_bytes).min(),
         peak_rss_bytes: runs.iter().filter_map(|r| r.peak_rss_bytes).max(),
+        job_roots: runs.iter().flat_map(|r| r.job_roots.iter().cloned()).collect::<std::collections::BTreeSet<_>>().into_iter().collect(),
+        rerunning: Vec::new(),
     };
     let manifest = Manifest::with_tool(tool, jobs, run);
     Ok(Merged { manifest, fragments: paths, missing_shards, unfinished_shards, missing_jobs, failed })

@@ -8,7 +8,7 @@
 
 use crate::digest::{Digest, Hasher};
 use crate::error::Error;
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -44,13 +44,9 @@ impl OutDir {
             None => root.join(LOCK_NAME),
             Some(p) => root.join(format!(".texsyn.{p}.lock")),
         };
-        let mut lock = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&lock_path)
-            .map_err(|e| Error::io(&lock_path, "open lock file", e))?;
+        // Never through a link: a symlink or hard link planted at the lock's name would make the
+        // PID below overwrite a file outside the output directory.
+        let mut lock = crate::files::open_no_follow(&lock_path).map_err(|e| Error::io(&lock_path, "open lock file", e))?;
         match lock.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
@@ -134,6 +130,12 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     write_tagged(path, bytes, "")
 }
 
+/// [`write_atomic`] of what `produce` writes as it is produced (nothing is held but a small
+/// buffer); returns `produce`'s result and the file's digest.
+pub fn write_atomic_streamed<T>(path: &Path, produce: impl FnOnce(&mut dyn Write) -> std::io::Result<T>) -> Result<(T, Digest), Error> {
+    write_tagged_with(path, "", produce)
+}
+
 /// [`write_atomic`] with the writer's tag in the temporary's name.
 fn write_tagged(path: &Path, bytes: &[u8], tag: &str) -> Result<(), Error> {
     write_tagged_with(path, tag, |w| w.write_all(bytes)).map(|_| ())
@@ -160,9 +162,19 @@ impl<W: Write> Write for Hashing<W> {
 fn write_tagged_with<T>(path: &Path, tag: &str, produce: impl FnOnce(&mut dyn Write) -> std::io::Result<T>) -> Result<(T, Digest), Error> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{tag}{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
+    // A fresh name that nothing occupies: `create_new` refuses a planted symlink, and a name a
+    // killed process with the same PID left behind (PID 1 in every container) is skipped.
+    let mut tries = 0;
+    let (tmp, file) = loop {
+        let tmp = dir.join(format!(".{name}.{tag}{}.{}{TMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
+        match crate::files::create_new(&tmp) {
+            Ok(f) => break (tmp, f),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && tries < 1000 => tries += 1,
+            Err(e) => return Err(Error::io(path, "write", e)),
+        }
+    };
     let result = (|| -> std::io::Result<(T, Digest)> {
-        let mut w = Hashing { inner: std::io::BufWriter::with_capacity(1 << 16, File::create(&tmp)?), hasher: Hasher::new() };
+        let mut w = Hashing { inner: std::io::BufWriter::with_capacity(1 << 16, file), hasher: Hasher::new() };
         let value = produce(&mut w)?;
         w.flush()?;
         let digest = w.hasher.finish();

@@ -30,6 +30,8 @@ pub struct PlanOptions {
     pub shard: Option<Shard>,
     /// Jobs whose estimated peak memory exceeds this many bytes are invalid (`None`: no limit).
     pub max_memory: Option<u64>,
+    /// Run even when the output directory records jobs of another job root (`--allow-other-root`).
+    pub allow_other_root: bool,
 }
 
 /// Why a job runs.
@@ -96,6 +98,8 @@ pub struct Plan {
     pub invalid: Vec<InvalidJob>,
     /// The manifest found in the output directory, by job id (empty when there was none).
     pub previous: BTreeMap<String, JobRecord>,
+    /// The job roots the new manifest records: this run's and those of the records it keeps.
+    pub job_roots: Vec<String>,
 }
 
 impl Plan {
@@ -137,7 +141,21 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let mut set = job::read_all(&files);
     let shard = opts.shard.map(|s| keep_shard(&mut set, s));
     let mut invalid = set.invalid;
-    let (previous, same_tool) = previous_records(&opts.out);
+    let Previous { records: previous, same_tool, job_roots: previous_roots } = previous_records(&opts.out);
+    let roots = job_roots(inputs);
+    let foreign: Vec<&String> = roots.iter().filter(|r| !previous_roots.contains(*r)).collect();
+    if !previous_roots.is_empty() && !foreign.is_empty() && !opts.allow_other_root {
+        let list = |v: Vec<&String>| v.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ");
+        return Err(Error::Usage(format!(
+            "{} records the jobs of {}, but this run's jobs come from {}: job ids are paths relative to their root, so a job of one \
+             would silently replace the other's record of the same id. Use another output directory, or --allow-other-root to keep \
+             both roots' records there (this run's replace only those with the same ids)",
+            opts.out.display(),
+            list(previous_roots.iter().collect()),
+            list(foreign)
+        )));
+    }
+    let job_roots: Vec<String> = previous_roots.into_iter().chain(roots).collect::<BTreeSet<_>>().into_iter().collect();
 
     // Decode every distinct sample once.
     let mut sample_paths: Vec<PathBuf> =
@@ -187,7 +205,20 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     }
     add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
-    Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous })
+    Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous, job_roots })
+}
+
+/// The absolute directories the job ids of `inputs` are relative to: a directory argument itself,
+/// a job file's own directory.
+fn job_roots(inputs: &[PathBuf]) -> BTreeSet<String> {
+    inputs
+        .iter()
+        .map(|arg| {
+            let dir = if arg.is_dir() { arg.as_path() } else { arg.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")) };
+            let abs = dir.canonicalize().or_else(|_| std::path::absolute(dir)).unwrap_or_else(|_| dir.to_path_buf());
+            abs.to_string_lossy().into_owned()
+        })
+        .collect()
 }
 
 /// Checks what a job renders besides its method's 8-bit image and decides what the job file left
@@ -291,11 +322,20 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
     }
 }
 
-/// What the output directory already records: its manifest and any shard fragments, by job id
-/// (for an id recorded twice, the more recently finished record), and the ids of the records this
-/// build of texsyn wrote (same version and commit). Unreadable files count as absent: the jobs
-/// they described simply run again.
-pub fn previous_records(out: &Path) -> (BTreeMap<String, JobRecord>, BTreeSet<String>) {
+/// What the output directory already records.
+pub struct Previous {
+    /// Its manifest's and shard fragments' records by job id (for an id recorded twice, the more
+    /// recently finished record).
+    pub records: BTreeMap<String, JobRecord>,
+    /// The ids of the records this build of texsyn wrote (same version and commit).
+    pub same_tool: BTreeSet<String>,
+    /// The job roots those manifests record (none for manifests of texsyn before 0.1 roots).
+    pub job_roots: BTreeSet<String>,
+}
+
+/// What the output directory already records: its manifest and any shard fragments. Unreadable
+/// files count as absent: the jobs they described simply run again.
+pub fn previous_records(out: &Path) -> Previous {
     let mut files = vec![out.join(manifest::FILE_NAME)];
     if let Ok(entries) = std::fs::read_dir(out) {
         let mut fragments: Vec<PathBuf> = entries.flatten().map(|e| e.path()).filter(|p| is_fragment(p)).collect();
@@ -304,8 +344,12 @@ pub fn previous_records(out: &Path) -> (BTreeMap<String, JobRecord>, BTreeSet<St
     }
     let current = manifest::Tool::current();
     let mut records: BTreeMap<String, (JobRecord, bool)> = BTreeMap::new();
+    let mut job_roots = BTreeSet::new();
     for f in files {
         let Ok(m) = Manifest::load(&f) else { continue };
+        if !m.jobs.is_empty() {
+            job_roots.extend(m.run.job_roots.iter().cloned());
+        }
         let same = m.tool == current;
         for j in m.jobs {
             let finished = |r: &JobRecord| r.timing.as_ref().map_or(0, |t| t.finished_at);
@@ -318,7 +362,7 @@ pub fn previous_records(out: &Path) -> (BTreeMap<String, JobRecord>, BTreeSet<St
         }
     }
     let same_tool = records.iter().filter(|(_, (_, same))| *same).map(|(id, _)| id.clone()).collect();
-    (records.into_iter().map(|(id, (r, _))| (id, r)).collect(), same_tool)
+    Previous { records: records.into_iter().map(|(id, (r, _))| (id, r)).collect(), same_tool, job_roots }
 }
 
 /// Whether `path` is named like a shard's manifest fragment (`manifest.shard-I-of-N.json`).
@@ -411,7 +455,7 @@ fn decide(job: &Job, content_key: &Digest, previous: Option<&JobRecord>, opts: &
 
 /// The manifest record of a job that cannot run.
 pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
-    let digest = std::fs::read(&inv.file).map(|b| Digest::of_bytes(&b)).unwrap_or_else(|_| Digest::of_bytes(b""));
+    let digest = crate::files::read_limited(&inv.file, crate::files::MAX_JOB_FILE_BYTES).map(|b| Digest::of_bytes(&b)).unwrap_or_else(|_| Digest::of_bytes(b""));
     JobRecord {
         id: inv.id.clone(),
         job_file: FileRef { path: manifest::relative_path(&inv.file, manifest_dir), digest },

@@ -42,6 +42,8 @@ pub struct RunOptions {
     /// Memory limit in bytes (`--max-memory`): jobs estimated to need more are invalid, and jobs
     /// whose estimates together exceed it never run at once. `None`: no limit.
     pub max_memory: Option<u64>,
+    /// Run even when the output directory records jobs of another job root.
+    pub allow_other_root: bool,
 }
 
 impl RunOptions {
@@ -50,7 +52,13 @@ impl RunOptions {
     }
 
     fn plan_options(&self) -> PlanOptions {
-        PlanOptions { out: self.out.clone(), force: self.force, shard: self.shard, max_memory: self.max_memory }
+        PlanOptions {
+            out: self.out.clone(),
+            force: self.force,
+            shard: self.shard,
+            max_memory: self.max_memory,
+            allow_other_root: self.allow_other_root,
+        }
     }
 }
 
@@ -80,7 +88,41 @@ fn now_unix() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
 }
 
+/// Which job of this run writes a file: by name, or because it lies in a job's extras folder.
+struct Writes<'a> {
+    files: BTreeMap<&'a str, &'a str>,
+    folders: BTreeMap<String, &'a str>,
+}
+
+impl<'a> Writes<'a> {
+    fn of(entries: &'a [Entry]) -> Writes<'a> {
+        let mut w = Writes { files: BTreeMap::new(), folders: BTreeMap::new() };
+        for e in entries {
+            w.files.extend(e.job.written_paths().into_iter().map(|p| (p, e.job.id.as_str())));
+            w.folders.extend(e.job.claims().folders.into_iter().map(|f| (f, e.job.id.as_str())));
+        }
+        w
+    }
+
+    /// The id of the job of this run that writes `path`, if any.
+    fn by(&self, path: &str) -> Option<&'a str> {
+        if let Some(id) = self.files.get(path) {
+            return Some(id);
+        }
+        // Each folder above the path, longest first.
+        let mut end = path.len();
+        while let Some(i) = path[..end].rfind('/') {
+            if let Some(id) = self.folders.get(&path[..i]) {
+                return Some(id);
+            }
+            end = i;
+        }
+        None
+    }
+}
+
 struct State {
+    rerunning: BTreeSet<String>,
     records: BTreeMap<String, JobRecord>,
     summary: Summary,
     last_write: Instant,
@@ -108,16 +150,27 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         records.insert(inv.id.clone(), plan::invalid_record(inv, &plan.out));
     }
     // Earlier records of jobs not in this run stay (they still describe files in the directory),
-    // unless this run now writes their output path. A shard's fragment holds its own jobs only.
-    let this_run_outputs: BTreeSet<&str> = plan.entries.iter().map(|e| e.job.output.path.as_str()).collect();
+    // unless this run now writes one of their files. A shard's fragment holds its own jobs only.
+    // The earlier record of a job this run re-does stays too until the job finishes: its files
+    // are still the earlier ones, and a run killed before it gets there must not lose the record
+    // (listed in `run.rerunning` meanwhile).
+    let writes = Writes::of(&plan.entries);
     let planned: BTreeSet<&str> =
         plan.entries.iter().map(|e| e.job.id.as_str()).chain(plan.invalid.iter().map(|j| j.id.as_str())).collect();
     let carried = if plan.shard.is_some() { None } else { Some(&plan.previous) };
     for (id, rec) in carried.into_iter().flatten() {
-        let in_plan = planned.contains(id.as_str());
-        let clobbered = rec.outputs.iter().any(|o| this_run_outputs.contains(o.path.as_str()));
-        if !in_plan && !clobbered {
+        if !planned.contains(id.as_str()) && !rec.outputs.iter().any(|o| writes.by(&o.path).is_some()) {
             records.insert(id.clone(), rec.clone());
+        }
+    }
+    let mut rerunning = BTreeSet::new();
+    for e in plan.to_run() {
+        let id = e.job.id.as_str();
+        if let Some(rec) = plan.previous.get(id)
+            && !rec.outputs.iter().any(|o| writes.by(&o.path).is_some_and(|who| who != id))
+        {
+            records.insert(id.to_string(), rec.clone());
+            rerunning.insert(id.to_string());
         }
     }
 
@@ -136,7 +189,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
             .collect(),
     });
     let threads = rayon::current_num_threads();
-    let facts = |summary: &Summary, in_progress: bool| RunFacts {
+    let facts = |summary: &Summary, in_progress: bool, rerunning: &BTreeSet<String>| RunFacts {
         started_at,
         finished_at: now_unix(),
         wall_seconds: started.elapsed().as_secs_f64(),
@@ -153,10 +206,12 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         merged_from: Vec::new(),
         max_memory_bytes: opts.max_memory,
         peak_rss_bytes: memory::peak_rss(),
+        job_roots: plan.job_roots.clone(),
+        rerunning: rerunning.iter().cloned().collect(),
     };
     let summary = Summary { invalid: plan.invalid.len(), up_to_date: plan.up_to_date(), ..Summary::default() };
-    write_manifest(out, &manifest_name, &records, facts(&summary, true))?;
-    let state = Mutex::new(State { records, summary, last_write: Instant::now() - Duration::from_secs(10) });
+    write_manifest(out, &manifest_name, &records, facts(&summary, true, &rerunning))?;
+    let state = Mutex::new(State { rerunning, records, summary, last_write: Instant::now() - Duration::from_secs(10) });
 
     let mut to_run: Vec<_> = plan.to_run().collect();
     if opts.reverse {
@@ -221,10 +276,11 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         } else {
             s.summary.ran += 1;
         }
+        s.rerunning.remove(&rec.id);
         s.records.insert(rec.id.clone(), rec);
         if s.last_write.elapsed() >= Duration::from_millis(250) {
             s.last_write = Instant::now();
-            if let Err(e) = write_manifest(out, &manifest_name, &s.records, facts(&s.summary, true)) {
+            if let Err(e) = write_manifest(out, &manifest_name, &s.records, facts(&s.summary, true, &s.rerunning)) {
                 observer.event(&Event::Warning(format!("cannot write the manifest yet: {e}")));
             }
         }
@@ -242,7 +298,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     let mut s = state.into_inner().expect("state");
     s.summary.interrupted = interrupted.load(Ordering::SeqCst);
     s.summary.wall_seconds = started.elapsed().as_secs_f64();
-    let mut final_facts = facts(&s.summary, false);
+    let mut final_facts = facts(&s.summary, false, &BTreeSet::new());
     final_facts.not_run = not_run.into_inner().expect("not run");
     final_facts.not_run.sort();
     write_manifest(out, &manifest_name, &s.records, final_facts)?;

@@ -15,7 +15,7 @@ use crate::error::Error;
 use crate::image::io::{self as imageio, DecodeLimits};
 use crate::synth::methods;
 use crate::synth::params::{self, ParamValue};
-use rayon::prelude::*;
+use crate::batch::memory::{self, Budget};
 use std::path::{Path, PathBuf};
 
 /// The outcome for one job.
@@ -24,6 +24,8 @@ pub enum Outcome {
     Verified,
     Skipped(String),
     Mismatch(Vec<String>),
+    /// Not re-run: its estimated peak memory exceeds the limit (the message says both).
+    TooLarge(String),
 }
 
 #[derive(Debug, Default)]
@@ -35,12 +37,21 @@ pub struct Report {
 
 impl Report {
     pub fn ok(&self) -> bool {
-        self.manifest_problems.is_empty() && self.jobs.iter().all(|(_, o)| !matches!(o, Outcome::Mismatch(_)))
+        self.manifest_problems.is_empty() && self.jobs.iter().all(|(_, o)| matches!(o, Outcome::Verified | Outcome::Skipped(_)))
     }
 }
 
-/// Verifies a manifest, re-running jobs on `threads` threads (all cores if `None`).
+/// Verifies a manifest, re-running jobs on `threads` threads (all cores if `None`), within the
+/// memory available now ([`verify_within`]).
 pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, Error> {
+    verify_within(manifest_path, threads, crate::batch::memory::available())
+}
+
+/// [`verify`] under a memory limit in bytes (`None`: none), kept as `texsyn run` keeps
+/// `--max-memory`: a job whose estimated peak exceeds it is not re-run ([`Outcome::TooLarge`]),
+/// and jobs whose estimates together exceed it never run at once. The sizes come from the
+/// manifest, which [`Manifest::load`] has already bounded like a job file's.
+pub fn verify_within(manifest_path: &Path, threads: Option<usize>, max_memory: Option<u64>) -> Result<Report, Error> {
     let manifest = Manifest::load(manifest_path)?;
     let dir = manifest_path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     let dir = if dir.as_os_str().is_empty() { PathBuf::from(".") } else { dir };
@@ -59,10 +70,56 @@ pub fn verify(manifest_path: &Path, threads: Option<usize>) -> Result<Report, Er
     ));
     std::fs::create_dir_all(&scratch).map_err(|e| Error::io(&scratch, "create", e))?;
     let pool = crate::batch::run::pool(threads)?;
-    report.jobs =
-        pool.install(|| manifest.jobs.par_iter().with_max_len(1).map(|rec| (rec.id.clone(), verify_job(rec, &dir, &scratch))).collect());
+    let budget = Budget::new(max_memory);
+    let outcomes: Vec<std::sync::Mutex<Option<Outcome>>> = manifest.jobs.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    pool.install(|| {
+        // As in `run`: one dispatcher waits for the budget, in record order, never a job.
+        rayon::scope(|scope| {
+            for (rec, slot) in manifest.jobs.iter().zip(&outcomes) {
+                let estimate = estimate(rec);
+                if let Some(limit) = max_memory.filter(|&l| estimate > l) {
+                    *slot.lock().expect("outcome") = Some(Outcome::TooLarge(memory::too_large(estimate, limit)));
+                    continue;
+                }
+                let held = budget.acquire(estimate);
+                let (dir, scratch) = (&dir, &scratch);
+                scope.spawn(move |_| {
+                    let outcome = verify_job(rec, dir, scratch);
+                    *slot.lock().expect("outcome") = Some(outcome);
+                    drop(held);
+                });
+            }
+        })
+    });
+    report.jobs = manifest
+        .jobs
+        .iter()
+        .zip(outcomes)
+        .map(|(rec, slot)| (rec.id.clone(), slot.into_inner().expect("outcome").expect("every job has an outcome")))
+        .collect();
     let _ = std::fs::remove_dir_all(&scratch);
     Ok(report)
+}
+
+/// The estimated peak memory of re-running a record (0 for one that will not run): the same
+/// model as `run`'s, for a job rendered whole (verify never renders in strips) with its encoded
+/// file held beside it.
+fn estimate(rec: &JobRecord) -> u64 {
+    let (Some(method), Some(params_json), Some(sample), Some(spec)) =
+        (rec.method.as_deref().and_then(methods::find), &rec.params, &rec.sample, &rec.output_spec)
+    else {
+        return 0;
+    };
+    if !rec.status.is_success() {
+        return 0;
+    }
+    let Ok(given) = serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) else { return 0 };
+    let (Ok(params), Ok(output)) = (params::resolve(method.params(), &given.into_iter().collect::<Vec<_>>()), output_spec(spec)) else {
+        return 0;
+    };
+    let materials = memory::Materials { companions: rec.companions.len(), source_map: output.source_map.is_some() };
+    let encoded = 8 * u64::from(output.width) * u64::from(output.height);
+    memory::job_estimate_with(method, &params, (sample.width, sample.height), &output, false, Some(materials)) + encoded
 }
 
 fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
@@ -110,6 +167,18 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     };
     if loaded.pixel_digest != sample.pixel_digest {
         return Outcome::Mismatch(vec![format!("sample `{}` no longer has the recorded pixels", sample.path)]);
+    }
+    // The method's own checks, as for a job file: a manifest may have been edited into
+    // parameters no job file would pass (a block larger than the sample).
+    let size = loaded.image.dimensions();
+    let issues = method.check(&params, size, (output.width, output.height));
+    if !issues.is_empty() {
+        return Outcome::Mismatch(issues.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
+    }
+    if output.tileable
+        && let Err(why) = method.tileable(&params, size, (output.width, output.height))
+    {
+        return Outcome::Mismatch(vec![format!("recorded `output_spec.tileable`: {why}")]);
     }
     let key = crate::batch::manifest::content_key(method_name, version, params_json, seed, &sample.pixel_digest, spec);
     if rec.content_key.as_ref() != Some(&key) {
@@ -166,7 +235,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         }
     }
     for o in &rec.outputs {
-        match std::fs::read(dir.join(&o.path)) {
+        match crate::files::read_limited(&dir.join(&o.path), crate::files::MAX_IMAGE_FILE_BYTES) {
             Err(e) => problems.push(format!("output `{}` cannot be read: {e}", o.path)),
             Ok(bytes) => {
                 if Digest::of_bytes(&bytes) != o.file_digest {

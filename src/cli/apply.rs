@@ -34,7 +34,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     let kind = MapKind::from_name(&args.kind).ok_or_else(|| Error::Usage(format!("--kind {:?}: use color or normal", args.kind)))?;
     let format = Format::from_path(&args.output)
         .ok_or_else(|| Error::Usage(format!("{}: the output must end in .png or .exr", args.output.display())))?;
-    let bytes = std::fs::read(&args.map).map_err(|e| Error::io(&args.map, "read", e))?;
+    let bytes = texsyn::files::read_limited(&args.map, texsyn::files::MAX_IMAGE_FILE_BYTES).map_err(|e| Error::io(&args.map, "read", e))?;
     let placement = texsyn::batch::source_map::decode(&bytes)
         .map_err(|reason| Error::Image { path: args.map.clone(), source: ImageError::Decode(reason) })?;
     let image = load_sample(&args.image)?;
@@ -63,9 +63,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create", e))?;
     }
     // Written beside and renamed, so a reader never sees half a file.
-    let tmp = args.output.with_extension("texsyn-tmp");
-    std::fs::write(&tmp, &encoded.bytes).map_err(|e| Error::io(&tmp, "write", e))?;
-    std::fs::rename(&tmp, &args.output).map_err(|e| Error::io(&args.output, "write", e))?;
+    texsyn::batch::outdir::write_atomic(&args.output, &encoded.bytes)?;
     say(format!(
         "{}: {}x{} from {} ({}), pixel digest {}",
         args.output.display(),

@@ -28,6 +28,11 @@ pub struct Args {
     /// Run every job even if it is up to date.
     #[arg(long)]
     force: bool,
+    /// Run even though the output directory records the jobs of another job root (job ids are
+    /// paths relative to their root, so by default a run from another root is refused, exit 2):
+    /// both roots' records are kept, and this run's replace those with the same ids.
+    #[arg(long)]
+    allow_other_root: bool,
     /// JSON Lines events on stdout instead of progress on stderr.
     #[arg(long)]
     json: bool,
@@ -72,6 +77,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         interrupt: None,
         shard,
         max_memory: args.max_memory.0,
+        allow_other_root: args.allow_other_root,
     };
     if args.dry_run {
         return dry_run(&args, &opts);
@@ -133,11 +139,11 @@ fn dry_run(args: &Args, opts: &RunOptions) -> Result<Outcome, Error> {
 
 /// `--max-memory`: bytes, or no limit.
 #[derive(Clone, Copy, Debug)]
-struct MemoryLimit(Option<u64>);
+pub(super) struct MemoryLimit(pub(super) Option<u64>);
 
 impl MemoryLimit {
     /// The memory available now, the default limit (none where the platform does not say).
-    fn available() -> MemoryLimit {
+    pub(super) fn available() -> MemoryLimit {
         MemoryLimit(memory::available())
     }
 }

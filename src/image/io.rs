@@ -149,7 +149,7 @@ pub fn decode_rgb8(bytes: &[u8], limits: DecodeLimits) -> Result<RgbImage, Image
 
 /// Reads and decodes a sample file.
 pub fn read_rgb8(path: &Path, limits: DecodeLimits) -> Result<(RgbImage, Vec<u8>), ImageError> {
-    let bytes = std::fs::read(path).map_err(ImageError::Io)?;
+    let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES).map_err(ImageError::Io)?;
     let img = decode_rgb8(&bytes, limits)?;
     Ok((img, bytes))
 }

@@ -123,6 +123,12 @@ pub trait Method: Send + Sync {
     fn tileable(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Result<(), String> {
         Err(format!("{} cannot make its output wrap", self.name()))
     }
+    /// The folders of extra files ([`Synthesis::extras`] named `folder/…`) a job with these
+    /// parameters writes next to its output (`{output without extension}.{folder}/`). Known before
+    /// the job runs, so that the plan can refuse another job whose files would land in them.
+    fn extra_folders(&self, _params: &Params) -> Vec<&'static str> {
+        Vec::new()
+    }
     /// Whether [`Method::synthesize_strips`] works: the method can render its output strip by
     /// strip (tile fills), for outputs too large to hold.
     fn renders_in_strips(&self) -> bool {

@@ -276,11 +276,17 @@ impl Params {
 pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Params, Vec<ParamError>> {
     let mut errors = Vec::new();
     let mut out = BTreeMap::new();
+    let names: Vec<&str> = specs.iter().map(|s| s.name).collect();
+    // The nearest-name suggestion costs an edit distance per valid name: given for the first
+    // unknown keys only, the rest are counted, so that 80 000 of them cost nothing noticeable.
+    let mut unknown = 0;
     for (name, value) in given {
         match specs.iter().find(|s| s.name == name) {
             None => {
-                let names: Vec<&str> = specs.iter().map(|s| s.name).collect();
-                errors.push(ParamError::new(name, unknown_key_message(name, &names)));
+                unknown += 1;
+                if unknown <= MAX_SUGGESTED_UNKNOWN {
+                    errors.push(ParamError::new(name, unknown_key_message(name, &names)));
+                }
             }
             Some(spec) => match spec.check(value) {
                 Ok(v) => {
@@ -289,6 +295,13 @@ pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Pa
                 Err(e) => errors.push(ParamError::new(name, e)),
             },
         }
+    }
+    if unknown > MAX_SUGGESTED_UNKNOWN {
+        let first = given.iter().map(|(n, _)| n.as_str()).filter(|n| !names.contains(n)).nth(MAX_SUGGESTED_UNKNOWN).unwrap_or("?");
+        errors.push(ParamError::new(
+            first,
+            format!("… and {} more unknown key(s) after the first {MAX_SUGGESTED_UNKNOWN}; valid keys: {}", unknown - MAX_SUGGESTED_UNKNOWN, names.join(", ")),
+        ));
     }
     for spec in specs {
         if out.contains_key(spec.name) {
@@ -330,6 +343,9 @@ pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Pa
     }
     if errors.is_empty() { Ok(Params(out)) } else { Err(errors) }
 }
+
+/// How many unknown keys of one table get a nearest-name suggestion (the rest are counted).
+pub const MAX_SUGGESTED_UNKNOWN: usize = 20;
 
 /// "unknown key `x`", plus the nearest valid name when one is close, else the list of names.
 pub fn unknown_key_message(key: &str, valid: &[&str]) -> String {

@@ -164,6 +164,14 @@ impl Job {
         v
     }
 
+    /// Every file and folder the job writes, known before it runs: [`Job::written_paths`] as
+    /// files, and the folders of its method's extras (`{output stem}.{folder}`, e.g. a tile-set
+    /// export `t.tiles`), whose whole content is the job's.
+    pub fn claims(&self) -> Claims {
+        let folders = self.method.extra_folders(&self.params).into_iter().map(|f| format!("{}.{f}", output_stem(&self.output.path))).collect();
+        Claims { files: self.written_paths().into_iter().map(str::to_string).collect(), folders }
+    }
+
     /// An error about this job's key `key` (e.g. `params.block`), placed at the key's line.
     pub fn error(&self, key: Option<&str>, message: impl Into<String>) -> JobError {
         JobError {
@@ -173,6 +181,33 @@ impl Job {
             message: message.into(),
         }
     }
+}
+
+/// The output path without its extension: extras go to `{stem}.{name}`.
+pub fn output_stem(output_path: &str) -> &str {
+    let file_start = output_path.rfind('/').map_or(0, |i| i + 1);
+    let stem_end = output_path[file_start..].rfind('.').map_or(output_path.len(), |i| file_start + i);
+    &output_path[..stem_end]
+}
+
+/// What one job writes: files by name, and folders it owns whole.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Claims {
+    pub files: Vec<String>,
+    pub folders: Vec<String>,
+}
+
+impl Claims {
+    /// Whether `path` (a file relative to the output directory) is one of these files or lies in
+    /// one of these folders.
+    pub fn covers(&self, path: &str) -> bool {
+        self.files.iter().any(|f| f == path) || self.folders.iter().any(|d| in_folder(path, d))
+    }
+}
+
+/// Whether `path` lies under the folder `dir` (both relative, `/`-separated), or is the folder.
+pub fn in_folder(path: &str, dir: &str) -> bool {
+    path.strip_prefix(dir).is_some_and(|rest| rest.is_empty() || rest.starts_with('/'))
 }
 
 /// A job that cannot run, with every reason.
@@ -286,12 +321,16 @@ pub fn read_all(files: &[JobFile]) -> JobSet {
     plan
 }
 
-/// Two jobs writing the same file would race; all of them are made invalid.
+/// Two jobs writing the same file would race; all of them are made invalid. "The same file"
+/// covers every file a job writes ([`Job::claims`]): its output, companions and source map, and
+/// anything inside the folder of its extras (a tile-set export), which another job's output must
+/// not land in either.
 fn reject_shared_outputs(plan: &mut JobSet) {
+    let claims: Vec<Claims> = plan.jobs.iter().map(Job::claims).collect();
     let mut by_output: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-    for (i, j) in plan.jobs.iter().enumerate() {
-        for p in j.written_paths() {
-            by_output.entry(p.to_string()).or_default().push(i);
+    for (i, c) in claims.iter().enumerate() {
+        for p in &c.files {
+            by_output.entry(p.clone()).or_default().push(i);
         }
     }
     let mut bad: BTreeMap<usize, String> = BTreeMap::new();
@@ -306,6 +345,24 @@ fn reject_shared_outputs(plan: &mut JobSet) {
                         others.join(", ")
                     ),
                 );
+            }
+        }
+    }
+    // Folders: every file under one, from the sorted map (a range from the folder's name), and
+    // every other job's folder of the same name or inside it.
+    for (i, c) in claims.iter().enumerate() {
+        for dir in &c.folders {
+            let inside = by_output.range(dir.clone()..).take_while(|(p, _)| p.starts_with(dir.as_str())).filter(|(p, _)| in_folder(p, dir));
+            let mut writers: Vec<(usize, String)> =
+                inside.flat_map(|(p, idx)| idx.iter().filter(|&&k| k != i).map(move |&k| (k, format!("`{p}`")))).collect();
+            for (k, other) in claims.iter().enumerate().filter(|&(k, _)| k != i) {
+                writers.extend(other.folders.iter().filter(|d| in_folder(d, dir) || in_folder(dir, d)).map(|d| (k, format!("the folder `{d}/`"))));
+            }
+            for (k, what) in writers {
+                let folder_owner = plan.jobs[i].id.clone();
+                let writer = plan.jobs[k].id.clone();
+                bad.insert(k, format!("{what} lies in `{dir}/`, the folder job {folder_owner} writes its extras to (export_tiles); give each job its own output path"));
+                bad.entry(i).or_insert_with(|| format!("its extras folder `{dir}/` (export_tiles) would also receive {what} from job {writer}; give each job its own output path"));
             }
         }
     }

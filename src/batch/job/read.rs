@@ -9,13 +9,12 @@ use crate::image::io::Format;
 use crate::synth::methods;
 use crate::synth::params;
 use crate::synth::placement::MapKind;
-use std::collections::BTreeMap;
 use std::path::Path;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
 pub(super) fn read_job_file(f: &JobFile) -> Result<Vec<Job>, Vec<JobError>> {
-    let bytes = std::fs::read(&f.path)
+    let bytes = crate::files::read_limited(&f.path, crate::files::MAX_JOB_FILE_BYTES)
         .map_err(|e| vec![JobError { file: f.path.clone(), position: None, key: None, message: format!("cannot read job file: {e}") }])?;
     parse_job_file(f, bytes)
 }
@@ -31,22 +30,16 @@ pub fn parse_job_file(f: &JobFile, bytes: Vec<u8>) -> Result<Vec<Job>, Vec<JobEr
             message: format!("job file is not valid UTF-8 (byte {})", e.utf8_error().valid_up_to()),
         }]
     })?;
-    let mut ctx = Ctx { file: f, src: &src, errors: Vec::new(), positions: BTreeMap::new() };
+    let mut ctx = Ctx::new(f, &src);
     let (table, parse_errors) = DeTable::parse_recoverable(&src);
     for e in &parse_errors {
         ctx.err(e.span(), None, format!("malformed TOML: {}", e.message().trim()));
     }
     if !parse_errors.is_empty() {
-        return Err(ctx.errors);
+        return Err(ctx.into_errors());
     }
     let jobs = build_jobs(&mut ctx, table.get_ref(), &bytes);
-    if ctx.errors.is_empty() {
-        Ok(jobs)
-    } else {
-        // Errors without a place (missing keys) come last.
-        ctx.errors.sort_by_key(|e| e.position.unwrap_or((usize::MAX, 0)));
-        Err(ctx.errors)
-    }
+    if ctx.errors.is_empty() { Ok(jobs) } else { Err(ctx.into_errors()) }
 }
 
 /// The top-level keys, each checked for type; `[params]` and `[sweep]` are returned for later,
@@ -203,10 +196,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             for e in errs {
                 let key = format!("params.{}", e.key);
                 let pos = ctx.positions.get(&key).copied();
-                let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e.message };
-                if !ctx.errors.contains(&err) {
-                    ctx.errors.push(err);
-                }
+                ctx.push(JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e.message });
             }
         }
     }

@@ -10,36 +10,103 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use toml::de::DeValue;
 
-/// Where a byte offset is, as 1-based (line, column).
-pub(super) fn line_col(src: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(src.len());
-    let before = &src[..offset];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rfind('\n').map_or(before.chars().count(), |nl| before[nl + 1..].chars().count()) + 1;
-    (line, col)
+/// Byte offsets → 1-based (line, column), in logarithmic time: every key of a job file gets a
+/// position, and scanning the text from its start for each would make a 10 MB file of 80 000
+/// keys take minutes.
+pub(super) struct LineIndex {
+    /// Byte offset of each line's first byte.
+    line_starts: Vec<usize>,
+    /// (byte offset, chars before it) at char boundaries about every [`Self::STRIDE`] bytes, so
+    /// that a column on a very long line is counted from a nearby mark.
+    marks: Vec<(usize, usize)>,
 }
+
+impl LineIndex {
+    const STRIDE: usize = 4096;
+
+    pub(super) fn new(src: &str) -> LineIndex {
+        let line_starts = std::iter::once(0).chain(src.match_indices('\n').map(|(i, _)| i + 1)).collect();
+        let mut marks = vec![(0, 0)];
+        let mut chars = 0;
+        for (i, _) in src.char_indices() {
+            if i >= marks.last().expect("one mark").0 + Self::STRIDE {
+                marks.push((i, chars));
+            }
+            chars += 1;
+        }
+        LineIndex { line_starts, marks }
+    }
+
+    /// Chars of `src` before byte `offset` (a char boundary).
+    fn chars_before(&self, src: &str, offset: usize) -> usize {
+        let k = self.marks.partition_point(|m| m.0 <= offset) - 1;
+        let (at, count) = self.marks[k];
+        count + src[at..offset].chars().count()
+    }
+
+    pub(super) fn line_col(&self, src: &str, offset: usize) -> (usize, usize) {
+        let mut offset = offset.min(src.len());
+        while !src.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let line = self.line_starts.partition_point(|&s| s <= offset);
+        let start = self.line_starts[line - 1];
+        (line, self.chars_before(src, offset) - self.chars_before(src, start) + 1)
+    }
+}
+
+/// At most this many problems are listed per job file; the rest are counted in one last line.
+/// A file with 80 000 unknown keys gets a readable answer in well under a second.
+pub(super) const MAX_LISTED_ERRORS: usize = 50;
 
 pub(super) struct Ctx<'a> {
     pub(super) file: &'a JobFile,
     pub(super) src: &'a str,
     pub(super) errors: Vec<JobError>,
+    /// Problems found beyond [`MAX_LISTED_ERRORS`].
+    pub(super) unlisted: usize,
     pub(super) positions: BTreeMap<String, (usize, usize)>,
+    lines: LineIndex,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    pub(super) fn new(file: &'a JobFile, src: &'a str) -> Ctx<'a> {
+        Ctx { file, src, errors: Vec::new(), unlisted: 0, positions: BTreeMap::new(), lines: LineIndex::new(src) }
+    }
     pub(super) fn err(&mut self, span: Option<std::ops::Range<usize>>, key: Option<&str>, message: impl Into<String>) {
         let e = JobError {
             file: self.file.path.clone(),
-            position: span.map(|s| line_col(self.src, s.start)),
+            position: span.map(|s| self.lines.line_col(self.src, s.start)),
             key: key.map(str::to_string),
             message: message.into(),
         };
-        if !self.errors.contains(&e) {
+        self.push(e);
+    }
+    /// Records a problem unless it is already listed; beyond [`MAX_LISTED_ERRORS`], counts it.
+    pub(super) fn push(&mut self, e: JobError) {
+        if self.errors.len() >= MAX_LISTED_ERRORS {
+            self.unlisted += 1;
+        } else if !self.errors.contains(&e) {
             self.errors.push(e);
         }
     }
     pub(super) fn at(&mut self, key: &str, span: std::ops::Range<usize>) {
-        self.positions.insert(key.to_string(), line_col(self.src, span.start));
+        let pos = self.lines.line_col(self.src, span.start);
+        self.positions.insert(key.to_string(), pos);
+    }
+    /// The problems, in file order, with the count of unlisted ones as a last line.
+    pub(super) fn into_errors(mut self) -> Vec<JobError> {
+        // Errors without a place (missing keys) come last.
+        self.errors.sort_by_key(|e| e.position.unwrap_or((usize::MAX, 0)));
+        if self.unlisted > 0 {
+            self.errors.push(JobError {
+                file: self.file.path.clone(),
+                position: None,
+                key: None,
+                message: format!("… and {} more problem(s) in this file, not listed (the first {MAX_LISTED_ERRORS} are above)", self.unlisted),
+            });
+        }
+        self.errors
     }
 }
 

@@ -174,9 +174,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
                     let key = if in_sweep { format!("sweep.{}", e.key) } else { format!("params.{}", e.key) };
                     let pos = ctx.positions.get(&key).copied();
                     let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e.message };
-                    if !ctx.errors.contains(&err) {
-                        ctx.errors.push(err);
-                    }
+                    ctx.push(err);
                 }
                 continue;
             }
@@ -205,9 +203,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
                 Err(e) => {
                     let pos = ctx.positions.get(&key).copied();
                     let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message: e };
-                    if !ctx.errors.contains(&err) {
-                        ctx.errors.push(err);
-                    }
+                    ctx.push(err);
                     broken = true;
                 }
             }
@@ -237,9 +233,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
                 let pos = ctx.positions.get(&key).or_else(|| ctx.positions.get(key.trim_end_matches(".path"))).copied();
                 let message = format!("`{}` is also written by `{}` of this job; give each its own file", seen[i].0, first.1);
                 let err = JobError { file: ctx.file.path.clone(), position: pos, key: Some(key), message };
-                if !ctx.errors.contains(&err) {
-                    ctx.errors.push(err);
-                }
+                ctx.push(err);
                 broken = true;
             }
         }

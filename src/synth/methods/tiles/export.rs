@@ -196,10 +196,30 @@ impl Loaded {
     /// Renders `width × height` with the given arrangement. With the index's own tiling, seed and
     /// output size this is exactly the job's output.
     pub fn render(&self, width: u32, height: u32, seed: u64, order: TilingOrder) -> RgbImage {
+        let mut out = RgbImage::new(width, height);
+        self.rows(width, height, seed, order)(0, out.as_raw_mut());
+        out
+    }
+
+    /// A renderer of any whole output rows of the same fill as [`Loaded::render`]: `f(y0, rows)`
+    /// fills `rows` (a multiple of `3 × width` bytes) with rows `y0..`. How a fill too large to
+    /// hold is written strip by strip; only the tiling is made here.
+    pub fn rows(&self, width: u32, height: u32, seed: u64, order: TilingOrder) -> Box<dyn Fn(u32, &mut [u8]) + Send + Sync + '_> {
         match self {
-            Loaded::Wang(_, set) => set.render(&set.tile_output(order, width, height, seed), width, height),
-            Loaded::Rw(_, set) => set.render(&set.tile_output(order, width, height, seed), width, height),
+            Loaded::Wang(_, set) => {
+                let tiling = set.tile_output(order, width, height, seed);
+                Box::new(move |y0, rows| set.render_rows(&tiling, width, y0, rows))
+            }
+            Loaded::Rw(_, set) => {
+                let tiling = set.tile_output(order, width, height, seed);
+                Box::new(move |y0, rows| set.render_rows(&tiling, width, y0, rows))
+            }
         }
+    }
+
+    /// Bytes the loaded tile set holds (its tiles' pixels and masks, as decoded: at most RGBA).
+    pub fn tile_bytes(&self) -> u64 {
+        self.index().tiles.iter().map(|t| 8 * u64::from(t.width) * u64::from(t.height)).sum()
     }
 }
 
@@ -223,7 +243,7 @@ impl std::error::Error for ExportError {}
 /// each image's size and (for rhombi) its alpha mask.
 pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
     let at = |reason: String| ExportError { file: index_path.to_path_buf(), reason };
-    let bytes = std::fs::read(index_path).map_err(|e| at(format!("cannot read: {e}")))?;
+    let bytes = crate::files::read_limited(index_path, crate::files::MAX_JSON_BYTES).map_err(|e| at(format!("cannot read: {e}")))?;
     let index: Index = serde_json::from_slice(&bytes).map_err(|e| at(format!("not a tile-set index: {e}")))?;
     if index.format != FORMAT {
         return Err(at(format!("format `{}` is not `{FORMAT}`; it was written by another texsyn version", index.format)));
@@ -243,6 +263,15 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
             )));
         }
     }
+    // Bounded before anything is sized from them: the tile geometry allocates tile² masks.
+    if i64::from(index.tile) > super::align::TILE_RANGE.1 || index.overlap > index.tile {
+        return Err(at(format!(
+            "tile {} / overlap {}: the tile must be at most {} and the overlap at most the tile",
+            index.tile,
+            index.overlap,
+            super::align::TILE_RANGE.1
+        )));
+    }
     let (tile, ov) = (index.tile as i32, index.overlap as i32);
     if tile < 8 || tile % 2 != 0 || ov < 2 || ov % 2 != 0 {
         return Err(at(format!("tile {tile} / overlap {ov} must be even, tile at least 8, overlap at least 2")));
@@ -253,7 +282,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
             return Err(at(format!("tile file `{}` must be a name inside the export folder", t.file)));
         }
         let path = dir.join(&t.file);
-        let bytes = std::fs::read(&path).map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
+        let bytes = crate::files::read_limited(&path, crate::files::MAX_IMAGE_FILE_BYTES).map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
         let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default())
             .map_err(|e| ExportError { file: path.clone(), reason: e.to_string() })?;
         if (w, h) != (t.width, t.height) {

@@ -535,6 +535,10 @@ impl Method for WangTiles {
     fn name(&self) -> &'static str {
         WangTilesConfig::METHOD
     }
+    fn extra_folders(&self, params: &Params) -> Vec<&'static str> {
+        // `export::finish` names every file `tiles/…`.
+        if params.bool("export_tiles").unwrap_or(false) { vec!["tiles"] } else { Vec::new() }
+    }
     fn algorithm_version(&self) -> u32 {
         1
     }
