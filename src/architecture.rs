@@ -176,7 +176,7 @@ fn the_scanner_sees_paths_and_resolves_super() {
     assert_eq!(paths_in("use crate::synth::params::{Params, ParamSpec};", "x"), vec!["synth::params"]);
     assert_eq!(paths_in("    use super::align::{self, V};", "synth::methods::tiles"), vec!["synth::methods::tiles::align"]);
     assert_eq!(paths_in("let a = my_crate::x; // not ours", ""), Vec::<String>::new());
-    assert_eq!(rank("synth::methods::tiles::export"), Some((3, 4)));
+    assert_eq!(rank("synth::methods::tiles::export"), Some((4, 4)));
     assert!(rank("batch::run") > rank("synthesizer"));
     assert!(rank("synthesizer") > rank("error"));
 }

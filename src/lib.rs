@@ -18,6 +18,7 @@
 //!  metrics/  objective measures (KL, autocorrelation, verbatim copies, seam visibility)
 //!  image/    RgbImage, decoding/encoding with limits, pixel digests, seam grids
 //!  digest    SHA-256 and canonical JSON
+//!  files     bounded reads and link-refusing opens of paths that come from outside
 //! ```
 //!
 //! `docs/methods.md` describes every method and the choices the code makes where the papers are

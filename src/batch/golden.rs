@@ -19,7 +19,8 @@ pub type GoldenFile = BTreeMap<String, BTreeMap<String, Digest>>;
 /// relative paths inside the job root, and this checks again, so that no id ever names a file
 /// outside `dir`.
 fn golden_path(dir: &Path, rec: &JobRecord) -> Result<PathBuf, Error> {
-    crate::batch::manifest::check_id(&rec.id).map_err(|reason| Error::manifest(dir, format!("job `{}`: {reason}", rec.id.escape_debug())))?;
+    crate::batch::manifest::check_id(&rec.id)
+        .map_err(|reason| Error::manifest(dir, format!("job `{}`: {reason}", rec.id.escape_debug())))?;
     let file_part = rec.id.split('#').next().unwrap_or(&rec.id);
     let stem = file_part.strip_suffix(".toml").unwrap_or(file_part);
     Ok(dir.join(format!("{stem}.json")))
@@ -35,7 +36,11 @@ fn contained(dir: &Path, path: &Path) -> Result<(), Error> {
     if !real.starts_with(&root) {
         return Err(Error::Containment {
             path: path.to_path_buf(),
-            reason: format!("would be written to {}, outside the golden directory {} (a symlink?); refusing", real.display(), root.display()),
+            reason: format!(
+                "would be written to {}, outside the golden directory {} (a symlink?); refusing",
+                real.display(),
+                root.display()
+            ),
         });
     }
     Ok(())

@@ -395,7 +395,11 @@ fn check_record(j: &JobRecord) -> Result<(), String> {
     if let Some(seams) = &j.seams {
         for (axis, bands) in [("columns", &seams.columns), ("rows", &seams.rows)] {
             if let Some(b) = bands.iter().find(|b| u64::from(b.start) + u64::from(b.len) > MAX_SIDE + 1) {
-                return Err(format!("`seams.{axis}`: a band at {}..{} lies beyond any output side", b.start, u64::from(b.start) + u64::from(b.len)));
+                return Err(format!(
+                    "`seams.{axis}`: a band at {}..{} lies beyond any output side",
+                    b.start,
+                    u64::from(b.start) + u64::from(b.len)
+                ));
             }
         }
     }

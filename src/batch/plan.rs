@@ -214,7 +214,8 @@ fn job_roots(inputs: &[PathBuf]) -> BTreeSet<String> {
     inputs
         .iter()
         .map(|arg| {
-            let dir = if arg.is_dir() { arg.as_path() } else { arg.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")) };
+            let dir =
+                if arg.is_dir() { arg.as_path() } else { arg.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")) };
             let abs = dir.canonicalize().or_else(|_| std::path::absolute(dir)).unwrap_or_else(|_| dir.to_path_buf());
             abs.to_string_lossy().into_owned()
         })
@@ -455,7 +456,9 @@ fn decide(job: &Job, content_key: &Digest, previous: Option<&JobRecord>, opts: &
 
 /// The manifest record of a job that cannot run.
 pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
-    let digest = crate::files::read_limited(&inv.file, crate::files::MAX_JOB_FILE_BYTES).map(|b| Digest::of_bytes(&b)).unwrap_or_else(|_| Digest::of_bytes(b""));
+    let digest = crate::files::read_limited(&inv.file, crate::files::MAX_JOB_FILE_BYTES)
+        .map(|b| Digest::of_bytes(&b))
+        .unwrap_or_else(|_| Digest::of_bytes(b""));
     JobRecord {
         id: inv.id.clone(),
         job_file: FileRef { path: manifest::relative_path(&inv.file, manifest_dir), digest },

@@ -10,12 +10,12 @@ use crate::batch::execute::{JobInputs, SOURCE_MAP_FORMAT, load_sample, synthesiz
 use crate::batch::job::Companion;
 use crate::batch::job::OutputSpec;
 use crate::batch::manifest::{JobRecord, Manifest, Status};
+use crate::batch::memory::{self, Budget};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::io::{self as imageio, DecodeLimits};
 use crate::synth::methods;
 use crate::synth::params::{self, ParamValue};
-use crate::batch::memory::{self, Budget};
 use std::path::{Path, PathBuf};
 
 /// The outcome for one job.

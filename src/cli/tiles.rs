@@ -85,7 +85,8 @@ pub fn run(cmd: Command) -> Result<Outcome, Error> {
         }
         Format::Exr => {
             let img = loaded.render(w, h, seed, order);
-            let encoded = imageio::encode(&img, Encoding { format, bit_depth: 32 }).map_err(|source| Error::Image { path: out.clone(), source })?;
+            let encoded =
+                imageio::encode(&img, Encoding { format, bit_depth: 32 }).map_err(|source| Error::Image { path: out.clone(), source })?;
             texsyn::batch::outdir::write_atomic(&out, &encoded.bytes)?;
             encoded.pixels.pixel_digest()
         }

@@ -38,10 +38,9 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     }
     let bad = report.jobs.iter().filter(|(_, o)| matches!(o, JobOutcome::Mismatch(_))).count();
     let too_large = report.jobs.iter().filter(|(_, o)| matches!(o, JobOutcome::TooLarge(_))).count();
-    eprintln!(
-        "texsyn verify: {verified} verified, {bad} mismatched, {too_large} not run (over the memory limit), {} manifest problems",
-        report.manifest_problems.len()
-    );
+    // The summary's words are what scripts read: "not run" appears only when a job was not.
+    let not_run = if too_large > 0 { format!(", {too_large} not run (over --max-memory)") } else { String::new() };
+    eprintln!("texsyn verify: {verified} verified, {bad} mismatched{not_run}, {} manifest problems", report.manifest_problems.len());
     // A mismatch outranks a job left unchecked; a job left unchecked is not a pass.
     Ok(if bad > 0 || !report.manifest_problems.is_empty() {
         Outcome::Mismatch

@@ -101,7 +101,8 @@ pub struct ReportSummary {
 /// Loads an image and checks it is the one the manifest recorded, so a picture never contradicts
 /// the numbers next to it.
 fn load(path: &Path, expected_sha256: &str, as_sample: bool) -> Result<RgbImage, String> {
-    let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let native = imageio::decode_native(&bytes, DecodeLimits::default()).map_err(|e| format!("{}: {e}", path.display()))?;
     let rgb = imageio::native_to_rgb8(&native);
     // Outputs and samples are recorded by their stored samples; manifests before native-precision

@@ -300,7 +300,11 @@ pub fn resolve(specs: &[ParamSpec], given: &[(String, ParamValue)]) -> Result<Pa
         let first = given.iter().map(|(n, _)| n.as_str()).filter(|n| !names.contains(n)).nth(MAX_SUGGESTED_UNKNOWN).unwrap_or("?");
         errors.push(ParamError::new(
             first,
-            format!("… and {} more unknown key(s) after the first {MAX_SUGGESTED_UNKNOWN}; valid keys: {}", unknown - MAX_SUGGESTED_UNKNOWN, names.join(", ")),
+            format!(
+                "… and {} more unknown key(s) after the first {MAX_SUGGESTED_UNKNOWN}; valid keys: {}",
+                unknown - MAX_SUGGESTED_UNKNOWN,
+                names.join(", ")
+            ),
         ));
     }
     for spec in specs {

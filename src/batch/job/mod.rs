@@ -168,7 +168,8 @@ impl Job {
     /// files, and the folders of its method's extras (`{output stem}.{folder}`, e.g. a tile-set
     /// export `t.tiles`), whose whole content is the job's.
     pub fn claims(&self) -> Claims {
-        let folders = self.method.extra_folders(&self.params).into_iter().map(|f| format!("{}.{f}", output_stem(&self.output.path))).collect();
+        let folders =
+            self.method.extra_folders(&self.params).into_iter().map(|f| format!("{}.{f}", output_stem(&self.output.path))).collect();
         Claims { files: self.written_paths().into_iter().map(str::to_string).collect(), folders }
     }
 
@@ -356,7 +357,9 @@ fn reject_shared_outputs(plan: &mut JobSet) {
             let mut writers: Vec<(usize, String)> =
                 inside.flat_map(|(p, idx)| idx.iter().filter(|&&k| k != i).map(move |&k| (k, format!("`{p}`")))).collect();
             for (k, other) in claims.iter().enumerate().filter(|&(k, _)| k != i) {
-                writers.extend(other.folders.iter().filter(|d| in_folder(d, dir) || in_folder(dir, d)).map(|d| (k, format!("the folder `{d}/`"))));
+                writers.extend(
+                    other.folders.iter().filter(|d| in_folder(d, dir) || in_folder(dir, d)).map(|d| (k, format!("the folder `{d}/`"))),
+                );
             }
             for (k, what) in writers {
                 let folder_owner = plan.jobs[i].id.clone();

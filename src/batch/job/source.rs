@@ -103,7 +103,10 @@ impl<'a> Ctx<'a> {
                 file: self.file.path.clone(),
                 position: None,
                 key: None,
-                message: format!("… and {} more problem(s) in this file, not listed (the first {MAX_LISTED_ERRORS} are above)", self.unlisted),
+                message: format!(
+                    "… and {} more problem(s) in this file, not listed (the first {MAX_LISTED_ERRORS} are above)",
+                    self.unlisted
+                ),
             });
         }
         self.errors

@@ -282,7 +282,8 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
             return Err(at(format!("tile file `{}` must be a name inside the export folder", t.file)));
         }
         let path = dir.join(&t.file);
-        let bytes = crate::files::read_limited(&path, crate::files::MAX_IMAGE_FILE_BYTES).map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
+        let bytes = crate::files::read_limited(&path, crate::files::MAX_IMAGE_FILE_BYTES)
+            .map_err(|e| ExportError { file: path.clone(), reason: format!("cannot read: {e}") })?;
         let (w, h, data) = imageio::decode_rgba8(&bytes, DecodeLimits::default())
             .map_err(|e| ExportError { file: path.clone(), reason: e.to_string() })?;
         if (w, h) != (t.width, t.height) {
