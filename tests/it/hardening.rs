@@ -294,7 +294,7 @@ fn a_forced_run_killed_early_keeps_every_earlier_record() {
     let ids = |v: &Value| -> Vec<String> { v["jobs"].as_array().unwrap().iter().map(|j| j["id"].as_str().unwrap().to_string()).collect() };
     assert_eq!(ids(&after), ids(&first), "records lost by a killed --force run");
     assert!(after["run"]["in_progress"] == true);
-    assert!(!after["run"]["rerunning"].as_array().map_or(true, |r| r.is_empty()), "the earlier records are marked: {}", after["run"]);
+    assert!(after["run"]["rerunning"].as_array().is_some_and(|r| !r.is_empty()), "the earlier records are marked: {}", after["run"]);
     run_ok(texsyn().arg("verify").arg(&manifest));
     // Resumed, it finishes with nothing marked.
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(&out).arg(&dir));

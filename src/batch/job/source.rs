@@ -27,12 +27,10 @@ impl LineIndex {
     pub(super) fn new(src: &str) -> LineIndex {
         let line_starts = std::iter::once(0).chain(src.match_indices('\n').map(|(i, _)| i + 1)).collect();
         let mut marks = vec![(0, 0)];
-        let mut chars = 0;
-        for (i, _) in src.char_indices() {
+        for (chars, (i, _)) in src.char_indices().enumerate() {
             if i >= marks.last().expect("one mark").0 + Self::STRIDE {
                 marks.push((i, chars));
             }
-            chars += 1;
         }
         LineIndex { line_starts, marks }
     }
