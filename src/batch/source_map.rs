@@ -57,8 +57,27 @@ pub fn encode(p: &Placement) -> std::result::Result<Vec<u8>, String> {
     Ok(cursor.into_inner())
 }
 
+/// The largest source map [`decode`] reads: an output's side limit, 16384² pixels (about 2 GB of
+/// placement), and the channels of the longest blend chains with room to spare.
+const MAX_SIDE: u64 = crate::batch::job::MAX_OUTPUT_SIDE as u64;
+const MAX_PIXELS: u64 = 1 << 28;
+const MAX_CHANNELS: u64 = 64;
+
 /// Decodes a source map written by [`encode`]; the error says what is wrong with the file.
 pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
+    // The header first: a small file may declare any size, and the decoder allocates what it
+    // declares before reading a pixel.
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| format!("not a readable EXR: cannot read its header: {e}"))?;
+    for header in &meta.headers {
+        let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+        let channels = header.channels.list.len() as u64;
+        if w > MAX_SIDE || h > MAX_SIDE || w * h > MAX_PIXELS || channels > MAX_CHANNELS {
+            return Err(format!(
+                "declares a {w}x{h} layer of {channels} channels; a source map is at most {MAX_SIDE} per side, {MAX_PIXELS} pixels and {MAX_CHANNELS} channels"
+            ));
+        }
+    }
     let read = std::panic::catch_unwind(|| {
         read()
             .no_deep_data()
