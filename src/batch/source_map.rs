@@ -63,12 +63,13 @@ const MAX_SIDE: u64 = crate::batch::job::MAX_OUTPUT_SIDE as u64;
 const MAX_PIXELS: u64 = 1 << 28;
 const MAX_CHANNELS: u64 = 64;
 
-/// Decodes a source map written by [`encode`]; the error says what is wrong with the file.
-pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
-    // The header first: a small file may declare any size, and the decoder allocates what it
-    // declares before reading a pixel.
+/// The size a source map's header declares, `(width, height, channels)` of its largest layer,
+/// refused beyond the limits above. Read before anything is decoded, so that callers can weigh
+/// the decoding's memory ([`decode`] holds the file's channels and the placement at once).
+pub fn declared_size(bytes: &[u8]) -> std::result::Result<(u64, u64, u64), String> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| format!("not a readable EXR: cannot read its header: {e}"))?;
+    let mut largest = (0, 0, 0);
     for header in &meta.headers {
         let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
         let channels = header.channels.list.len() as u64;
@@ -77,7 +78,18 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
                 "declares a {w}x{h} layer of {channels} channels; a source map is at most {MAX_SIDE} per side, {MAX_PIXELS} pixels and {MAX_CHANNELS} channels"
             ));
         }
+        if w * h * channels > largest.0 * largest.1 * largest.2 {
+            largest = (w, h, channels);
+        }
     }
+    Ok(largest)
+}
+
+/// Decodes a source map written by [`encode`]; the error says what is wrong with the file.
+pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
+    // The header first: a small file may declare any size, and the decoder allocates what it
+    // declares before reading a pixel.
+    declared_size(bytes)?;
     let read = std::panic::catch_unwind(|| {
         read()
             .no_deep_data()

@@ -28,6 +28,10 @@ pub struct Args {
     /// `normal`: blended pixels are renormalised as normals; `color` (default): blended as they are.
     #[arg(long, default_value = "color")]
     kind: String,
+    /// Memory limit, as for `texsyn run`: a map whose rendering is estimated to need more is
+    /// refused (exit 2) before it is decoded. Default: the memory available; `unlimited` for none.
+    #[arg(long, value_name = "SIZE", default_value_t = super::run::MemoryLimit::available())]
+    max_memory: super::run::MemoryLimit,
 }
 
 pub fn run(args: Args) -> Result<Outcome, Error> {
@@ -35,6 +39,20 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     let format = Format::from_path(&args.output)
         .ok_or_else(|| Error::Usage(format!("{}: the output must end in .png or .exr", args.output.display())))?;
     let bytes = texsyn::files::read_limited(&args.map, texsyn::files::MAX_IMAGE_FILE_BYTES).map_err(|e| Error::io(&args.map, "read", e))?;
+    let declared = texsyn::batch::source_map::declared_size(&bytes)
+        .map_err(|reason| Error::Image { path: args.map.clone(), source: ImageError::Decode(reason) })?;
+    // The map's channels as decoded (4 B each) beside the placement made from them (source and
+    // blend index, 8 B, plus blends), then the rendering in the widest precision (float RGBA)
+    // and its encoding; the image itself is bounded by the decoder's limits.
+    let (w, h, channels) = declared;
+    let needed = texsyn::batch::memory::PROCESS_BYTES + bytes.len() as u64 + w * h * (4 * channels + 16) + 3 * 16 * w * h;
+    if let Some(limit) = args.max_memory.0.filter(|&l| needed > l) {
+        return Err(Error::Usage(format!(
+            "{}: rendering this {w}x{h} map {}",
+            args.map.display(),
+            texsyn::batch::memory::too_large(needed, limit)
+        )));
+    }
     let placement = texsyn::batch::source_map::decode(&bytes)
         .map_err(|reason| Error::Image { path: args.map.clone(), source: ImageError::Decode(reason) })?;
     let image = load_sample(&args.image)?;

@@ -379,3 +379,27 @@ fn samples_that_are_devices_or_fifos_are_refused_without_reading_them() {
     let said = text(&run_expect(texsyn().arg("verify").arg(&m), 3));
     assert!(said.contains("/dev/zero") && said.contains("not a regular file"), "{said}");
 }
+
+#[test]
+fn apply_weighs_a_source_map_before_decoding_it() {
+    let root = scratch("apply-memory");
+    let dir = tree(&root, "jobs", &[]);
+    std::fs::write(
+        dir.join("m.toml"),
+        "sample = \"s.png\"\nmethod = \"quilting\"\nseed = 3\n[output]\npath = \"m.png\"\nwidth = 96\nheight = 96\nsource_map = \"m.exr\"\n[params]\nblock = 24\n",
+    )
+    .unwrap();
+    let out = root.join("out");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(&out).arg(&dir));
+    let o = run_expect(
+        texsyn().args(["apply", "--max-memory", "1M"]).arg(out.join("m.exr")).arg(dir.join("s.png")).arg("-o").arg(root.join("a.png")),
+        2,
+    );
+    assert!(text(&o).contains("rendering this 96x96 map needs about"), "{}", text(&o));
+    assert!(!root.join("a.png").exists());
+    run_ok(texsyn().arg("apply").arg(out.join("m.exr")).arg(dir.join("s.png")).arg("-o").arg(root.join("a.png")));
+    // Applied over its own sample, the map gives the job's output.
+    let a = imageio::decode_native(&std::fs::read(root.join("a.png")).unwrap(), DecodeLimits::default()).unwrap();
+    let m = imageio::decode_native(&std::fs::read(out.join("m.png")).unwrap(), DecodeLimits::default()).unwrap();
+    assert_eq!(a.pixel_digest(), m.pixel_digest());
+}
