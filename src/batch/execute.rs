@@ -74,16 +74,39 @@ pub fn load_sample(path: &Path) -> Result<LoadedSample, Error> {
         .map_err(|e| Error::Image { path: path.to_path_buf(), source: ImageError::Io(e) })?;
     let native =
         imageio::decode_native(&bytes, DecodeLimits::default()).map_err(|source| Error::Image { path: path.to_path_buf(), source })?;
-    let image = imageio::native_to_rgb8(&native);
-    let plain = native.channels == 3 && matches!(native.samples, Samples::U8(_));
-    let pixel_digest = native.pixel_digest();
-    Ok(LoadedSample {
-        image,
-        native: (!plain).then_some(native),
-        file_digest: Digest::of_bytes(&bytes),
-        pixel_digest,
-        metrics: crate::metrics::SampleReference::new(crate::metrics::MetricParams::default()),
-    })
+    Ok(LoadedSample::with_file_digest(native, Digest::of_bytes(&bytes)))
+}
+
+impl LoadedSample {
+    /// A sample from pixels in memory (an array handed over by a caller): with no file, its file
+    /// digest is its pixel digest.
+    pub fn from_native(native: NativeImage) -> LoadedSample {
+        let digest = native.pixel_digest();
+        LoadedSample::with_file_digest(native, digest)
+    }
+
+    fn with_file_digest(native: NativeImage, file_digest: Digest) -> LoadedSample {
+        let image = imageio::native_to_rgb8(&native);
+        let plain = native.channels == 3 && matches!(native.samples, Samples::U8(_));
+        let pixel_digest = native.pixel_digest();
+        LoadedSample {
+            image,
+            native: (!plain).then_some(native),
+            file_digest,
+            pixel_digest,
+            metrics: crate::metrics::SampleReference::new(crate::metrics::MetricParams::default()),
+        }
+    }
+}
+
+/// A job's main output in the sample's own precision and channels, as `run` encodes it: the
+/// method's 8-bit image for an 8-bit RGB sample, else the placement rendered from the sample
+/// (which the synthesis must then carry).
+pub fn main_output(synthesis: &Synthesis, sample: &LoadedSample) -> NativeImage {
+    match (&sample.native, &synthesis.placement) {
+        (Some(native), Some(placement)) => placement.render(native, MapKind::Color),
+        _ => NativeImage::from_rgb8(&synthesis.image),
+    }
 }
 
 /// Whether a job renders from its method's placement: its sample is not 8-bit RGB, it has

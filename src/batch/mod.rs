@@ -8,6 +8,8 @@
 //! 4. [`run`]: the plan executed in parallel under the output directory's lock ([`outdir`]),
 //!    the [`manifest`] rewritten as jobs finish, progress sent to an [`observer`];
 //! 5. [`verify`] re-executes a manifest's jobs; [`golden`] compares its digests with `golden/`.
+//!
+//! [`single`] makes one synthesis from a sample in memory as a job would (the Python package's door).
 
 pub mod diff;
 pub mod execute;
@@ -21,5 +23,6 @@ pub mod outdir;
 pub mod plan;
 pub mod run;
 pub mod shard;
+pub mod single;
 pub mod source_map;
 pub mod verify;

@@ -1,0 +1,209 @@
+"""The Python package against the CLI's own results: same pixels and digests for every method,
+the job file's parameter messages, arrays in every precision, and the thin doors onto the crate."""
+
+import hashlib
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import texsyn
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+SAMPLES = REPO / "jobs" / "samples"
+# One small job per method, on a sample each fits (as tests/it/materials.rs uses them).
+CASES = [
+    ("quilting", "crops/pebbles_beige_128.png", {}),
+    ("double-seam", "crops/pebbles_beige_128.png", {"block": 32}),
+    ("patch-sampling", "crops/hedge_leaves_128.png", {}),
+    ("coevolution", "tiles_terracotta.png", {}),
+    ("tes", "tiles_terracotta.png", {}),
+    ("wang-tiles", "bricks_gray.png", {}),
+    ("rw-tiles", "bricks_gray.png", {}),
+]
+SIZE = (200, 180)
+
+
+def pixel_digest(a: np.ndarray) -> str:
+    """texsyn's pixel digest of an array (README: the header, then the raw samples little-endian)."""
+    h, w = a.shape[:2]
+    c = 1 if a.ndim == 2 else a.shape[2]
+    kind = {np.dtype(np.uint8): "u8", np.dtype(np.uint16): "u16le", np.dtype(np.float32): "f32le"}[a.dtype]
+    header = f"texsyn-pixels/1 {w}x{h}x{c} {kind}\n".encode()
+    return hashlib.sha256(header + np.ascontiguousarray(a).astype(a.dtype.newbyteorder("<")).tobytes()).hexdigest()
+
+
+def texsyn_cli() -> pathlib.Path:
+    exe = REPO / "target" / "release" / "texsyn"
+    if not exe.exists():
+        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=REPO, check=True)
+    return exe
+
+
+def write_jobs(d: pathlib.Path, threads_suffix: str = "") -> None:
+    d.mkdir(parents=True, exist_ok=True)
+    for method, sample, params in CASES:
+        lines = [
+            f'sample = "{SAMPLES / sample}"',
+            f'method = "{method}"',
+            "seed = 6",
+            "[output]",
+            f'path = "{method}.png"',
+            f"width = {SIZE[0]}",
+            f"height = {SIZE[1]}",
+            "[params]",
+        ] + [f"{k} = {v}" for k, v in params.items()]
+        (d / f"{method}.toml").write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory):
+    """The CLI's run of one job per method, on two threads."""
+    root = tmp_path_factory.mktemp("cli")
+    write_jobs(root / "jobs")
+    subprocess.run([str(texsyn_cli()), "run", str(root / "jobs"), "-o", str(root / "out"), "-q", "-j", "2"], check=True)
+    manifest = json.loads((root / "out" / "manifest.json").read_text())
+    return {j["id"]: j for j in manifest["jobs"]}
+
+
+@pytest.mark.parametrize("method,sample,params", CASES, ids=[c[0] for c in CASES])
+def test_every_method_gives_the_job_files_pixels_and_digest(cli_run, method, sample, params):
+    record = cli_run[f"{method}.toml"]
+    expected = record["outputs"][0]["pixel_digest"]["sha256"]
+    out = texsyn.synthesize(SAMPLES / sample, method, seed=6, size=SIZE, **params)
+    assert out.shape == (SIZE[1], SIZE[0], 3) and out.dtype == np.uint8
+    assert pixel_digest(out) == expected
+    full = texsyn.synthesize(str(SAMPLES / sample), method, seed=6, size=SIZE, full=True, **params)
+    assert full.record["outputs"][0]["pixel_digest"]["sha256"] == expected
+    assert full.record["params"] == record["params"], "the same resolved parameters"
+    assert full.record["sample"]["pixel_digest"] == record["sample"]["pixel_digest"]
+    np.testing.assert_array_equal(full.image, out)
+    # The placement says where each pixel comes from: copied pixels are the sample's.
+    x, y = full.placement["x"], full.placement["y"]
+    assert x.shape == y.shape == (SIZE[1], SIZE[0])
+
+
+def test_arrays_in_every_precision_give_the_sample_precision_back():
+    rng = np.random.default_rng(5)
+    base = rng.integers(0, 255, size=(64, 64, 3), dtype=np.uint8)
+    for arr in [base, base[:, :, 0], (base.astype(np.uint16) * 257), base.astype(np.float32) / 255.0, np.dstack([base, base[:, :, :1]])]:
+        out = texsyn.synthesize(arr, "quilting", seed=3, size=(96, 80), block=16)
+        assert out.dtype == arr.dtype
+        assert out.shape[:2] == (80, 96)
+        assert out.ndim == arr.ndim and (arr.ndim == 2 or out.shape[2] == arr.shape[2])
+        again = texsyn.synthesize(np.asfortranarray(arr), "quilting", seed=3, size=(96, 80), block=16)
+        np.testing.assert_array_equal(out, again)
+        full = texsyn.synthesize(arr, "quilting", seed=3, size=(96, 80), block=16, full=True)
+        assert full.record["outputs"][0]["pixel_digest"]["sha256"] == pixel_digest(out)
+
+
+def test_a_wrong_parameter_gets_the_job_files_message(tmp_path):
+    with pytest.raises(texsyn.ParamError) as e:
+        texsyn.synthesize(SAMPLES / "crops/pebbles_beige_128.png", "quilting", block=2)
+    assert "`params.block`: 2 is out of range: allowed 3..=4096" in str(e.value)
+    # The job file's message for the same value, from the CLI.
+    (tmp_path / "j.toml").write_text(
+        f'sample = "{SAMPLES / "crops/pebbles_beige_128.png"}"\nmethod = "quilting"\nseed = 1\n'
+        '[output]\npath = "o.png"\nwidth = 64\nheight = 64\n[params]\nblock = 2\n'
+    )
+    cli = subprocess.run([str(texsyn_cli()), "run", str(tmp_path / "j.toml"), "-o", str(tmp_path / "out"), "-q"], capture_output=True, text=True)
+    assert "`params.block`: 2 is out of range: allowed 3..=4096" in cli.stderr
+    with pytest.raises(texsyn.ParamError, match="unknown key `blok`; did you mean `block`"):
+        texsyn.synthesize(SAMPLES / "crops/pebbles_beige_128.png", "quilting", blok=30)
+    with pytest.raises(texsyn.ParamError, match="expected a number, string or boolean"):
+        texsyn.synthesize(SAMPLES / "crops/pebbles_beige_128.png", "quilting", block=[30])
+    with pytest.raises(texsyn.ParamError, match="unknown method"):
+        texsyn.synthesize(SAMPLES / "crops/pebbles_beige_128.png", "quiltin")
+    with pytest.raises(ValueError, match="shape"):
+        texsyn.synthesize(np.zeros((4, 4, 7), np.uint8))
+    with pytest.raises(texsyn.TexsynError, match="missing.png"):
+        texsyn.synthesize(tmp_path / "missing.png")
+
+
+def test_run_verify_diff_and_progress(tmp_path):
+    write_jobs(tmp_path / "jobs")
+    events = []
+    m1 = texsyn.run(tmp_path / "jobs", tmp_path / "out", jobs_parallel=1, progress=events.append)
+    assert len(m1["jobs"]) == len(CASES) and all(j["status"] == "ok" for j in m1["jobs"])
+    kinds = [e["event"] for e in events]
+    assert kinds.count("planned") == 1 and kinds[-1] == "done" and kinds.count("finished") == len(CASES)
+    assert kinds.index("planned") < kinds.index("started")
+    m2 = texsyn.run([tmp_path / "jobs"], tmp_path / "out2", jobs_parallel=2)
+    assert m1["deterministic_digest"] == m2["deterministic_digest"], "results never depend on the thread count"
+    report = texsyn.verify(tmp_path / "out" / "manifest.json")
+    assert report["ok"] and all(j["outcome"] == "verified" for j in report["jobs"].values())
+    d = texsyn.diff(tmp_path / "out" / "manifest.json", tmp_path / "out2" / "manifest.json")
+    assert d["pixels_changed"] == [] and d["unchanged"] == len(CASES)
+    with pytest.raises(texsyn.TexsynError):
+        texsyn.verify(tmp_path / "nothing.json")
+
+
+def test_a_progress_callback_that_raises_stops_the_run_and_reraises(tmp_path):
+    write_jobs(tmp_path / "jobs")
+
+    def boom(event):
+        if event["event"] == "finished":
+            raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        texsyn.run(tmp_path / "jobs", tmp_path / "out", jobs_parallel=1, progress=boom)
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert manifest["run"]["in_progress"] is False and manifest["run"]["not_run"], "stopped like an interrupted run"
+
+
+def test_ctrl_c_stops_a_run_cleanly_and_raises_keyboard_interrupt(tmp_path):
+    write_jobs(tmp_path / "jobs")
+    script = f"""
+import os, signal, threading, texsyn
+fired = []
+def progress(e):
+    if e["event"] == "started" and not fired:
+        fired.append(1)
+        threading.Timer(0.05, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+try:
+    texsyn.run({str(tmp_path / "jobs")!r}, {str(tmp_path / "out")!r}, jobs_parallel=1, progress=progress)
+    print("NOT INTERRUPTED")
+except KeyboardInterrupt:
+    print("INTERRUPTED")
+"""
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert "INTERRUPTED" in p.stdout and "NOT" not in p.stdout, p.stdout + p.stderr
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert manifest["run"]["in_progress"] is False
+
+
+def test_the_gil_is_released_during_synthesis():
+    ticks = []
+    stop = threading.Event()
+
+    def tick():
+        while not stop.is_set():
+            ticks.append(1)
+            stop.wait(0.005)
+
+    t = threading.Thread(target=tick)
+    t.start()
+    texsyn.synthesize(SAMPLES / "crops/pebbles_beige_128.png", "quilting", seed=1, size=(768, 768))
+    stop.set()
+    t.join()
+    assert len(ticks) > 5, "another Python thread ran while texsyn worked"
+
+
+def test_methods_advise_and_eval_are_the_librarys():
+    names = [m["name"] for m in texsyn.methods()]
+    assert names == [c[0] for c in CASES] or set(names) == {c[0] for c in CASES}
+    q = next(m for m in texsyn.methods() if m["name"] == "quilting")
+    assert any(p["name"] == "block" for p in q["params"])
+    a = texsyn.advise(SAMPLES / "bricks_gray.png")
+    assert {m["method"] for m in a["methods"]} == set(names) and "analysis" in a
+    sample = SAMPLES / "crops/pebbles_beige_128.png"
+    out = texsyn.synthesize(sample, "quilting", seed=2, size=(160, 160))
+    scores = texsyn.eval(sample, out)
+    assert set(scores) >= {"kl_gray", "kl_orientation", "verbatim"} and scores["seam_visibility"] is None
+    cli = subprocess.run([str(texsyn_cli()), "advise", "--json", str(SAMPLES / "bricks_gray.png")], capture_output=True, text=True, check=True)
+    assert json.loads(cli.stdout)["analysis"] == a["analysis"]
