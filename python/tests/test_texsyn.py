@@ -78,6 +78,13 @@ def test_every_method_gives_the_job_files_pixels_and_digest(cli_run, method, sam
     out = texsyn.synthesize(SAMPLES / sample, method, seed=6, size=SIZE, **params)
     assert out.shape == (SIZE[1], SIZE[0], 3) and out.dtype == np.uint8
     assert pixel_digest(out) == expected
+    # The one-off command, on the same values.
+    one = pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / f"texsyn-py-synth-{os.getpid()}" / f"{method}.png"
+    sets = [a for k, v in params.items() for a in ("--set", f"{k}={v}")]
+    size = f"{SIZE[0]}x{SIZE[1]}"
+    subprocess.run([str(texsyn_cli()), "synth", str(SAMPLES / sample), "-o", str(one), "--method", method, "--seed", "6", "--size", size, *sets], check=True, capture_output=True)
+    synth = json.loads(one.with_suffix(".manifest.json").read_text())
+    assert synth["jobs"][0]["outputs"][0]["pixel_digest"]["sha256"] == expected
     full = texsyn.synthesize(str(SAMPLES / sample), method, seed=6, size=SIZE, full=True, **params)
     assert full.record["outputs"][0]["pixel_digest"]["sha256"] == expected
     assert full.record["params"] == record["params"], "the same resolved parameters"
@@ -207,3 +214,14 @@ def test_methods_advise_and_eval_are_the_librarys():
     assert set(scores) >= {"kl_gray", "kl_orientation", "verbatim"} and scores["seam_visibility"] is None
     cli = subprocess.run([str(texsyn_cli()), "advise", "--json", str(SAMPLES / "bricks_gray.png")], capture_output=True, text=True, check=True)
     assert json.loads(cli.stdout)["analysis"] == a["analysis"]
+
+
+def test_one_thread_gives_the_same_pixels_as_all_of_them():
+    code = (
+        "import texsyn, hashlib, sys\n"
+        f"a = texsyn.synthesize({str(SAMPLES / 'crops/hedge_leaves_128.png')!r}, 'patch-sampling', seed=4, size=(240, 200))\n"
+        "sys.stdout.write(hashlib.sha256(a.tobytes()).hexdigest())\n"
+    )
+    one = subprocess.run([sys.executable, "-c", code], env={**os.environ, "RAYON_NUM_THREADS": "1"}, capture_output=True, text=True, check=True)
+    here = texsyn.synthesize(SAMPLES / "crops/hedge_leaves_128.png", "patch-sampling", seed=4, size=(240, 200))
+    assert one.stdout == hashlib.sha256(here.tobytes()).hexdigest()

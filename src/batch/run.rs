@@ -9,7 +9,7 @@
 //! a few times per second), so a run killed at any instant can be resumed: finished jobs are
 //! recognised as up to date by their content key and the hash of their output file.
 
-use crate::batch::execute::{JobInputs, execute};
+use crate::batch::execute::{Executed, JobFailure, JobInputs, execute};
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
 use crate::batch::memory::{self, Budget};
 pub use crate::batch::observer::Summary;
@@ -84,7 +84,7 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions, observer: &dyn Observer) -> Re
     pool.install(|| execute_plan(plan, &out, opts, observer, started))
 }
 
-fn now_unix() -> u64 {
+pub fn now_unix() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
 }
 
@@ -249,26 +249,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
             output: &job.output,
             companions: job.companions.iter().zip(entry.companions.iter().map(|c| &**c)).collect(),
         };
-        match execute(&inputs, &job.metrics, out) {
-            Ok(done) => {
-                rec.outputs = done.outputs;
-                rec.seams = done.synthesis.seams;
-                rec.diagnostics = done.synthesis.diagnostics;
-                rec.metrics = done.metrics;
-                rec.timing = Some(Timing {
-                    synthesis_seconds: done.synthesis_seconds,
-                    metrics_seconds: done.metrics_seconds,
-                    phases: done.synthesis.phases.into_iter().collect(),
-                    total_seconds: job_started.elapsed().as_secs_f64(),
-                    finished_at: now_unix(),
-                    estimated_peak_bytes: Some(entry.memory),
-                });
-            }
-            Err(e) => {
-                rec.status = Status::Failed;
-                rec.error = Some(e.to_string());
-            }
-        }
+        finish_record(&mut rec, execute(&inputs, &job.metrics, out), job_started, entry.memory);
         observer.event(&Event::Finished { record: &rec, job_file: &job.file, seconds: job_started.elapsed().as_secs_f64() });
         let mut s = state.lock().expect("state");
         if rec.status == Status::Failed {
@@ -306,12 +287,37 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
     Ok(s.summary)
 }
 
+/// Completes a job's record with what executing it gave: its outputs, seams, diagnostics, metrics
+/// and timing, or its failure.
+pub fn finish_record(rec: &mut JobRecord, result: Result<Executed, JobFailure>, started: Instant, estimate: u64) {
+    match result {
+        Ok(done) => {
+            rec.outputs = done.outputs;
+            rec.seams = done.synthesis.seams;
+            rec.diagnostics = done.synthesis.diagnostics;
+            rec.metrics = done.metrics;
+            rec.timing = Some(Timing {
+                synthesis_seconds: done.synthesis_seconds,
+                metrics_seconds: done.metrics_seconds,
+                phases: done.synthesis.phases.into_iter().collect(),
+                total_seconds: started.elapsed().as_secs_f64(),
+                finished_at: now_unix(),
+                estimated_peak_bytes: Some(estimate),
+            });
+        }
+        Err(e) => {
+            rec.status = Status::Failed;
+            rec.error = Some(e.to_string());
+        }
+    }
+}
+
 fn write_manifest(out: &OutDir, name: &str, records: &BTreeMap<String, JobRecord>, facts: RunFacts) -> Result<(), Error> {
     let m = Manifest::new(records.values().cloned().collect(), facts);
     out.write(name, &m.to_bytes()).map(|_| ())
 }
 
-fn hostname() -> String {
+pub fn hostname() -> String {
     std::fs::read_to_string("/proc/sys/kernel/hostname")
         .or_else(|_| std::fs::read_to_string("/etc/hostname"))
         .map(|s| s.trim().to_string())

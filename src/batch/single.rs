@@ -15,6 +15,7 @@ use crate::synth::advice;
 use crate::synth::method::Synthesis;
 use crate::synth::params::ParamValue;
 use crate::synthesizer::Synthesizer;
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// What to make: a method by name with job-file parameter values, a seed, a size (the sample's
@@ -108,6 +109,159 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
         "timing": {"synthesis_seconds": synthesis_seconds},
     });
     Ok(Single { image, synthesis, record, warnings, synthesis_seconds })
+}
+
+/// `texsyn synth`: one sample, no job file. The flags become the job file a user would write
+/// ([`OneOff::job_text`]), which is validated and run by the same code as any job file: the same
+/// messages, the same pixels, and a manifest that `verify` re-runs.
+#[derive(Clone, Debug)]
+pub struct OneOff {
+    pub sample: PathBuf,
+    /// The image to write (.png or .exr); its manifest goes beside it as `{stem}.manifest.json`.
+    pub output: PathBuf,
+    pub method: String,
+    /// (width, height); the sample's size when `None`.
+    pub size: Option<(u32, u32)>,
+    pub seed: u64,
+    pub tileable: bool,
+    /// `[params]` entries as `key = value` with the value in TOML (`40`, `0.1`, `"dp"`, `true`).
+    pub params: Vec<(String, String)>,
+    pub max_memory: Option<u64>,
+}
+
+/// What `texsyn synth` wrote.
+pub struct OneOffDone {
+    pub record: crate::batch::manifest::JobRecord,
+    pub manifest: PathBuf,
+}
+
+impl OneOff {
+    fn stem(&self) -> Result<String, Error> {
+        let name = self.output.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let ok = crate::image::io::Format::from_path(&self.output).is_some() && !name.starts_with('.');
+        if !ok {
+            return Err(Error::Usage(format!("{}: the output must be a .png or .exr file name", self.output.display())));
+        }
+        Ok(crate::batch::job::output_stem(name).to_string())
+    }
+
+    /// A `[params]` value as written on the command line: TOML if it parses as a TOML value
+    /// (`40`, `0.5`, `true`, `"dp"`), else a string (`--set cut=dp`).
+    pub fn param_value(text: &str) -> String {
+        let as_toml = format!("v = {text}");
+        if toml::from_str::<toml::Table>(&as_toml).is_ok() { text.to_string() } else { toml::Value::String(text.to_string()).to_string() }
+    }
+
+    /// The job file these flags stand for; `sample` as given (absolute where it was), the output
+    /// by its file name, the size given or the sample's.
+    pub fn job_text(&self, size: (u32, u32)) -> Result<String, Error> {
+        let q = |s: &str| toml::Value::String(s.to_string()).to_string();
+        let name = self.output.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        let mut t = String::from("# The job file of a `texsyn synth` one-off: put it in a job directory to make it part of a run.\n");
+        t += &format!(
+            "sample = {}\nmethod = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
+            q(&self.sample.to_string_lossy()),
+            q(&self.method),
+            self.seed,
+            q(name),
+            size.0,
+            size.1
+        );
+        if self.tileable {
+            t += "tileable = true\n";
+        }
+        if !self.params.is_empty() {
+            t += "\n[params]\n";
+            for (k, v) in &self.params {
+                let bare = !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+                t += &format!("{} = {v}\n", if bare { k.clone() } else { q(k) });
+            }
+        }
+        Ok(t)
+    }
+
+    /// The size the output gets: the one given, else the sample's (read for it).
+    pub fn size(&self) -> Result<(u32, u32), Error> {
+        match self.size {
+            Some(s) => Ok(s),
+            None => Ok(crate::batch::execute::load_sample(&self.sample)?.image.dimensions()),
+        }
+    }
+
+    /// Validates the equivalent job file like any other, runs it into the output's folder (under
+    /// a lock of its own) and writes the output and its manifest atomically.
+    pub fn run(&self) -> Result<OneOffDone, Error> {
+        use crate::batch::outdir::OutDir;
+        use crate::batch::plan::{self, PlanOptions};
+        let stem = self.stem()?;
+        let dir = match self.output.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        // The sample by its absolute path: the job file is read from a scratch folder.
+        let sample = std::path::absolute(&self.sample).map_err(|e| Error::io(&self.sample, "resolve", e))?;
+        let this = OneOff { sample, ..self.clone() };
+        let text = this.job_text(this.size()?)?;
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let scratch = std::env::temp_dir().join(format!(
+            "texsyn-synth-{}-{}",
+            std::process::id(),
+            NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&scratch).map_err(|e| Error::io(&scratch, "create", e))?;
+        let job_path = scratch.join(format!("{stem}.toml"));
+        let result = (|| {
+            std::fs::write(&job_path, &text).map_err(|e| Error::io(&job_path, "write", e))?;
+            let opts = PlanOptions { out: dir.clone(), force: true, shard: None, max_memory: self.max_memory, allow_other_root: true };
+            let plan = plan::plan(std::slice::from_ref(&job_path), &opts)?;
+            if let Some(inv) = plan.invalid.first() {
+                // The job file is this command's own: its problems are named by key, not by line.
+                let lines: Vec<String> = inv
+                    .errors
+                    .iter()
+                    .map(|e| format!("{}{}", e.key.as_ref().map(|k| format!("`{k}`: ")).unwrap_or_default(), e.message))
+                    .collect();
+                return Err(Error::Usage(lines.join("\n")));
+            }
+            let entry = plan.entries.first().ok_or_else(|| Error::Usage("nothing to run".into()))?;
+            let out = OutDir::open_part(&dir, Some(&format!("synth-{stem}")))?;
+            let job = &entry.job;
+            let inputs = crate::batch::execute::JobInputs {
+                method: job.method,
+                sample: &entry.sample,
+                params: &job.params,
+                seed: job.seed,
+                output: &job.output,
+                companions: job.companions.iter().zip(entry.companions.iter().map(|c| &**c)).collect(),
+            };
+            let started = Instant::now();
+            let mut rec = entry.record.clone();
+            crate::batch::run::finish_record(&mut rec, crate::batch::execute::execute(&inputs, &job.metrics, &out), started, entry.memory);
+            rec.job_file.path = format!("{stem}.toml");
+            let run = crate::batch::manifest::RunFacts {
+                started_at: crate::batch::run::now_unix(),
+                finished_at: crate::batch::run::now_unix(),
+                wall_seconds: started.elapsed().as_secs_f64(),
+                host: crate::batch::run::hostname(),
+                argv: std::env::args().collect(),
+                threads: rayon::current_num_threads(),
+                ran: usize::from(rec.status == crate::batch::manifest::Status::Ok),
+                failed: usize::from(rec.status == crate::batch::manifest::Status::Failed),
+                max_memory_bytes: self.max_memory,
+                peak_rss_bytes: crate::batch::memory::peak_rss(),
+                ..Default::default()
+            };
+            let manifest = crate::batch::manifest::Manifest::new(vec![rec.clone()], run);
+            let name = format!("{stem}.manifest.json");
+            let path = out.write(&name, &manifest.to_bytes())?;
+            if let Some(e) = &rec.error {
+                return Err(Error::Usage(format!("{}: {e} (recorded in {})", self.output.display(), path.display())));
+            }
+            Ok(OneOffDone { record: rec, manifest: path })
+        })();
+        let _ = std::fs::remove_dir_all(&scratch);
+        result
+    }
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@ mod progress;
 mod report;
 mod run;
 mod slurm;
+mod synth;
 mod tiles;
 mod verify;
 
@@ -50,6 +51,10 @@ enum Command {
     /// Run job files and directories (searched recursively for *.toml).
     #[command(after_help = EXIT_CODES)]
     Run(run::Args),
+    /// One texture from one sample, no job file: the flags become a job file (--print-job shows
+    /// it) that is validated and run like any other; writes OUT and OUT's manifest beside it.
+    #[command(after_help = synth::HELP)]
+    Synth(synth::Args),
     /// Join the manifest fragments of a run split with `--shard` into one manifest (exit 1, listing
     /// them, when jobs failed or are missing; the merged manifest is written all the same).
     Merge(merge::Args),
@@ -119,6 +124,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run(args) => run::run(args),
         Command::Diff(args) => diff::run(args),
+        Command::Synth(args) => synth::run(args),
         Command::Merge(args) => merge::run(args),
         Command::Slurm(args) => slurm::run(args),
         Command::Verify(args) => verify::run(args),

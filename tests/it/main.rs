@@ -17,5 +17,6 @@ mod placement;
 mod report;
 mod shards;
 mod signals;
+mod synth;
 mod tile_export;
 mod tileable;

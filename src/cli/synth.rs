@@ -1,0 +1,86 @@
+//! `texsyn synth`: one photo, no job file. The flags are turned into the job file a user would
+//! write (`--print-job` shows it), which is validated and run like any other.
+
+use super::{Outcome, say};
+use std::path::PathBuf;
+use texsyn::Error;
+use texsyn::batch::single::OneOff;
+
+pub const HELP: &str = "\
+Writes OUT and its manifest beside it (OUT's name with .manifest.json), which `texsyn verify`
+re-runs. Parameters are the job file's [params] keys: --set block=40 --set cut=dp. Mistakes get
+the job file's messages, named by key. --print-job prints the equivalent job file instead of
+running it, so that a one-off can join a job directory.";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The sample image (PNG 8/16-bit, JPEG, EXR).
+    sample: PathBuf,
+    /// The image to write (.png or .exr).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The method (`texsyn methods` lists them).
+    #[arg(short, long, default_value = "quilting")]
+    method: String,
+    /// Output size WxH (default: the sample's).
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Make the output wrap seamlessly.
+    #[arg(long)]
+    tileable: bool,
+    /// A parameter, `key=value` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Print the equivalent job file and run nothing.
+    #[arg(long)]
+    print_job: bool,
+    /// Memory limit, as for `texsyn run` (default: the memory available; `unlimited` for none).
+    #[arg(long, value_name = "SIZE", default_value_t = super::run::MemoryLimit::available())]
+    max_memory: super::run::MemoryLimit,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), Error> {
+    let bad = || Error::Usage(format!("--size {s:?}: use WxH, e.g. 512x512"));
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+}
+
+pub fn run(args: Args) -> Result<Outcome, Error> {
+    let mut params = Vec::new();
+    for kv in &args.set {
+        let (k, v) = kv.split_once('=').ok_or_else(|| Error::Usage(format!("--set {kv:?}: use key=value, e.g. --set block=40")))?;
+        params.push((k.trim().to_string(), OneOff::param_value(v.trim())));
+    }
+    let one = OneOff {
+        sample: args.sample,
+        output: args.output,
+        method: args.method,
+        size: args.size.as_deref().map(parse_size).transpose()?,
+        seed: args.seed,
+        tileable: args.tileable,
+        params,
+        max_memory: args.max_memory.0,
+    };
+    if args.print_job {
+        say(one.job_text(one.size()?)?.trim_end());
+        return Ok(Outcome::Success);
+    }
+    let done = one.run()?;
+    for w in &done.record.warnings {
+        eprintln!("warning: {w}");
+    }
+    let out = &done.record.outputs[0];
+    say(format!(
+        "{}: {}x{} {} ({}), pixels {}; manifest {}",
+        one.output.display(),
+        out.width,
+        out.height,
+        done.record.method.as_deref().unwrap_or(""),
+        out.format,
+        out.pixel_digest.short(),
+        done.manifest.display()
+    ));
+    Ok(Outcome::Success)
+}
