@@ -162,9 +162,6 @@ fn placement_to_py(py: Python<'_>, p: &texsyn::synth::placement::Placement) -> P
     Ok(d.into_any().unbind())
 }
 
-/// synthesize(sample, method="quilting", *, seed=0, size=None, tileable=False, full=False, **params)
-/// --
-///
 /// Makes a texture from `sample` (a path or a NumPy array) exactly as a job file with the same
 /// method, parameters, seed and size would: the same pixels and pixel digest. Returns the output
 /// array in the sample's channels and precision, or with `full=True` a `Synthesis` with the
@@ -197,9 +194,6 @@ fn synthesize(
     Ok(Py::new(py, result)?.into_any())
 }
 
-/// _synthesis_seconds(sample, method="quilting", *, seed=0, size=None, **params)
-/// --
-///
 /// For the overhead benchmark: the library's own seconds for the call (synthesis and rendering
 /// of the output, no conversion), to compare with the whole Python call.
 #[pyfunction]
@@ -324,9 +318,6 @@ fn interruptible<T: Send + 'static>(py: Python<'_>, stop: Arc<AtomicBool>, work:
     }
 }
 
-/// run(jobs, out, *, jobs_parallel=None, force=False, shard=None, max_memory=None, progress=None)
-/// --
-///
 /// Runs job files and directories into `out`, as `texsyn run` does, and returns the manifest as
 /// a dict. `jobs_parallel` is the number of worker threads (results never depend on it), `shard`
 /// "I/N", `max_memory` bytes or "2G" / "unlimited" (default: the memory available). `progress`,
@@ -371,9 +362,6 @@ fn run(
     Ok(py.import("json")?.call_method1("loads", (String::from_utf8_lossy(&bytes).into_owned(),))?.unbind())
 }
 
-/// verify(manifest, *, jobs_parallel=None, max_memory=None)
-/// --
-///
 /// Re-runs every recorded job of a manifest and compares pixels, as `texsyn verify` does.
 /// Returns {"ok": bool, "manifest_problems": [...], "jobs": {id: {"outcome": "verified" |
 /// "skipped" | "mismatch" | "too-large", "problems": [...]}}}.
@@ -399,9 +387,6 @@ fn verify(py: Python<'_>, manifest: PathBuf, jobs_parallel: Option<usize>, max_m
     json_to_py(py, &serde_json::json!({"ok": report.ok(), "manifest_problems": report.manifest_problems, "jobs": jobs}))
 }
 
-/// diff(old, new)
-/// --
-///
 /// What changed between two manifests, as `texsyn diff --json` says it: jobs added, removed,
 /// failing now or fixed, pixels changed (with the inputs that changed), times and metrics moved.
 #[pyfunction]
@@ -412,9 +397,6 @@ fn diff(py: Python<'_>, old: PathBuf, new: PathBuf) -> PyResult<Py<PyAny>> {
     json_to_py(py, &serde_json::to_value(&d).map_err(|e| TexsynError::new_err(e.to_string()))?)
 }
 
-/// methods()
-/// --
-///
 /// The methods with their summaries, algorithm versions and parameters (name, kind, default,
 /// doc), as `texsyn methods` lists them.
 #[pyfunction]
@@ -433,9 +415,6 @@ fn methods(py: Python<'_>) -> PyResult<Py<PyAny>> {
     json_to_py(py, &serde_json::Value::Array(list))
 }
 
-/// advise(sample)
-/// --
-///
 /// What the sample is (lattice, orientation, stochastic) and how each method fits it with its
 /// defaults, as `texsyn advise --json` says it.
 #[pyfunction]
@@ -455,9 +434,6 @@ fn advise(py: Python<'_>, sample: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
     json_to_py(py, &v)
 }
 
-/// eval(sample, image, metrics=None)
-/// --
-///
 /// Scores `image` against `sample` (paths or arrays) with the metrics texsyn records (paper 003's
 /// measures and the verbatim-copy fraction; seam visibility needs a method's grid and is None
 /// here), as `texsyn eval` does. Returns {name: value or None}.
@@ -475,9 +451,6 @@ fn eval(py: Python<'_>, sample: &Bound<'_, PyAny>, image: &Bound<'_, PyAny>, met
     json_to_py(py, &serde_json::to_value(values).map_err(|e| TexsynError::new_err(e.to_string()))?)
 }
 
-/// save(image, path)
-/// --
-///
 /// Writes an array as texsyn writes outputs (atomically): PNG (8-bit for uint8, 16-bit for
 /// uint16 and float32, which is scaled to 0..65535) or EXR (32-bit float), by the extension.
 #[pyfunction]
