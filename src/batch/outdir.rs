@@ -50,7 +50,10 @@ impl OutDir {
         match lock.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
-                let holder = std::fs::read_to_string(&lock_path).ok().and_then(|s| s.trim().parse().ok());
+                let holder = crate::files::read_limited(&lock_path, 64)
+                    .ok()
+                    .and_then(|b| String::from_utf8(b).ok())
+                    .and_then(|s| s.trim().parse().ok());
                 return Err(Error::Locked { dir: root.to_path_buf(), holder });
             }
             Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&lock_path, "lock", e)),

@@ -143,6 +143,16 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     let inputs = args.inputs.iter().map(|p| absolute(p)).collect::<Result<Vec<_>, _>>()?;
     std::fs::create_dir_all(args.out.join("slurm")).map_err(|e| Error::io(&args.out, "create", e))?;
     let out = absolute(&args.out)?;
+    // The scripts are written into OUT/slurm: a symlink there must not carry them elsewhere.
+    let (real_out, real_slurm) = (out.canonicalize(), out.join("slurm").canonicalize());
+    if let (Ok(o), Ok(s)) = (&real_out, &real_slurm)
+        && !s.starts_with(o)
+    {
+        return Err(Error::Containment {
+            path: out.join("slurm"),
+            reason: format!("resolves to {}, outside the output directory (a symlink?); refusing to write the scripts there", s.display()),
+        });
+    }
     let texsyn = match &args.texsyn {
         Some(p) => absolute(p)?,
         None => std::env::current_exe().map_err(|e| Error::Usage(format!("cannot locate this texsyn executable: {e}; pass --texsyn")))?,

@@ -165,8 +165,8 @@ impl Writer {
 /// from the user's.
 fn previous_listing(dir: &Path) -> Result<Vec<String>, Error> {
     let listing = dir.join(LISTING);
-    match std::fs::read_to_string(&listing) {
-        Ok(text) => Ok(text.lines().map(str::to_string).filter(|l| !l.is_empty()).collect()),
+    match crate::files::read_limited(&listing, crate::files::MAX_JSON_BYTES) {
+        Ok(bytes) => Ok(String::from_utf8_lossy(&bytes).lines().map(str::to_string).filter(|l| !l.is_empty()).collect()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             if dir.join("index.html").exists() {
                 return Err(Error::Usage(format!(

@@ -403,3 +403,24 @@ fn apply_weighs_a_source_map_before_decoding_it() {
     let m = imageio::decode_native(&std::fs::read(out.join("m.png")).unwrap(), DecodeLimits::default()).unwrap();
     assert_eq!(a.pixel_digest(), m.pixel_digest());
 }
+
+#[test]
+fn slurm_scripts_and_report_listings_do_not_follow_planted_links() {
+    let root = scratch("slurm-link");
+    let jobs = tree(&root, "jobs", &[("g.toml", "g.png")]);
+    let out = root.join("out");
+    let elsewhere = scratch("slurm-link-target");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out.join("slurm")).unwrap();
+    let o = run_expect(texsyn().args(["slurm", "--shards", "2", "-o"]).arg(&out).arg(&jobs), 2);
+    assert!(text(&o).contains("outside the output directory"), "{}", text(&o));
+    assert!(files(&elsewhere).is_empty());
+    // A report directory whose file listing is a device: refused, not read forever.
+    let (m, _) = one_run(&scratch("report-listing"));
+    let report = root.join("report");
+    std::fs::create_dir_all(&report).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", report.join(".texsyn-report")).unwrap();
+    let o = run(texsyn().arg("report").arg(&m).arg("-o").arg(&report));
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("not a regular file"), "{}", text(&o));
+}
