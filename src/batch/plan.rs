@@ -13,6 +13,7 @@ use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
+use crate::synth::wrap;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -318,7 +319,13 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
         e.record.warnings = if reuse(e) {
             previous[&e.job.id].warnings.clone()
         } else {
-            advice::warning(&analyses[&e.sample.pixel_digest.sha256], e.job.method.name(), &e.job.params).into_iter().collect()
+            let a = &analyses[&e.sample.pixel_digest.sha256];
+            let wrap = a
+                .lattice
+                .as_ref()
+                .filter(|_| e.job.output.tileable)
+                .and_then(|l| wrap::warning(l, (e.job.output.width, e.job.output.height)));
+            advice::warning(a, e.job.method.name(), &e.job.params).into_iter().chain(wrap).collect()
         };
     }
 }

@@ -79,7 +79,9 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
     let image = main_output(&synthesis, sample);
     let spec = output_spec(sample, width, height, req.tileable);
     let spec_json = spec.to_json();
-    let warnings: Vec<String> = advice::warning(&advice::analyse(&sample.image), method.name(), session.params()).into_iter().collect();
+    let analysis = advice::analyse(&sample.image);
+    let wrap = analysis.lattice.as_ref().filter(|_| req.tileable).and_then(|l| crate::synth::wrap::warning(l, (width, height)));
+    let warnings: Vec<String> = advice::warning(&analysis, method.name(), session.params()).into_iter().chain(wrap).collect();
     let content_key =
         manifest::content_key(method.name(), method.algorithm_version(), &params_json, req.seed, &sample.pixel_digest, &spec_json);
     let record = serde_json::json!({

@@ -41,7 +41,7 @@ pub struct Args {
     max_memory: super::run::MemoryLimit,
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), Error> {
+pub(super) fn parse_size(s: &str) -> Result<(u32, u32), Error> {
     let bad = || Error::Usage(format!("--size {s:?}: use WxH, e.g. 512x512"));
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))

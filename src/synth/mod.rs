@@ -15,3 +15,4 @@ pub mod placement;
 #[doc(hidden)]
 pub mod primitives;
 pub mod rng;
+pub mod wrap;

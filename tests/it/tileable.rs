@@ -9,7 +9,7 @@
 //! synthesises with another seed (the limits below were measured at the default, 11);
 //! `TEXSYN_NO_ASSERT=1` prints every sample's numbers without asserting the limits.
 
-use crate::common::{repo, rgb};
+use crate::common::*;
 use texsyn::image::seam_grid::{SeamBand, SeamGrid};
 use texsyn::metrics::seams::{seam_visibility, wrap_visibility};
 use texsyn::synth::method::{Method, Request, Synthesis};
@@ -200,4 +200,35 @@ fn sizes_that_cannot_wrap_are_refused_saying_what_would() {
     let params = resolve(m.params(), &[]).unwrap();
     let req = Request { sample: &s, width: 100, height: 100, params: &params, seed: 1, placement: false, tileable: true };
     assert!(m.synthesize(&req).unwrap_err().to_string().contains("multiples of block - overlap = 42"));
+}
+
+/// A tileable output whose size cuts the sample's lattice at the wrap is warned about, in the
+/// manifest entry and by `advise --tileable` before a run, with the nearest sizes that keep it.
+#[test]
+fn a_wrap_that_cuts_the_lattice_is_warned_about_with_the_sizes_that_keep_it() {
+    let d = scratch("wrap-lattice");
+    let sample = repo().join("jobs/samples/metal_tread_studs.png");
+    std::fs::create_dir_all(d.join("jobs")).unwrap();
+    std::fs::write(
+        d.join("jobs/studs.toml"),
+        format!(
+            "sample = \"{}\"\nmethod = \"quilting\"\nseed = 2\n[output]\npath = \"studs.png\"\nwidth = 425\nheight = 325\ntileable = true\n[params]\nblock = 30\n",
+            sample.display()
+        ),
+    )
+    .unwrap();
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let m = json(&d.join("out/manifest.json"));
+    let warnings: Vec<&str> = m["jobs"][0]["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap()).collect();
+    let wrap = warnings.iter().find(|w| w.contains("at its wrap")).unwrap_or_else(|| panic!("{warnings:?}"));
+    // metal_tread_studs repeats every 27 px across and 26 px down.
+    assert!(wrap.contains("432x312 or 432x338 keep whole texels") || wrap.contains("432x338 or 432x312 keep whole texels"), "{wrap}");
+    let advised = text(&run_ok(texsyn().arg("advise").arg(&sample).args(["--tileable", "425x325"])));
+    assert!(advised.contains(*wrap), "{advised}");
+    let fine = text(&run_ok(texsyn().arg("advise").arg(&sample).args(["--tileable", "432x338"])));
+    assert!(fine.contains("tileable 432x338: keeps the lattice whole"), "{fine}");
+    let doc: Value =
+        serde_json::from_slice(&run_ok(texsyn().arg("advise").arg(&sample).args(["--tileable", "425x325", "--json"])).stdout).unwrap();
+    assert_eq!(doc["tileable"]["lattice"]["continuous"], false);
+    assert_eq!(doc["tileable"]["lattice"]["phase_across"], 7.0);
 }
