@@ -123,6 +123,18 @@ fn params_from(params: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(String, Para
     Ok(out)
 }
 
+/// What `synthesize` asks of the library; `full` adds the placement, warnings and record.
+fn request(
+    method: &str,
+    seed: u64,
+    size: Option<(u32, u32)>,
+    tileable: bool,
+    full: bool,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<SingleRequest> {
+    Ok(SingleRequest { method: method.to_string(), params: params_from(params)?, seed, size, tileable, placement: full, describe: full })
+}
+
 /// The result of `synthesize(..., full=True)`.
 #[pyclass(module = "texsyn", frozen, get_all)]
 struct Synthesis {
@@ -180,7 +192,7 @@ fn synthesize(
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
     let sample = sample_from(sample, "sample")?;
-    let req = SingleRequest { method: method.to_string(), params: params_from(params)?, seed, size, tileable, placement: full };
+    let req = request(method, seed, size, tileable, full, params)?;
     let done = py.detach(|| single::synthesize(&sample, &req)).map_err(py_err)?;
     let image = image_to_py(py, done.image)?;
     if !full {
@@ -207,7 +219,7 @@ fn _library_seconds(
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<f64> {
     let sample = sample_from(sample, "sample")?;
-    let req = SingleRequest { method: method.to_string(), params: params_from(params)?, seed, size, tileable: false, placement: false };
+    let req = request(method, seed, size, false, false, params)?;
     py.detach(|| {
         let t = std::time::Instant::now();
         single::synthesize(&sample, &req).map(|_| t.elapsed().as_secs_f64())

@@ -81,6 +81,22 @@ pub struct Entry {
     pub memory: u64,
 }
 
+impl Entry {
+    /// What executing the job reads: its method, decoded sample and companions, parameters,
+    /// seed and output.
+    pub fn inputs(&self) -> crate::batch::execute::JobInputs<'_> {
+        let job = &self.job;
+        crate::batch::execute::JobInputs {
+            method: job.method,
+            sample: &self.sample,
+            params: &job.params,
+            seed: job.seed,
+            output: &job.output,
+            companions: job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
+        }
+    }
+}
+
 /// This worker's part of a split job set.
 #[derive(Clone, Debug)]
 pub struct ShardPlan {

@@ -9,7 +9,7 @@
 //! a few times per second), so a run killed at any instant can be resumed: finished jobs are
 //! recognised as up to date by their content key and the hash of their output file.
 
-use crate::batch::execute::{Executed, JobFailure, JobInputs, execute};
+use crate::batch::execute::{Executed, JobFailure, execute};
 use crate::batch::manifest::{self, JobRecord, Manifest, RunFacts, ShardFacts, Status, Timing};
 use crate::batch::memory::{self, Budget};
 pub use crate::batch::observer::Summary;
@@ -241,14 +241,7 @@ fn execute_plan(plan: Plan, out: &OutDir, opts: &RunOptions, observer: &dyn Obse
         observer.event(&Event::Started { id: &job.id });
         let job_started = Instant::now();
         let mut rec = entry.record.clone();
-        let inputs = JobInputs {
-            method: job.method,
-            sample: &entry.sample,
-            params: &job.params,
-            seed: job.seed,
-            output: &job.output,
-            companions: job.companions.iter().zip(entry.companions.iter().map(|c| &**c)).collect(),
-        };
+        let inputs = entry.inputs();
         finish_record(&mut rec, execute(&inputs, &job.metrics, out), job_started, entry.memory);
         observer.event(&Event::Finished { record: &rec, job_file: &job.file, seconds: job_started.elapsed().as_secs_f64() });
         let mut s = state.lock().expect("state");

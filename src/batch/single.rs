@@ -19,7 +19,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 /// What to make: a method by name with job-file parameter values, a seed, a size (the sample's
-/// when `None`), whether it wraps, and whether to return the placement.
+/// when `None`), whether it wraps, whether to return the placement, and whether to describe the
+/// result (the record and warnings, which analyse the sample: not worth it for the pixels alone).
 #[derive(Clone, Debug)]
 pub struct SingleRequest {
     pub method: String,
@@ -28,6 +29,7 @@ pub struct SingleRequest {
     pub size: Option<(u32, u32)>,
     pub tileable: bool,
     pub placement: bool,
+    pub describe: bool,
 }
 
 /// A finished synthesis.
@@ -38,11 +40,12 @@ pub struct Single {
     /// The method's result: its 8-bit image, seams, diagnostics and (when asked for, or needed to
     /// render a sample that is not 8-bit RGB) the placement.
     pub synthesis: Synthesis,
-    /// The manifest keys of a job record: method, algorithm version, resolved params and their
+    /// With [`SingleRequest::describe`] (else `null`), the manifest keys of a job record: method, algorithm version, resolved params and their
     /// digest, seed, sample, output spec, content key, outputs with their pixel digest, warnings,
     /// diagnostics and timing.
     pub record: serde_json::Value,
-    /// Plain sentences when the method and parameters do not fit the sample (`texsyn advise`).
+    /// With [`SingleRequest::describe`], plain sentences when the method and parameters do not
+    /// fit the sample (`texsyn advise`).
     pub warnings: Vec<String>,
     /// Seconds in the method's synthesis call alone.
     pub synthesis_seconds: f64,
@@ -77,6 +80,9 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
     let synthesis_seconds = started.elapsed().as_secs_f64();
     let (width, height) = synthesis.image.dimensions();
     let image = main_output(&synthesis, sample);
+    if !req.describe {
+        return Ok(Single { image, synthesis, record: serde_json::Value::Null, warnings: Vec::new(), synthesis_seconds });
+    }
     let spec = output_spec(sample, width, height, req.tileable);
     let spec_json = spec.to_json();
     let analysis = advice::analyse(&sample.image);
@@ -156,7 +162,7 @@ impl OneOff {
 
     /// The job file these flags stand for; `sample` as given (absolute where it was), the output
     /// by its file name, the size given or the sample's.
-    pub fn job_text(&self, size: (u32, u32)) -> Result<String, Error> {
+    pub fn job_text(&self, size: (u32, u32)) -> String {
         let q = |s: &str| toml::Value::String(s.to_string()).to_string();
         let name = self.output.file_name().and_then(|n| n.to_str()).unwrap_or_default();
         let mut t = String::from("# The job file of a `texsyn synth` one-off: put it in a job directory to make it part of a run.\n");
@@ -179,7 +185,7 @@ impl OneOff {
                 t += &format!("{} = {v}\n", if bare { k.clone() } else { q(k) });
             }
         }
-        Ok(t)
+        t
     }
 
     /// The size the output gets: the one given, else the sample's (read for it).
@@ -203,7 +209,7 @@ impl OneOff {
         // The sample by its absolute path: the job file is read from a scratch folder.
         let sample = std::path::absolute(&self.sample).map_err(|e| Error::io(&self.sample, "resolve", e))?;
         let this = OneOff { sample, ..self.clone() };
-        let text = this.job_text(this.size()?)?;
+        let text = this.job_text(this.size()?);
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let scratch = std::env::temp_dir().join(format!(
             "texsyn-synth-{}-{}",
@@ -228,14 +234,7 @@ impl OneOff {
             let entry = plan.entries.first().ok_or_else(|| Error::Usage("nothing to run".into()))?;
             let out = OutDir::open_part(&dir, Some(&format!("synth-{stem}")))?;
             let job = &entry.job;
-            let inputs = crate::batch::execute::JobInputs {
-                method: job.method,
-                sample: &entry.sample,
-                params: &job.params,
-                seed: job.seed,
-                output: &job.output,
-                companions: job.companions.iter().zip(entry.companions.iter().map(|c| &**c)).collect(),
-            };
+            let inputs = entry.inputs();
             let started = Instant::now();
             let mut rec = entry.record.clone();
             crate::batch::run::finish_record(&mut rec, crate::batch::execute::execute(&inputs, &job.metrics, &out), started, entry.memory);
@@ -282,6 +281,7 @@ mod tests {
             size: Some((48, 40)),
             tileable: false,
             placement: false,
+            describe: true,
         };
         let a = synthesize(&sample, &req).unwrap();
         let b = synthesize(&sample, &req).unwrap();

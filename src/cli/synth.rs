@@ -64,7 +64,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         max_memory: args.max_memory.0,
     };
     if args.print_job {
-        say(one.job_text(one.size()?)?.trim_end());
+        say(one.job_text(one.size()?).trim_end());
         return Ok(Outcome::Success);
     }
     let done = one.run()?;
