@@ -81,8 +81,9 @@ impl Synthesizer {
         if width == 0 || height == 0 {
             return Err(Error::Usage(format!("the output size must be at least 1x1 (got {width}x{height})")));
         }
-        let params =
+        let mut params =
             params::resolve(method.params(), &self.given).map_err(|errors| Error::Params { method: method.name().into(), errors })?;
+        method.resolve_for_sample(&mut params, sample.dimensions());
         let errors = method.check(&params, sample.dimensions(), (width, height));
         if !errors.is_empty() {
             return Err(Error::Params { method: method.name().into(), errors });

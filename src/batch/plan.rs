@@ -192,6 +192,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        job.method.resolve_for_sample(&mut job.params, sample.image.dimensions());
         let issues = job.method.check(&job.params, sample.image.dimensions(), (job.output.width, job.output.height));
         if !issues.is_empty() {
             let errors: Vec<JobError> = issues.into_iter().map(|e| job.error(Some(&format!("params.{}", e.key)), e.message)).collect();

@@ -105,6 +105,10 @@ pub trait Method: Send + Sync {
     fn summary(&self) -> &'static str;
     /// The declared parameters.
     fn params(&self) -> &'static [ParamSpec];
+    /// Makes concrete the parameters whose resolved value depends on the sample's size (a search
+    /// `auto` chooses by it), before the job is checked, estimated and recorded: the recorded
+    /// parameters then say what made the pixels. Most methods have none.
+    fn resolve_for_sample(&self, _params: &mut Params, _sample: (u32, u32)) {}
     /// Checks that need several parameters together or the sample and output sizes (e.g. a block
     /// larger than the sample). Runs before anything is synthesised.
     fn check(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Vec<ParamError> {

@@ -13,34 +13,110 @@ pub mod tiles;
 
 use crate::image::RgbImage;
 use crate::synth::method::Method;
-use crate::synth::params::{MethodConfig, ParamError, Params};
+use crate::synth::params::{Choice, MethodConfig, ParamError, ParamValue, Params};
 use crate::synth::primitives::overlap::Rect;
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
+use crate::synth::primitives::pyramid_search::PyramidSearch;
 
 crate::choice! {
-    /// How an exact exhaustive block search scores every sample position (quilting's `search`,
-    /// patch sampling's `engine`). Both give the same candidates, hence the same pixels.
+    /// How a block search scores sample positions (quilting's `search`, patch sampling's
+    /// `engine`). `fft` and `direct` are the exact exhaustive search, with the same candidates
+    /// hence the same pixels; `pyramid` is the coarse-to-fine search for big samples; `auto` is
+    /// resolved per sample before a job is recorded ([`Engine::for_sample`]).
     pub enum Engine {
         /// FFT correlation, then an exact integer re-check of the near-best positions.
         Fft = "fft",
         /// Brute-force SSD sums at every position.
         Direct = "direct",
+        /// Coarse-to-fine (`primitives::pyramid_search`): a box pyramid's coarse level searched
+        /// exactly, its best positions re-scored exactly at full resolution around them.
+        Pyramid = "pyramid",
+        /// `fft` for samples of at most [`AUTO_EXACT_PIXELS`], `pyramid` above.
+        Auto = "auto",
     }
 }
 
+/// The largest sample (in pixels, 512²) that `auto` searches exactly: there the exact search costs
+/// about 3 ms a block on two cores; above it its cost grows with every sample pixel.
+pub const AUTO_EXACT_PIXELS: u64 = 512 * 512;
+
 impl Engine {
-    /// The tolerance set of `search` for the block at `origin` of `canvas`, computed this way.
-    pub(crate) fn candidates(
-        self,
-        search: &mut OverlapSearch,
-        canvas: &RgbImage,
-        origin: (u32, u32),
-        regions: &[Rect],
-        tolerance: f64,
-    ) -> Candidates {
+    /// The engine that runs for a sample of this size: `auto` made concrete, the others as given.
+    pub fn for_sample(self, sample: (u32, u32)) -> Engine {
         match self {
-            Engine::Fft => search.candidates(canvas, origin, regions, tolerance),
-            Engine::Direct => search.candidates_direct(canvas, origin, regions, tolerance),
+            Engine::Auto if u64::from(sample.0) * u64::from(sample.1) <= AUTO_EXACT_PIXELS => Engine::Fft,
+            Engine::Auto => Engine::Pyramid,
+            e => e,
+        }
+    }
+}
+
+/// Replaces `auto` in the [`Engine`] parameter `key` by the engine that runs for this sample, so
+/// that a job's recorded parameters say which search made its pixels (and a sample of at most
+/// 512² keeps the `fft` its jobs always recorded).
+pub(crate) fn resolve_engine(params: &mut Params, key: &str, sample: (u32, u32)) {
+    if let Ok(engine) = params.choice::<Engine>(key) {
+        params.0.insert(key.to_string(), ParamValue::Str(engine.for_sample(sample).name().to_string()));
+    }
+}
+
+/// The peak memory of a square-block method searching with `engine` (resolved): the canvas (3 B
+/// per output pixel, a block wider than the output at most), trimmed in place, and the search.
+/// Measured (VmHWM of `texsyn run`, quilting, block 50): the exact FFT search holds about 130 B per
+/// sample pixel (bricks_gray 256²; 2048² output: 42 MB, 4096²: 116 MB in all); the pyramid its
+/// reduced levels (1 B per sample pixel) and the FFT search of a coarse level of at most
+/// `COARSE_PIXELS`, whatever the sample (4000×3000 to 2048²: see tests/it/memory.rs).
+pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u32)) -> u64 {
+    use crate::synth::method::linear_memory;
+    match engine {
+        Engine::Pyramid => {
+            let coarse = crate::synth::primitives::pyramid_search::COARSE_PIXELS;
+            linear_memory(sample, output, 3.5, 2.0, (4 << 20) + 512 * coarse)
+        }
+        _ => linear_memory(sample, output, 3.5, 256.0, 4 << 20),
+    }
+}
+
+/// A block search over one sample, as its [`Engine`] says.
+pub(crate) enum BlockSearch<'a> {
+    /// The exact search, by FFT or by direct sums.
+    Exact(OverlapSearch<'a>, Engine),
+    Pyramid(PyramidSearch<'a>),
+}
+
+impl<'a> BlockSearch<'a> {
+    /// Prepares the search of `block × block` blocks of `sample` (`auto` resolved by its size).
+    pub(crate) fn new(engine: Engine, sample: &'a RgbImage, block: u32) -> BlockSearch<'a> {
+        match engine.for_sample(sample.dimensions()) {
+            Engine::Pyramid => BlockSearch::Pyramid(PyramidSearch::new(sample, block)),
+            e => BlockSearch::Exact(OverlapSearch::new(sample, block, block), e),
+        }
+    }
+
+    /// The tolerance set of the block at `origin` of `canvas`: the positions whose overlap error
+    /// is within `(1 + tolerance)` of the best (for the pyramid, of those it re-scored).
+    pub(crate) fn candidates(&mut self, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+        match self {
+            BlockSearch::Exact(s, Engine::Direct) => s.candidates_direct(canvas, origin, regions, tolerance),
+            BlockSearch::Exact(s, _) => s.candidates(canvas, origin, regions, tolerance),
+            BlockSearch::Pyramid(p) => p.candidates(canvas, origin, regions, tolerance),
+        }
+    }
+
+    /// [`BlockSearch::candidates`] of several blocks against one canvas, in the order given.
+    pub(crate) fn candidates_many(&mut self, canvas: &RgbImage, queries: &[((u32, u32), Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
+        match self {
+            BlockSearch::Exact(s, Engine::Direct) => queries.iter().map(|(o, r)| s.candidates_direct(canvas, *o, r, tolerance)).collect(),
+            BlockSearch::Exact(s, _) => s.candidates_many(canvas, queries, tolerance),
+            BlockSearch::Pyramid(p) => p.candidates_many(canvas, queries, tolerance),
+        }
+    }
+
+    /// The pyramid's coarse level, for diagnostics (`None` for the exact search).
+    pub(crate) fn coarse_level(&self) -> Option<u32> {
+        match self {
+            BlockSearch::Exact(..) => None,
+            BlockSearch::Pyramid(p) => Some(p.coarse_level()),
         }
     }
 }

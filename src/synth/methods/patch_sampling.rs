@@ -11,7 +11,10 @@
 //!   two coincide draw for draw until CPSO's first chaos search;
 //! - `search = "exhaustive"`: every position (exact, `primitives::overlap_search`); with
 //!   `tolerance = ε > 0` it is Liang et al.'s sampler (uniform among the patches whose RMS zone
-//!   error is below `ε` times the zone's RMS intensity, the best patch if there is none).
+//!   error is below `ε` times the zone's RMS intensity, the best patch if there is none). With
+//!   `engine = "pyramid"` (what `auto` gives samples above 512²) "every position" is every
+//!   position the coarse-to-fine search re-scores (`primitives::pyramid_search`); the optimum
+//!   recorded by `record_optimum` stays the exact one.
 //!
 //! The block is pasted with feathering over its zone (B5). The output is the top-left
 //! `width × height` of the grid.
@@ -44,7 +47,7 @@
 //! streams and every error is an exact integer, so the pixels are those of a raster-order run on
 //! any number of threads.
 
-use super::Engine;
+use super::{BlockSearch, Engine};
 use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
@@ -178,8 +181,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "engine",
         kind: ParamKind::Choice(Engine::NAMES),
-        default: Default::Str("fft"),
-        doc: "how exhaustive search scores every position: fft (FFT correlation + exact integer re-check) or direct (brute-force sums, the 'blind' search of paper 002's timing); identical results",
+        default: Default::Str("auto"),
+        doc: "how exhaustive search scores positions: fft (FFT correlation + exact integer re-check) or direct (brute-force sums, the 'blind' search of paper 002's timing), identical results; pyramid: coarse-to-fine for big samples; auto: fft for samples of at most 512x512 pixels, pyramid above (recorded resolved)",
     },
     ParamSpec {
         name: "blend",
@@ -390,7 +393,7 @@ pub struct ExhaustiveConfig {
     pub tolerance: f64,
     /// `candidates`: which positions a tolerance admits.
     pub candidates: CandidateRule,
-    /// `engine`: how every position is scored (same results either way).
+    /// `engine`: the exact search (fft or direct, same results), the pyramid, or auto (by sample size).
     pub engine: Engine,
 }
 
@@ -443,7 +446,7 @@ impl std::default::Default for ChaosConfig {
 
 impl std::default::Default for ExhaustiveConfig {
     fn default() -> ExhaustiveConfig {
-        ExhaustiveConfig { tolerance: 0.2, candidates: CandidateRule::Liang, engine: Engine::Fft }
+        ExhaustiveConfig { tolerance: 0.2, candidates: CandidateRule::Liang, engine: Engine::Auto }
     }
 }
 
@@ -674,6 +677,10 @@ impl Method for PatchSampling {
         errors
     }
 
+    fn resolve_for_sample(&self, params: &mut Params, sample: (u32, u32)) {
+        super::resolve_engine(params, "engine", sample);
+    }
+
     fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256², block 50): the canvas, trimmed in
         // place (3 B per output pixel), and the overlap search over the sample; 1024²: 15 MB,
@@ -715,8 +722,10 @@ impl Method for PatchSampling {
                 (x, y)
             }
         };
-        let needs_exhaustive = settings.search == Search::Exhaustive || settings.optimum;
-        let mut search = needs_exhaustive.then(|| OverlapSearch::new(sample, block, block));
+        let mut search = (settings.search == Search::Exhaustive).then(|| BlockSearch::new(settings.engine, sample, block));
+        // The recorded optimum is the exact one whatever the engine: an exact search's, else its own.
+        let shares = matches!(search, Some(BlockSearch::Exact(..)));
+        let mut exact = (settings.optimum && !shares).then(|| OverlapSearch::new(sample, block, block));
         let lines = (settings.search != Search::Exhaustive).then(|| SampleLines::new(sample));
         let (cols, rows) = torus.map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
         let mut results: Vec<BlockResult> = Vec::with_capacity((rows * cols) as usize);
@@ -800,7 +809,10 @@ impl Method for PatchSampling {
                     .collect()
             };
             if settings.optimum {
-                let s = search.as_mut().expect("exhaustive search prepared");
+                let s = match (&mut exact, &mut search) {
+                    (Some(s), _) | (None, Some(BlockSearch::Exact(s, _))) => s,
+                    _ => unreachable!("an exact search is prepared for the optimum"),
+                };
                 for (r, zone) in found.iter_mut().zip(&zones).filter(|(r, _)| (r.bi, r.bj) != (0, 0)) {
                     // The optimum, and how many positions are within 3 % of it (paper 002's
                     // success criterion, Table 2): how hard the block problem is for a swarm.
@@ -1003,7 +1015,7 @@ fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
 /// integers against one `f64` threshold), the best position if that set is empty.
 /// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`.
 fn exhaustive_block(
-    search: &mut OverlapSearch,
+    search: &mut BlockSearch,
     sample: &RgbImage,
     zone: &Zone,
     bi: u32,
@@ -1020,7 +1032,7 @@ fn exhaustive_block(
     let members: Vec<(u32, u32, u64)> = if eps <= 0.0 {
         Vec::new()
     } else if settings.candidates == CandidateRule::NearBest {
-        let c = settings.engine.candidates(search, canvas, origin, &regions, eps);
+        let c = search.candidates(canvas, origin, &regions, eps);
         result.optimum = Some(c.min_ssd);
         c.members
     } else {
@@ -1031,24 +1043,28 @@ fn exhaustive_block(
             .sum();
         let threshold = eps * eps * energy as f64;
         // The exact minimum first (one FFT search); the set is a tolerance set around it.
-        let c = settings.engine.candidates(search, canvas, origin, &regions, 0.0);
+        let c = search.candidates(canvas, origin, &regions, 0.0);
         let min = c.min_ssd;
         result.optimum = Some(min);
         best = Some(c);
         if (min as f64) >= threshold {
             Vec::new()
         } else if min == 0 {
-            // A tolerance relative to 0 cannot express the bound: scan every position, pruned.
-            members_below(sample, canvas, origin, &regions, zone.block, threshold)
+            // A tolerance relative to 0 cannot express the bound: scan every position, pruned (or
+            // every position the pyramid re-scored).
+            match search {
+                BlockSearch::Pyramid(p) => p.rescored(canvas, origin, &regions).into_iter().filter(|m| (m.2 as f64) < threshold).collect(),
+                BlockSearch::Exact(..) => members_below(sample, canvas, origin, &regions, zone.block, threshold),
+            }
         } else {
             // A superset of the bound (the margin covers rounding of threshold / min), then the exact rule.
             let tol = (threshold / min as f64 - 1.0) * (1.0 + 1e-9) + 1e-9;
-            let c = settings.engine.candidates(search, canvas, origin, &regions, tol);
+            let c = search.candidates(canvas, origin, &regions, tol);
             c.members.into_iter().filter(|m| (m.2 as f64) < threshold).collect()
         }
     };
     if members.is_empty() {
-        let best = best.unwrap_or_else(|| settings.engine.candidates(search, canvas, origin, &regions, 0.0));
+        let best = best.unwrap_or_else(|| search.candidates(canvas, origin, &regions, 0.0));
         let (x, y, d) = best.members[0];
         result.pos = (x, y);
         result.error = d;

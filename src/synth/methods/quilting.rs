@@ -3,11 +3,12 @@
 //!
 //! Blocks are laid in raster order at stride `block − overlap`. Each new block is chosen at random
 //! among the sample positions whose overlap error is within `(1 + tolerance)` of the best, found by
-//! an exhaustive exact search (`primitives::overlap_search`), and pasted along the minimum-error
+//! an exhaustive exact search (`primitives::overlap_search`) or, for big samples, the
+//! coarse-to-fine one (`search = "pyramid"`, `primitives::pyramid_search`), and pasted along the minimum-error
 //! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
 //! last row and column of blocks are cropped.
 
-use super::Engine;
+use super::{BlockSearch, Engine};
 use crate::image::RgbImage;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
@@ -15,7 +16,6 @@ use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, Para
 use crate::synth::primitives::block_grid::{BlockCuts, BlockGrid, OverlapRule, block_cuts, paste_with_cuts};
 use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::Rect;
-use crate::synth::primitives::overlap_search::OverlapSearch;
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -47,8 +47,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "search",
         kind: ParamKind::Choice(Engine::NAMES),
-        default: Default::Str("fft"),
-        doc: "how the exact exhaustive search is computed: fft (FFT correlation + exact re-check) or direct sums; same pixels",
+        default: Default::Str("auto"),
+        doc: "how blocks are searched: fft (FFT correlation + exact re-check) or direct sums, the exact search (same pixels); pyramid: coarse-to-fine for big samples; auto: fft for samples of at most 512x512 pixels, pyramid above (recorded resolved)",
     },
     ParamSpec {
         name: "cut",
@@ -94,7 +94,7 @@ pub struct QuiltingConfig {
     pub overlap: Option<u32>,
     /// `tolerance`: candidates within `(1 + tolerance)` × the best overlap error (0..=100).
     pub tolerance: f64,
-    /// `search`: how the exhaustive search is computed (same pixels either way).
+    /// `search`: the exact search (fft or direct, same pixels), the pyramid, or auto (by sample size).
     pub search: Engine,
     /// `cut`: the minimum-error boundary cut or none.
     pub cut: Cut,
@@ -104,7 +104,7 @@ pub struct QuiltingConfig {
 
 impl std::default::Default for QuiltingConfig {
     fn default() -> QuiltingConfig {
-        QuiltingConfig { block: 50, overlap: None, tolerance: 0.1, search: Engine::Fft, cut: Cut::Dp, blend: Blend::None }
+        QuiltingConfig { block: 50, overlap: None, tolerance: 0.1, search: Engine::Auto, cut: Cut::Dp, blend: Blend::None }
     }
 }
 
@@ -177,11 +177,13 @@ impl Method for Quilting {
         errors
     }
 
-    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        // Measured (VmHWM of `texsyn run`, bricks_gray 256², block 50): the canvas (3 B per output
-        // pixel, a block wider than the output at most), trimmed in place; the FFT overlap search
-        // over the sample (about 130 B per sample pixel). 2048²: 42 MB, 4096²: 116 MB in all.
-        crate::synth::method::linear_memory(sample, output, 3.5, 256.0, 4 << 20)
+    fn resolve_for_sample(&self, params: &mut Params, sample: (u32, u32)) {
+        super::resolve_engine(params, "search", sample);
+    }
+
+    fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        let search = params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample);
+        super::search_memory(search, sample, output)
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -198,7 +200,7 @@ impl Method for Quilting {
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
-        let mut search = OverlapSearch::new(sample, block, block);
+        let mut search = BlockSearch::new(cfg.search, sample, block);
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
         // Raster order, but the blocks of one front are searched together: what each one reads
@@ -206,11 +208,7 @@ impl Method for Quilting {
         for front in layout.fronts() {
             let queries: Vec<((u32, u32), Vec<Rect>)> =
                 front.iter().filter(|&&b| b != (0, 0)).map(|&(bi, bj)| (layout.origin(bi, bj), layout.overlap_regions(bi, bj))).collect();
-            let found = match cfg.search {
-                Engine::Fft => search.candidates_many(&canvas.image, &queries, tolerance),
-                Engine::Direct => queries.iter().map(|(o, r)| search.candidates_direct(&canvas.image, *o, r, tolerance)).collect(),
-            };
-            let mut found = found.into_iter();
+            let mut found = search.candidates_many(&canvas.image, &queries, tolerance).into_iter();
             let placed: Vec<((u32, u32), (u32, u32))> = front
                 .iter()
                 .map(|&(bi, bj)| {
@@ -237,12 +235,15 @@ impl Method for Quilting {
         }
         let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
         let seams = layout.seam_grid(req.width, req.height);
-        let diagnostics = serde_json::json!({
+        let mut diagnostics = serde_json::json!({
             "blocks": { "cols": layout.cols, "rows": layout.rows },
             "mean_candidates": if candidate_counts.is_empty() { 0.0 } else {
                 candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len() as f64
             },
         });
+        if let Some(level) = search.coarse_level() {
+            diagnostics["pyramid_level"] = serde_json::json!(level);
+        }
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 
@@ -282,7 +283,7 @@ impl Quilting {
         let (block, rule) = (cfg.block, cfg.overlap_rule());
         let (w, h) = torus.size();
         let mut canvas = Canvas::new(w, h, sample.dimensions(), req.placement);
-        let mut search = OverlapSearch::new(sample, block, block);
+        let mut search = BlockSearch::new(cfg.search, sample, block);
         let mut done = vec![false; (torus.rows * torus.cols) as usize];
         let mut candidate_counts = Vec::with_capacity(done.len());
         for (bi, bj) in torus.raster() {
@@ -291,7 +292,7 @@ impl Quilting {
                 first_block(req.seed, sample, block)
             } else {
                 let window = torus.window(&canvas.image, bi, bj);
-                let c = cfg.search.candidates(&mut search, &window, (0, 0), &torus.regions(sides), cfg.tolerance);
+                let c = search.candidates(&window, (0, 0), &torus.regions(sides), cfg.tolerance);
                 candidate_counts.push(c.members.len());
                 pick(req.seed, bi, bj, &c.members)
             };
@@ -299,11 +300,14 @@ impl Quilting {
             done[torus.index(bi, bj)] = true;
         }
         let (image, placement) = canvas.finish();
-        let diagnostics = serde_json::json!({
+        let mut diagnostics = serde_json::json!({
             "blocks": { "cols": torus.cols, "rows": torus.rows },
             "tileable": true,
             "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
         });
+        if let Some(level) = search.coarse_level() {
+            diagnostics["pyramid_level"] = serde_json::json!(level);
+        }
         Ok(Synthesis { image, seams: Some(torus.seam_grid()), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }

@@ -10,6 +10,7 @@ pub mod feather;
 pub mod overlap;
 pub mod overlap_search;
 pub mod pso;
+pub mod pyramid_search;
 pub mod shortest_path;
 pub mod simd;
 pub mod torus;

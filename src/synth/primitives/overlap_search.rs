@@ -17,6 +17,7 @@ use crate::image::RgbImage;
 use rayon::prelude::*;
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
+use std::borrow::Cow;
 use std::sync::Arc;
 
 /// Candidates whose exact SSD is within `(1 + tolerance)` of the minimum, in row-major order.
@@ -35,7 +36,9 @@ fn within(ssd: u64, min: u64, tolerance: f64) -> bool {
 
 /// Precomputed spectra of one sample for blocks of one size.
 pub struct OverlapSearch<'a> {
-    sample: &'a RgbImage,
+    /// Borrowed from the method, or owned when the searched image is one the caller made (a
+    /// pyramid's coarse level, `primitives::pyramid_search`).
+    sample: Cow<'a, RgbImage>,
     block_w: u32,
     block_h: u32,
     /// Half spectra of the R, G and B planes, laid out as `forward_real` leaves them.
@@ -77,6 +80,15 @@ struct Workspace {
 impl<'a> OverlapSearch<'a> {
     /// Prepares the search of `block_w × block_h` blocks in `sample` (which must be at least that big).
     pub fn new(sample: &'a RgbImage, block_w: u32, block_h: u32) -> OverlapSearch<'a> {
+        OverlapSearch::of(Cow::Borrowed(sample), block_w, block_h)
+    }
+
+    /// [`OverlapSearch::new`] over an image the search keeps.
+    pub fn owning(sample: RgbImage, block_w: u32, block_h: u32) -> OverlapSearch<'static> {
+        OverlapSearch::of(Cow::Owned(sample), block_w, block_h)
+    }
+
+    fn of(sample: Cow<'a, RgbImage>, block_w: u32, block_h: u32) -> OverlapSearch<'a> {
         let (w, h) = sample.dimensions();
         assert!(block_w <= w && block_h <= h, "block larger than the sample");
         let mut planner = FftPlanner::<f64>::new();
@@ -91,12 +103,13 @@ impl<'a> OverlapSearch<'a> {
                 planes[c * wu * hu + i] = v as f64;
             }
         }
+        let integral_sq = integral_of_squares(&sample);
         let mut search = OverlapSearch {
             sample,
             block_w,
             block_h,
             spec: Vec::new(),
-            integral_sq: integral_of_squares(sample),
+            integral_sq,
             sample_norm: 0.0,
             fft_row,
             fft_col,
@@ -111,6 +124,11 @@ impl<'a> OverlapSearch<'a> {
         search.spec = spec;
         search.sample_norm = (search.integral_sq[search.integral_sq.len() - 1] as f64).sqrt();
         search
+    }
+
+    /// The searched image.
+    pub fn sample(&self) -> &RgbImage {
+        &self.sample
     }
 
     fn positions(&self) -> (u32, u32) {
@@ -207,7 +225,7 @@ impl<'a> OverlapSearch<'a> {
     /// Exact SSD of the candidate at `(x, y)`: the block's `regions` (disjoint rectangles relative
     /// to the block origin) against `target` at `origin`.
     pub fn exact_ssd(&self, x: u32, y: u32, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> u64 {
-        regions.iter().map(|r| rect_ssd(self.sample, x + r.x, y + r.y, target, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
+        regions.iter().map(|r| rect_ssd(&self.sample, x + r.x, y + r.y, target, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
     }
 
     /// Every candidate position's exact SSD by direct summation (row-major). The reference the fast
@@ -287,6 +305,50 @@ impl<'a> OverlapSearch<'a> {
         found.into_iter().flatten().collect()
     }
 
+    /// The `count` positions of smallest exact SSD for each of several blocks, each given as its
+    /// own small `target` image with its `regions` at the origin, in the order given; ties are
+    /// broken by position (`y`, then `x`), so the result is the same whatever the thread count.
+    /// What a coarse-to-fine search starts from (`primitives::pyramid_search`).
+    pub fn best_many(&mut self, queries: &[(RgbImage, Vec<Rect>)], count: usize) -> Vec<Vec<(u32, u32, u64)>> {
+        let maps: Vec<Option<usize>> =
+            queries.iter().map(|(_, regions)| (regions.iter().map(|r| r.area()).sum::<u64>() > 0).then(|| self.sum_sq_map(regions))).collect();
+        let tasks = rayon::current_num_threads().clamp(1, queries.len().max(1));
+        let per_task = queries.len().div_ceil(tasks).max(1);
+        let mut pool = std::mem::take(&mut self.spare_work);
+        pool.resize_with(queries.len().div_ceil(per_task), Workspace::default);
+        // One block alone splits its transforms across the pool instead.
+        let parallel = queries.len() == 1 && rayon::current_num_threads() > 1;
+        let this = &*self;
+        let search_chunk = |work: &mut Workspace, queries: &[(RgbImage, Vec<Rect>)], maps: &[Option<usize>]| {
+            queries
+                .iter()
+                .zip(maps)
+                .map(|((target, regions), map)| match map {
+                    Some(m) => this.best_fft(work, target, (0, 0), regions, *m, count, parallel),
+                    None => {
+                        let nx = this.positions().0;
+                        let all = this.all_ssd_direct(target, (0, 0), regions);
+                        let mut found: Vec<(u32, u32, u64)> =
+                            all.into_iter().enumerate().map(|(i, s)| (i as u32 % nx, i as u32 / nx, s)).collect();
+                        found.sort_by_key(|&(x, y, ssd)| (ssd, y, x));
+                        found.truncate(count);
+                        found
+                    }
+                })
+                .collect::<Vec<_>>()
+        };
+        let found: Vec<Vec<Vec<(u32, u32, u64)>>> = if pool.len() <= 1 {
+            pool.iter_mut().map(|work| search_chunk(work, queries, &maps)).collect()
+        } else {
+            pool.par_iter_mut()
+                .zip(queries.par_chunks(per_task).zip(maps.par_chunks(per_task)))
+                .map(|(work, (queries, maps))| search_chunk(work, queries, maps))
+                .collect()
+        };
+        self.spare_work = pool;
+        found.into_iter().flatten().collect()
+    }
+
     /// One block's FFT search with the ΣS² map `map_index`; `parallel` splits its transforms and
     /// re-check across the pool (same result either way).
     fn search_fft(
@@ -299,6 +361,72 @@ impl<'a> OverlapSearch<'a> {
         tolerance: f64,
         parallel: bool,
     ) -> Candidates {
+        let margin = self.approximate(work, target, origin, regions, map_index, parallel);
+        let amin = work.approx.iter().copied().fold(f64::INFINITY, f64::min);
+        let threshold = (1.0 + tolerance) * (amin + margin) + margin;
+        let rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
+        let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
+        let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
+        Candidates { min_ssd: min, members }
+    }
+
+    /// The `count` positions of smallest exact SSD, ordered by (SSD, y, x): the approximate map
+    /// bounds which positions can be among them (every position whose approximation is within
+    /// twice the FFT margin of the `count`-th smallest), and those are re-scored exactly.
+    fn best_fft(
+        &self,
+        work: &mut Workspace,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        map_index: usize,
+        count: usize,
+        parallel: bool,
+    ) -> Vec<(u32, u32, u64)> {
+        let margin = self.approximate(work, target, origin, regions, map_index, parallel);
+        let mut order = work.approx.clone();
+        let k = count.clamp(1, order.len()) - 1;
+        let kth = *order.select_nth_unstable_by(k, f64::total_cmp).1;
+        let mut found = self.recheck(&work.approx, kth + 2.0 * margin, target, origin, regions, parallel);
+        found.sort_by_key(|&(x, y, ssd)| (ssd, y, x));
+        found.truncate(count);
+        found
+    }
+
+    /// Every position whose approximate SSD is at most `threshold`, with its exact SSD, row-major.
+    fn recheck(
+        &self,
+        approx: &[f64],
+        threshold: f64,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        parallel: bool,
+    ) -> Vec<(u32, u32, u64)> {
+        let (nx, ny) = self.positions();
+        let nxu = nx as usize;
+        let recheck_row = |y: u32| {
+            let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
+            row.iter()
+                .enumerate()
+                .filter(|(_, a)| **a <= threshold)
+                .map(|(x, _)| (x as u32, y, self.exact_ssd(x as u32, y, target, origin, regions)))
+                .collect::<Vec<_>>()
+        };
+        if parallel { (0..ny).into_par_iter().flat_map_iter(recheck_row).collect() } else { (0..ny).flat_map(recheck_row).collect() }
+    }
+
+    /// Fills `work.approx` with every position's approximate SSD (FFT correlation) and returns the
+    /// bound on its error.
+    fn approximate(
+        &self,
+        work: &mut Workspace,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        map_index: usize,
+        parallel: bool,
+    ) -> f64 {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let (nx, ny) = self.positions();
         let (nxu, nyu) = (nx as usize, ny as usize);
@@ -399,22 +527,7 @@ impl<'a> OverlapSearch<'a> {
         } else {
             work.approx.chunks_mut(nxu).enumerate().for_each(approx_row);
         }
-        let amin = work.approx.iter().copied().fold(f64::INFINITY, f64::min);
-        let threshold = (1.0 + tolerance) * (amin + margin) + margin;
-        let approx = &work.approx;
-        let recheck_row = |y: u32| {
-            let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
-            row.iter()
-                .enumerate()
-                .filter(|(_, a)| **a <= threshold)
-                .map(|(x, _)| (x as u32, y, self.exact_ssd(x as u32, y, target, origin, regions)))
-                .collect::<Vec<_>>()
-        };
-        let rechecked: Vec<(u32, u32, u64)> =
-            if parallel { (0..ny).into_par_iter().flat_map_iter(recheck_row).collect() } else { (0..ny).flat_map(recheck_row).collect() };
-        let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
-        let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
-        Candidates { min_ssd: min, members }
+        margin
     }
 
     /// Index of the ΣS² map for this region set, computing it the first time (exactly, from the

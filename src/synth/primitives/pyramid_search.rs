@@ -1,0 +1,302 @@
+//! Coarse-to-fine block search for big samples (docs/methods.md §6, `search = "pyramid"`): the
+//! cost of a block's search stops growing with the sample's pixels.
+//!
+//! Why: the exact search ([`OverlapSearch`]) scores every sample position, so a 12 MP camera photo
+//! costs about fifty times a 512² sample per block, and its FFT planes hold ~130 bytes per sample
+//! pixel. Here the sample is reduced by 2×2 means, level after level (a box pyramid: the crudest
+//! Gaussian pyramid, whose cells line up exactly with sample positions that are multiples of the
+//! level's factor), up to the first level of at most [`COARSE_PIXELS`] pixels, unless the block
+//! would shrink below [`MIN_COARSE_BLOCK`] pixels there. On that coarse level the exact FFT search
+//! finds each block's best positions against the block's overlap reduced the same way (a cell of
+//! the overlap is the mean of the known pixels in it, and counts when at least half of it is
+//! known); [`TRACKS`] of them, no two adjacent, are carried down level by level, each re-scored
+//! exactly within ±[`REFINE`] of its position doubled and moved to the best there. At full
+//! resolution every position of those last windows is scored exactly (the method's own integer
+//! overlap error), and the method picks among them with its own rule (tolerance), as it would
+//! among all positions.
+//!
+//! Deterministic: every choice is made on exact integers, ties broken by position, and no result
+//! depends on how the blocks or tracks are split across threads. Memory: the reduced levels hold a
+//! third of the sample's pixels, and the FFT search only the coarse level's; the sample itself is
+//! the method's, borrowed.
+
+use super::overlap::{Rect, bytes_ssd};
+use super::overlap_search::{Candidates, OverlapSearch};
+use crate::image::RgbImage;
+use rayon::prelude::*;
+
+/// The coarse level is the first of at most this many pixels (256²)…
+pub const COARSE_PIXELS: u64 = 256 * 256;
+/// … unless the block would be smaller than this there: a block of a few pixels ranks little.
+pub const MIN_COARSE_BLOCK: u32 = 6;
+/// Positions carried down from the coarse level per block.
+pub const TRACKS: usize = 32;
+/// A track is re-scored within this many positions of its doubled position, on every level.
+pub const REFINE: u32 = 2;
+
+/// The coarse level for a `block` in a `sample` (0: the sample is small enough to search whole).
+pub fn coarse_level(sample: (u32, u32), block: u32) -> u32 {
+    let mut level = 0;
+    loop {
+        if u64::from(sample.0 >> level) * u64::from(sample.1 >> level) <= COARSE_PIXELS {
+            return level;
+        }
+        let next = level + 1;
+        let b = block.div_ceil(1 << next);
+        if b < MIN_COARSE_BLOCK || sample.0 >> next < b || sample.1 >> next < b {
+            return level;
+        }
+        level = next;
+    }
+}
+
+/// A sample's pyramid and the exact search of its coarse level, for blocks of one size.
+pub struct PyramidSearch<'a> {
+    sample: &'a RgbImage,
+    block: u32,
+    /// The coarse level's index (0: no reduction, the search is the exact one).
+    top: u32,
+    /// Levels `1..top`: `levels[l - 1]` is level `l`. The coarse level is `coarse`'s image.
+    levels: Vec<RgbImage>,
+    coarse: OverlapSearch<'a>,
+}
+
+/// A block's overlap reduced to one level: the template image (`b × b`) and its regions.
+type Template = (RgbImage, Vec<Rect>);
+
+impl<'a> PyramidSearch<'a> {
+    /// Builds the pyramid of `sample` for `block × block` blocks (the block must fit the sample).
+    pub fn new(sample: &'a RgbImage, block: u32) -> PyramidSearch<'a> {
+        let top = coarse_level(sample.dimensions(), block);
+        let mut levels = Vec::new();
+        let coarse = if top == 0 {
+            OverlapSearch::new(sample, block, block)
+        } else {
+            let mut current = reduce(sample);
+            for _ in 1..top {
+                let next = reduce(&current);
+                levels.push(current);
+                current = next;
+            }
+            let b = block.div_ceil(1 << top);
+            OverlapSearch::owning(current, b, b)
+        };
+        PyramidSearch { sample, block, top, levels, coarse }
+    }
+
+    /// The coarse level's index (its factor is `2^level`).
+    pub fn coarse_level(&self) -> u32 {
+        self.top
+    }
+
+    /// The candidate set of one block: among the positions re-scored at full resolution, those
+    /// within `(1 + tolerance)` of the best of them, row-major. `target` holds the known pixels at
+    /// `origin + region`, as for [`OverlapSearch::candidates`].
+    pub fn candidates(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
+        if self.top == 0 {
+            return self.coarse.candidates(target, origin, regions, tolerance);
+        }
+        within_tolerance(self.rescored(target, origin, regions), tolerance)
+    }
+
+    /// [`PyramidSearch::candidates`] of several blocks against the same `target`, in the order
+    /// given; blocks are searched concurrently.
+    pub fn candidates_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
+        if self.top == 0 {
+            return self.coarse.candidates_many(target, queries, tolerance);
+        }
+        let pools = self.rescored_many(target, queries);
+        pools.into_iter().map(|p| within_tolerance(p, tolerance)).collect()
+    }
+
+    /// Every position re-scored at full resolution for one block, with its exact overlap error,
+    /// row-major: what [`PyramidSearch::candidates`] picks among (for rules that are not relative
+    /// to the best, such as Liang et al.'s).
+    pub fn rescored(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> Vec<(u32, u32, u64)> {
+        if self.top == 0 {
+            let all = self.coarse.all_ssd_direct(target, origin, regions);
+            let nx = self.sample.width() - self.block + 1;
+            return all.into_iter().enumerate().map(|(i, s)| (i as u32 % nx, i as u32 / nx, s)).collect();
+        }
+        self.rescored_many(target, &[(origin, regions.to_vec())]).pop().expect("one pool per block")
+    }
+
+    fn rescored_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)]) -> Vec<Vec<(u32, u32, u64)>> {
+        let top = self.top;
+        let templates: Vec<Template> =
+            queries.par_iter().map(|(origin, regions)| template(target, *origin, regions, self.block, top)).collect();
+        let best = self.coarse.best_many(&templates, 4 * TRACKS);
+        let this = &*self;
+        let single = queries.len() == 1;
+        queries
+            .par_iter()
+            .zip(best.into_par_iter())
+            .with_max_len(1)
+            .map(|((origin, regions), best)| this.refine(target, *origin, regions, &spread(&best), single))
+            .collect()
+    }
+
+    /// Level `l`'s image.
+    fn level(&self, l: u32) -> &RgbImage {
+        match l {
+            0 => self.sample,
+            l if l == self.top => self.coarse.sample(),
+            l => &self.levels[l as usize - 1],
+        }
+    }
+
+    /// Carries `tracks` (coarse positions) down to full resolution; returns the last windows'
+    /// positions with their exact errors, row-major, each once.
+    fn refine(&self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tracks: &[(u32, u32)], parallel: bool) -> Vec<(u32, u32, u64)> {
+        let mut tracks = tracks.to_vec();
+        for l in (1..self.top).rev() {
+            let (t_img, t_regions) = template(target, origin, regions, self.block, l);
+            let level = self.level(l);
+            let b = self.block.div_ceil(1 << l);
+            let best_in = |&(x, y): &(u32, u32)| {
+                window(x, y, level, b)
+                    .map(|(px, py)| (ssd(level, px, py, &t_img, (0, 0), &t_regions), py, px))
+                    .min()
+                    .map(|(_, py, px)| (px, py))
+                    .expect("a window holds its centre")
+            };
+            tracks = if parallel { tracks.par_iter().map(best_in).collect() } else { tracks.iter().map(best_in).collect() };
+            tracks.sort_by_key(|&(x, y)| (y, x));
+            tracks.dedup();
+        }
+        let mut positions: Vec<(u32, u32)> = tracks.iter().flat_map(|&(x, y)| window(x, y, self.sample, self.block)).collect();
+        positions.sort_by_key(|&(x, y)| (y, x));
+        positions.dedup();
+        let score = |&(x, y): &(u32, u32)| (x, y, ssd(self.sample, x, y, target, origin, regions));
+        if parallel { positions.par_iter().map(score).collect() } else { positions.iter().map(score).collect() }
+    }
+}
+
+/// The positions within ±[`REFINE`] of `(2x, 2y)` (a position one level up, doubled) where a
+/// `block` fits in `image`.
+fn window(x: u32, y: u32, image: &RgbImage, block: u32) -> impl Iterator<Item = (u32, u32)> {
+    let (nx, ny) = (image.width() - block + 1, image.height() - block + 1);
+    let span = |c: u32, n: u32| (2 * c).saturating_sub(REFINE).min(n - 1)..=(2 * c + 1 + REFINE).min(n - 1);
+    let xs = span(x, nx);
+    span(y, ny).flat_map(move |py| xs.clone().map(move |px| (px, py)))
+}
+
+/// Up to [`TRACKS`] of the coarse search's best positions (sorted by error), no two adjacent:
+/// neighbours of one good match would otherwise fill the tracks with a single place.
+fn spread(best: &[(u32, u32, u64)]) -> Vec<(u32, u32)> {
+    let mut kept: Vec<(u32, u32)> = Vec::with_capacity(TRACKS);
+    for &(x, y, _) in best {
+        if kept.len() == TRACKS {
+            break;
+        }
+        if kept.iter().all(|&(kx, ky)| kx.abs_diff(x) > 1 || ky.abs_diff(y) > 1) {
+            kept.push((x, y));
+        }
+    }
+    kept
+}
+
+/// The positions within `(1 + tolerance)` of the smallest error of `pool`.
+fn within_tolerance(pool: Vec<(u32, u32, u64)>, tolerance: f64) -> Candidates {
+    let min = pool.iter().map(|c| c.2).min().expect("at least one position is re-scored");
+    let members = pool.into_iter().filter(|c| (c.2 as f64) <= (1.0 + tolerance) * (min as f64)).collect();
+    Candidates { min_ssd: min, members }
+}
+
+/// The exact overlap error of the block at `(x, y)` of `image` against `target` at `origin`.
+fn ssd(image: &RgbImage, x: u32, y: u32, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> u64 {
+    let run = |x: u32, w: u32| x as usize * 3..(x + w) as usize * 3;
+    regions
+        .iter()
+        .flat_map(|r| (0..r.h).map(move |dy| (r, dy)))
+        .map(|(r, dy)| bytes_ssd(&image.row(y + r.y + dy)[run(x + r.x, r.w)], &target.row(origin.1 + r.y + dy)[run(origin.0 + r.x, r.w)]))
+        .sum()
+}
+
+/// One level down the pyramid: every 2×2 cell's mean, rounded (an odd last row or column is dropped).
+fn reduce(image: &RgbImage) -> RgbImage {
+    let (w, h) = (image.width() / 2, image.height() / 2);
+    let mut out = RgbImage::new(w, h);
+    let data = out.as_raw_mut();
+    for (y, row) in data.chunks_exact_mut(3 * w as usize).enumerate() {
+        let (a, b) = (image.row(2 * y as u32), image.row(2 * y as u32 + 1));
+        for (x, p) in row.chunks_exact_mut(3).enumerate() {
+            for (c, v) in p.iter_mut().enumerate() {
+                let i = 6 * x + c;
+                let sum = u32::from(a[i]) + u32::from(a[i + 3]) + u32::from(b[i]) + u32::from(b[i + 3]);
+                *v = ((sum + 2) / 4) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// A block's overlap (`regions` of `target` at `origin`) reduced to `level`: each `2^level` cell
+/// the mean of its known pixels, kept when at least half of the cell (inside the block) is known;
+/// when no cell is, every cell with a known pixel. Regions are the kept cells as rectangles.
+fn template(target: &RgbImage, origin: (u32, u32), regions: &[Rect], block: u32, level: u32) -> Template {
+    let f = 1u32 << level;
+    let b = block.div_ceil(f);
+    let mut sums = vec![[0u32; 4]; (b * b) as usize];
+    for r in regions {
+        for y in r.y..r.y + r.h {
+            let row = target.row(origin.1 + y);
+            for x in r.x..r.x + r.w {
+                let i = ((origin.0 + x) * 3) as usize;
+                let cell = &mut sums[((y / f) * b + x / f) as usize];
+                for c in 0..3 {
+                    cell[c] += u32::from(row[i + c]);
+                }
+                cell[3] += 1;
+            }
+        }
+    }
+    let cell_area = |i: u32| f.min(block - i * f);
+    let mut keep: Vec<bool> = (0..b * b).map(|k| 2 * sums[k as usize][3] >= cell_area(k % b) * cell_area(k / b)).collect();
+    if !keep.contains(&true) {
+        keep = sums.iter().map(|s| s[3] > 0).collect();
+    }
+    let image = RgbImage::from_fn(b, b, |x, y| {
+        let s = sums[(y * b + x) as usize];
+        if !keep[(y * b + x) as usize] || s[3] == 0 {
+            return [0; 3];
+        }
+        let mean = |c: usize| ((s[c] + s[3] / 2) / s[3]) as u8;
+        [mean(0), mean(1), mean(2)]
+    });
+    (image, rectangles(&keep, b))
+}
+
+/// The `true` cells of a `b × b` mask as disjoint rectangles: each row's runs, merged with the
+/// same runs of the rows below.
+fn rectangles(mask: &[bool], b: u32) -> Vec<Rect> {
+    let runs = |y: u32| -> Vec<(u32, u32)> {
+        let row = &mask[(y * b) as usize..((y + 1) * b) as usize];
+        let mut out = Vec::new();
+        let mut x = 0;
+        while x < b {
+            if row[x as usize] {
+                let start = x;
+                while x < b && row[x as usize] {
+                    x += 1;
+                }
+                out.push((start, x - start));
+            } else {
+                x += 1;
+            }
+        }
+        out
+    };
+    let mut rects = Vec::new();
+    let mut y = 0;
+    while y < b {
+        let here = runs(y);
+        let mut h = 1;
+        while y + h < b && runs(y + h) == here {
+            h += 1;
+        }
+        rects.extend(here.into_iter().map(|(x, w)| Rect::new(x, y, w, h)));
+        y += h;
+    }
+    rects
+}
