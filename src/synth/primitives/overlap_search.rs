@@ -310,8 +310,10 @@ impl<'a> OverlapSearch<'a> {
     /// broken by position (`y`, then `x`), so the result is the same whatever the thread count.
     /// What a coarse-to-fine search starts from (`primitives::pyramid_search`).
     pub fn best_many(&mut self, queries: &[(RgbImage, Vec<Rect>)], count: usize) -> Vec<Vec<(u32, u32, u64)>> {
-        let maps: Vec<Option<usize>> =
-            queries.iter().map(|(_, regions)| (regions.iter().map(|r| r.area()).sum::<u64>() > 0).then(|| self.sum_sq_map(regions))).collect();
+        let maps: Vec<Option<usize>> = queries
+            .iter()
+            .map(|(_, regions)| (regions.iter().map(|r| r.area()).sum::<u64>() > 0).then(|| self.sum_sq_map(regions)))
+            .collect();
         let tasks = rayon::current_num_threads().clamp(1, queries.len().max(1));
         let per_task = queries.len().div_ceil(tasks).max(1);
         let mut pool = std::mem::take(&mut self.spare_work);

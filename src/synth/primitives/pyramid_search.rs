@@ -147,7 +147,14 @@ impl<'a> PyramidSearch<'a> {
 
     /// Carries `tracks` (coarse positions) down to full resolution; returns the last windows'
     /// positions with their exact errors, row-major, each once.
-    fn refine(&self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tracks: &[(u32, u32)], parallel: bool) -> Vec<(u32, u32, u64)> {
+    fn refine(
+        &self,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        tracks: &[(u32, u32)],
+        parallel: bool,
+    ) -> Vec<(u32, u32, u64)> {
         let mut tracks = tracks.to_vec();
         for l in (1..self.top).rev() {
             let (t_img, t_regions) = template(target, origin, regions, self.block, l);
@@ -299,4 +306,97 @@ fn rectangles(mask: &[bool], b: u32) -> Vec<Rect> {
         y += h;
     }
     rects
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::rng::Stream;
+
+    /// A smooth random texture (noise summed over 8×8 cells and single pixels): like a photo, it
+    /// has structure at the coarse levels as well as at full resolution.
+    fn texture(w: u32, h: u32, seed: u64) -> RgbImage {
+        let mut s = Stream::new(seed, "test/texture");
+        let cells: Vec<[u8; 3]> =
+            (0..(w / 8 + 1) * (h / 8 + 1)).map(|_| [s.below(200) as u8, s.below(200) as u8, s.below(200) as u8]).collect();
+        RgbImage::from_fn(w, h, |x, y| {
+            let c = cells[((y / 8) * (w / 8 + 1) + x / 8) as usize];
+            let n = s.below(56) as u8;
+            [c[0] + n, c[1] + n / 2, c[2] + (55 - n)]
+        })
+    }
+
+    #[test]
+    fn the_coarse_level_is_small_but_keeps_the_block() {
+        assert_eq!(coarse_level((256, 256), 50), 0);
+        assert_eq!(coarse_level((512, 512), 50), 1);
+        assert_eq!(coarse_level((1024, 1024), 50), 2);
+        // 4000×3000 would be under 256² at level 4, but block 50 is 4 pixels there.
+        assert_eq!(coarse_level((4000, 3000), 50), 3);
+        assert_eq!(coarse_level((4000, 3000), 100), 4);
+        assert_eq!(coarse_level((4000, 3000), 8), 0);
+    }
+
+    #[test]
+    fn an_l_shaped_overlap_reduces_to_its_cells() {
+        let target = RgbImage::from_fn(20, 20, |x, y| [(x * 10) as u8, (y * 10) as u8, 7]);
+        let regions = [Rect::new(0, 0, 4, 20), Rect::new(4, 0, 16, 4)];
+        let (img, rects) = template(&target, (0, 0), &regions, 20, 2);
+        assert_eq!(img.dimensions(), (5, 5));
+        assert_eq!(rects, vec![Rect::new(0, 0, 5, 1), Rect::new(0, 1, 1, 4)]);
+        // Cell (1, 0) is pixels x 4..8, y 0..4: means 55 and 15.
+        assert_eq!(img.get(1, 0), [55, 15, 7]);
+        // A 2-pixel overlap covers half of each cell of level 2: kept; at level 3 a quarter, so
+        // every touched cell is kept instead.
+        let thin = [Rect::new(0, 0, 2, 20)];
+        assert_eq!(template(&target, (0, 0), &thin, 20, 2).1, vec![Rect::new(0, 0, 1, 5)]);
+        assert_eq!(template(&target, (0, 0), &thin, 20, 3).1, vec![Rect::new(0, 0, 1, 3)]);
+    }
+
+    #[test]
+    fn a_copy_of_the_sample_is_found_exactly() {
+        let sample = texture(600, 520, 3);
+        let mut search = PyramidSearch::new(&sample, 32);
+        assert_eq!(search.coarse_level(), 2);
+        for (x, y) in [(123, 77), (0, 0), (568, 488), (301, 250)] {
+            let target = sample.crop(x, y, 32, 32);
+            let regions = [Rect::new(0, 0, 6, 32), Rect::new(6, 0, 26, 6)];
+            let c = search.candidates(&target, (0, 0), &regions, 0.0);
+            assert_eq!((c.min_ssd, c.members[0].0, c.members[0].1), (0, x, y), "copy of ({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn many_blocks_at_once_equal_one_at_a_time_on_any_pool() {
+        let sample = texture(640, 480, 5);
+        let target = texture(200, 200, 6);
+        let queries: Vec<((u32, u32), Vec<Rect>)> = vec![
+            ((3, 4), vec![Rect::new(0, 0, 8, 40)]),
+            ((80, 2), vec![Rect::new(0, 0, 40, 8)]),
+            ((30, 100), vec![Rect::new(0, 0, 8, 40), Rect::new(8, 0, 32, 8)]),
+        ];
+        let mut search = PyramidSearch::new(&sample, 40);
+        let one_by_one: Vec<Candidates> = queries.iter().map(|(o, r)| search.candidates(&target, *o, r, 0.2)).collect();
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            assert_eq!(pool.install(|| search.candidates_many(&target, &queries, 0.2)), one_by_one, "{threads} threads");
+        }
+        // Every member's error is the exact one.
+        let exact = OverlapSearch::new(&sample, 40, 40);
+        for (c, (o, r)) in one_by_one.iter().zip(&queries) {
+            assert!(c.members.iter().all(|m| m.2 == exact.exact_ssd(m.0, m.1, &target, *o, r)));
+            assert!(c.members.iter().all(|m| m.2 as f64 <= 1.2 * c.min_ssd as f64));
+        }
+    }
+
+    #[test]
+    fn a_small_sample_is_searched_exactly() {
+        let sample = texture(200, 180, 8);
+        let target = texture(60, 60, 9);
+        let regions = [Rect::new(0, 0, 5, 30), Rect::new(5, 0, 25, 5)];
+        let mut pyramid = PyramidSearch::new(&sample, 30);
+        assert_eq!(pyramid.coarse_level(), 0);
+        let exact = OverlapSearch::new(&sample, 30, 30).candidates_direct(&target, (10, 10), &regions, 0.1);
+        assert_eq!(pyramid.candidates(&target, (10, 10), &regions, 0.1), exact);
+    }
 }
