@@ -14,6 +14,7 @@ mod memory;
 mod patch_sampling;
 mod pipeline;
 mod placement;
+mod pyramid;
 mod report;
 mod shards;
 mod signals;
