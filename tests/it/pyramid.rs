@@ -11,7 +11,7 @@ use texsyn::{QuiltingConfig, Synthesizer};
 fn big_sample(path: &Path) -> RgbImage {
     let s = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
     let (w, h) = s.dimensions();
-    let fold = |v: u32, n: u32| if (v / n) % 2 == 0 { v % n } else { n - 1 - v % n };
+    let fold = |v: u32, n: u32| if (v / n).is_multiple_of(2) { v % n } else { n - 1 - v % n };
     let img = RgbImage::from_fn(720, 600, |x, y| s.get(fold(x, w), fold(y, h)));
     texsyn::save_image(&img, path).unwrap();
     img
