@@ -65,14 +65,22 @@ struct Limits {
 /// also compared with the interior lines in the same place of the grid (`x = k·stride`). And the
 /// closing blocks must fit two or three neighbours at once instead of one or two, so their seams
 /// are a little worse on samples with a strong period that does not divide the output.
-fn check_wraps(method: &str, size: (u32, u32), stride: u32, given: &[(&str, ParamValue)], limits: Limits) {
-    for (name, sample) in samples() {
-        let out = synth(method, &sample, size, given, false);
+fn check_wraps(method: &str, size: (u32, u32), given: &[(&str, ParamValue)], limits: Limits) {
+    check_wraps_on(&samples(), method, size, given, limits)
+}
+
+/// [`check_wraps`] on these samples. The interior lines in the wrap's place of the grid are the
+/// block origins, read off the seam bands (which start at the origins, or for double-seam at the
+/// pasted parts `g` pixels further on), so they follow a torus fitted to the size too.
+fn check_wraps_on(samples: &[(String, RgbImage)], method: &str, size: (u32, u32), given: &[(&str, ParamValue)], limits: Limits) {
+    let offset = if method == "double-seam" { 8 } else { 0 };
+    for (name, sample) in samples {
+        let out = synth(method, sample, size, given, false);
         let seams = out.seams.as_ref().unwrap();
         let interior = seam_visibility(&out.image, seams).unwrap();
         let wrap = wrap_visibility(&out.image).unwrap();
-        let lines = |n: u32| (1..n / stride).map(|k| SeamBand { start: k * stride, len: 1 }).collect::<Vec<_>>();
-        let phase = seam_visibility(&out.image, &SeamGrid { columns: lines(size.0), rows: lines(size.1) }).unwrap();
+        let lines = |bands: &[SeamBand]| bands.iter().skip(1).map(|b| SeamBand { start: b.start - offset, len: 1 }).collect::<Vec<_>>();
+        let phase = seam_visibility(&out.image, &SeamGrid { columns: lines(&seams.columns), rows: lines(&seams.rows) }).unwrap();
         // The seam grids list the band where the wrap closes first.
         let split = |keep: &dyn Fn(usize) -> bool| SeamGrid {
             columns: seams.columns.iter().enumerate().filter(|(k, _)| keep(*k)).map(|(_, b)| *b).collect(),
@@ -120,20 +128,44 @@ fn check_wraps(method: &str, size: (u32, u32), stride: u32, given: &[(&str, Para
 #[test]
 fn quilting_wraps_like_its_seams() {
     let s = |v: &str| ParamValue::Str(v.into());
-    check_wraps("quilting", (336, 252), 42, &[], Limits { wrap: 1.75, closing: 1.3 });
-    check_wraps("quilting", (336, 252), 42, &[("cut", s("none"))], Limits { wrap: 1.25, closing: 1.3 });
-    check_wraps("quilting", (336, 252), 42, &[("cut", s("none")), ("blend", s("feather"))], Limits { wrap: 1.75, closing: 1.3 });
+    check_wraps("quilting", (336, 252), &[], Limits { wrap: 1.75, closing: 1.3 });
+    check_wraps("quilting", (336, 252), &[("cut", s("none"))], Limits { wrap: 1.25, closing: 1.3 });
+    check_wraps("quilting", (336, 252), &[("cut", s("none")), ("blend", s("feather"))], Limits { wrap: 1.75, closing: 1.3 });
 }
 
 #[test]
 fn patch_sampling_wraps_like_its_seams() {
-    check_wraps("patch-sampling", (250, 225), 25, &[], Limits { wrap: 1.25, closing: 2.0 });
-    check_wraps("patch-sampling", (250, 225), 25, &[("blend", ParamValue::Str("cut".into()))], Limits { wrap: 1.25, closing: 2.0 });
+    check_wraps("patch-sampling", (250, 225), &[], Limits { wrap: 1.25, closing: 2.0 });
+    check_wraps("patch-sampling", (250, 225), &[("blend", ParamValue::Str("cut".into()))], Limits { wrap: 1.25, closing: 2.0 });
 }
 
 #[test]
 fn double_seam_wraps_like_its_seams() {
-    check_wraps("double-seam", (336, 252), 42, &[], Limits { wrap: 1.25, closing: 2.2 });
+    check_wraps("double-seam", (336, 252), &[], Limits { wrap: 1.25, closing: 2.2 });
+}
+
+/// The sizes artists use, powers of two and odd ones, with every method's defaults: the torus is
+/// fitted to the size (some blocks spaced a pixel closer), and the wrap line must still look like
+/// the interior seams: within 1.5 times of them. The closing bands keep each method's limit of the
+/// evenly spaced tests above (double-seam's and patch sampling's are looser there too).
+#[test]
+fn every_wrapping_method_tiles_the_sizes_artists_use_with_its_defaults() {
+    let chosen: Vec<(String, RgbImage)> = samples()
+        .into_iter()
+        .filter(|(n, _)| ["pebbles_beige.png", "rock_a_albedo.png", "cobblestone_a_albedo.png"].contains(&n.as_str()))
+        .collect();
+    for size in [(512, 512), (384, 320), (1000, 600)] {
+        for (method, closing) in [("quilting", 1.5), ("patch-sampling", 2.0), ("double-seam", 2.2)] {
+            check_wraps_on(&chosen, method, size, &[], Limits { wrap: 1.5, closing });
+        }
+    }
+    check_wraps_on(&chosen[..1], "quilting", (1024, 1024), &[], Limits { wrap: 1.5, closing: 1.5 });
+    // The manifest says how the size was met.
+    let out = synth("quilting", &chosen[0].1, (512, 512), &[], false);
+    assert_eq!(out.diagnostics["tileable_grid"]["fitted"], true, "{}", out.diagnostics);
+    assert_eq!(out.diagnostics["tileable_grid"]["x"]["overlap"], serde_json::json!([10, 11]), "{}", out.diagnostics);
+    let even = synth("quilting", &chosen[0].1, (336, 252), &[], false);
+    assert!(even.diagnostics.get("tileable_grid").is_none(), "{}", even.diagnostics);
 }
 
 fn check_placement(method: &str, size: (u32, u32), given: &[(&str, ParamValue)]) {
@@ -155,6 +187,11 @@ fn tileable_placements_render_their_images() {
     check_placement("patch-sampling", (100, 75), &[q("blend", "cut")]);
     check_placement("patch-sampling", (100, 75), &[q("search", "exhaustive")]);
     check_placement("double-seam", (108, 81), &[("block", ParamValue::Int(32))]);
+    // Fitted tori: some blocks a pixel closer.
+    check_placement("quilting", (131, 97), &[("block", ParamValue::Int(38))]);
+    check_placement("quilting", (131, 97), &[("block", ParamValue::Int(38)), q("cut", "none"), q("blend", "feather")]);
+    check_placement("patch-sampling", (103, 77), &[]);
+    check_placement("double-seam", (111, 85), &[("block", ParamValue::Int(32))]);
 }
 
 #[test]
@@ -176,30 +213,28 @@ fn tileable_patch_sampling_does_not_depend_on_the_thread_count() {
 }
 
 #[test]
-fn sizes_that_cannot_wrap_are_refused_saying_what_would() {
+fn sizes_below_two_blocks_are_refused_saying_what_would() {
     let refusal = |method: &str, sample: (u32, u32), size: (u32, u32), given: &[(&str, ParamValue)]| -> String {
         let m = methods::find(method).unwrap();
         let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
         let params = resolve(m.params(), &given).unwrap();
         m.tileable(&params, sample, size).unwrap_err()
     };
-    let e = refusal("quilting", (256, 256), (768, 768), &[]);
+    let e = refusal("quilting", (256, 256), (49, 768), &[]);
     assert_eq!(
         e,
-        "tileable quilting needs width and height multiples of block - overlap = 42 (at least 2 blocks each way); 756x756 or 798x798 would work, or block = 56 for 768x768"
+        "tileable quilting needs at least two blocks each way, 50 pixels a side for block 50; 50x768 would work, or a smaller block"
     );
-    let e = refusal("patch-sampling", (256, 256), (768, 512), &[]);
-    assert!(e.contains("block - overlap = 25") && e.contains("750x500 or 775x525"), "{e}");
-    let e = refusal("double-seam", (256, 256), (500, 500), &[]);
-    assert!(e.contains("block - overlap = 42") && e.contains("504x504"), "{e}");
+    let e = refusal("patch-sampling", (256, 256), (768, 20), &[]);
+    assert!(e.contains("30 pixels a side for block 30") && e.contains("768x30 would work"), "{e}");
     let e = refusal("double-seam", (64, 64), (84, 84), &[("block", ParamValue::Int(60)), ("overlap", ParamValue::Int(18))]);
     assert!(e.contains("sample"), "{e}");
     // A synthesis asked anyway fails with the same sentence.
     let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
     let m = methods::find("quilting").unwrap();
     let params = resolve(m.params(), &[]).unwrap();
-    let req = Request { sample: &s, width: 100, height: 100, params: &params, seed: 1, placement: false, tileable: true };
-    assert!(m.synthesize(&req).unwrap_err().to_string().contains("multiples of block - overlap = 42"));
+    let req = Request { sample: &s, width: 40, height: 100, params: &params, seed: 1, placement: false, tileable: true };
+    assert!(m.synthesize(&req).unwrap_err().to_string().contains("50 pixels a side"));
 }
 
 /// A tileable output whose size cuts the sample's lattice at the wrap is warned about, in the

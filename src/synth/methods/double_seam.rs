@@ -703,7 +703,7 @@ impl Method for DoubleSeam {
                 picks[(bi * cols + bj) as usize] = (x, y);
                 let c0 = if bj > 0 { g } else { 0 };
                 let r0 = if bi > 0 { g } else { 0 };
-                out.paste(&prep, (x as u32, y as u32), (ox, oy), c0, r0, block);
+                out.paste(&prep, (x as u32, y as u32), (ox, oy), c0..block, r0..block);
             }
         }
         let (image, placement) = out.rgb.into_top_left(req.width, req.height).finish();
@@ -728,7 +728,9 @@ impl Method for DoubleSeam {
 
 // Tileable double-seam splicing. On a torus every block pastes only its `(B − g)²` part
 // `[g, B)²` (the first block too), at stride `B − g`, so the pasted parts tile the output exactly
-// once and the last column's part ends where the first column's begins. The choice keeps the
+// once and the last column's part ends where the first column's begins. At a size that is not a
+// whole number of strides the torus spaces some blocks a pixel closer (`TorusGrid`'s fit), and
+// those paste the narrower part `[g, g + spacing)` so the parts still tile the output. The choice keeps the
 // paper's criterion: two one-pixel lines per block, the true seam (the existing pixels next to the
 // pasted part) and the auxiliary line `aux_dist` further out, each scored by the HSI correlations
 // and edge agreement of eqs. 6-10. Where the plain grid has those lines on the left and top only,
@@ -754,8 +756,7 @@ fn torus_of(s: &Settings, sample: (u32, u32), output: (u32, u32)) -> Result<Toru
             sample.0, sample.1
         ));
     }
-    let max_block = (smaller - d - 1 - (d + 1 - g).max(0)).max(1) as u32;
-    TorusGrid::new("double-seam", b as u32, g as u32, output.0, output.1, max_block)
+    TorusGrid::new("double-seam", b as u32, g as u32, output.0, output.1)
 }
 
 /// The true and the auxiliary line of block `(bi, bj)` on the torus: the rings `d = 0` and
@@ -763,20 +764,22 @@ fn torus_of(s: &Settings, sample: (u32, u32), output: (u32, u32)) -> Result<Toru
 /// the ring's pixels that already hold content, in a fixed order (top, left, right, bottom).
 fn torus_lines(torus: &TorusGrid, done: &[bool], s: &Settings, bi: u32, bj: u32) -> [Vec<(i32, i32)>; 2] {
     let (w, h) = torus.size();
-    let (w, h, st, g, b) = (w as i32, h as i32, torus.stride() as i32, s.g, s.block);
+    let (w, h, g) = (w as i32, h as i32, s.g);
     let (ox, oy) = torus.origin(bi, bj);
-    // Output pixel (x, y) is pasted by the block whose part [g, B)² covers it.
+    // The pasted part ends where the next block's begins.
+    let (end_c, end_r) = (g + torus.spacing_x(bj) as i32, g + torus.spacing_y(bi) as i32);
+    // Output pixel (x, y) is pasted by the block whose part `[g, g + spacing)²` covers it.
     let filled = |c: i32, r: i32| {
-        let x = (ox as i32 + c - g).rem_euclid(w) / st;
-        let y = (oy as i32 + r - g).rem_euclid(h) / st;
-        done[torus.index(y as u32, x as u32)]
+        let x = torus.column_at((ox as i32 + c - g).rem_euclid(w) as u32);
+        let y = torus.row_at((oy as i32 + r - g).rem_euclid(h) as u32);
+        done[torus.index(y, x)]
     };
     let ring = |d: i32| -> Vec<(i32, i32)> {
-        let (lo, hi) = (g - 1 - d, b + d);
-        let top = (lo..=hi).map(|c| (c, lo));
-        let left = (lo + 1..hi).map(|r| (lo, r));
-        let right = (lo + 1..hi).map(|r| (hi, r));
-        let bottom = (lo..=hi).map(|c| (c, hi));
+        let (lo, hi_c, hi_r) = (g - 1 - d, end_c + d, end_r + d);
+        let top = (lo..=hi_c).map(|c| (c, lo));
+        let left = (lo + 1..hi_r).map(|r| (lo, r));
+        let right = (lo + 1..hi_r).map(|r| (hi_c, r));
+        let bottom = (lo..=hi_c).map(|c| (c, hi_r));
         top.chain(left).chain(right).chain(bottom).filter(|&(c, r)| filled(c, r)).collect()
     };
     [ring(0), ring(g - 1 - s.a)]
@@ -796,7 +799,7 @@ fn line_ranges(prep: &Prepared, s: &Settings, ls: &[Vec<(i32, i32)>; 2]) -> Rang
 fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synthesis, SynthError> {
     let sample = req.sample;
     let torus = torus_of(s, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
-    let (block, g, stride) = (s.block as u32, s.g as u32, torus.stride());
+    let (block, g) = (s.block as u32, s.g as u32);
     let (w, h) = torus.size();
     let mut out = Canvas::new(w, h, sample.dimensions(), req.placement);
     let mut done = vec![false; (torus.rows * torus.cols) as usize];
@@ -825,14 +828,14 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
             };
             let shape = &shapes[k];
             // The natural continuations of the neighbours already there (through the wrap too).
-            let st_i = stride as i32;
             let (r, c) = (torus.rows, torus.cols);
+            let (left, up) = ((bj + c - 1) % c, (bi + r - 1) % r);
             let mut hints = Vec::new();
             for (ni, nj, dx, dy) in [
-                (bi, (bj + c - 1) % c, st_i, 0),
-                ((bi + r - 1) % r, bj, 0, st_i),
-                (bi, (bj + 1) % c, -st_i, 0),
-                ((bi + 1) % r, bj, 0, -st_i),
+                (bi, left, torus.spacing_x(left) as i32, 0),
+                (up, bj, 0, torus.spacing_y(up) as i32),
+                (bi, (bj + 1) % c, -(torus.spacing_x(bj) as i32), 0),
+                ((bi + 1) % r, bj, 0, -(torus.spacing_y(bi) as i32)),
             ] {
                 if done[torus.index(ni, nj)] {
                     let (px, py) = picks[torus.index(ni, nj)];
@@ -845,21 +848,24 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
             f_max_sum += f_max;
             pick
         };
-        out.paste(prep, (x as u32, y as u32), (ox, oy), g, g, block);
+        out.paste(prep, (x as u32, y as u32), (ox, oy), g..g + torus.spacing_x(bj), g..g + torus.spacing_y(bi));
         done[torus.index(bi, bj)] = true;
         picks[torus.index(bi, bj)] = (x, y);
     }
     let (image, placement) = out.rgb.finish();
-    // Each pasted part starts at `k·stride + g`; k = 0 is where the wrap closes.
-    let band = |count: u32| -> Vec<SeamBand> { (0..count).map(|k| SeamBand { start: k * stride + g, len: 1 }).collect() };
-    let seams = SeamGrid { columns: band(torus.cols), rows: band(torus.rows) };
+    // Each pasted part starts at its block's origin + g; block 0's is where the wrap closes.
+    let seams = SeamGrid {
+        columns: (0..torus.cols).map(|k| SeamBand { start: torus.origin(0, k).0 + g, len: 1 }).collect(),
+        rows: (0..torus.rows).map(|k| SeamBand { start: torus.origin(k, 0).1 + g, len: 1 }).collect(),
+    };
     let n = set_sizes.len().max(1) as f64;
-    let diagnostics = serde_json::json!({
+    let mut diagnostics = serde_json::json!({
         "blocks": { "cols": torus.cols, "rows": torus.rows },
         "tileable": true,
         "mean_candidates": set_sizes.iter().sum::<usize>() as f64 / n,
         "mean_f_max": f_max_sum / n,
     });
+    torus.record_fit(&mut diagnostics);
     Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
 }
 
@@ -909,12 +915,13 @@ impl Canvas {
         }
     }
 
-    fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), c0: u32, r0: u32, block: u32) {
+    /// Copies columns `cols` and rows `rows` of the sample block at `src` to the block at `dst`.
+    fn paste(&mut self, prep: &Prepared, src: (u32, u32), dst: (u32, u32), cols: std::ops::Range<u32>, rows: std::ops::Range<u32>) {
         // Wrapped, for a torus; the plain canvas holds every block, so there it changes nothing.
-        let dxs: Vec<u32> = (c0..block).map(|c| (dst.0 + c) % self.w as u32).collect();
-        for r in r0..block {
+        let dxs: Vec<u32> = cols.clone().map(|c| (dst.0 + c) % self.w as u32).collect();
+        for r in rows {
             let dy = (dst.1 + r) % self.rows as u32;
-            for (c, &dx) in (c0..block).zip(&dxs) {
+            for (c, &dx) in cols.clone().zip(&dxs) {
                 let (sx, sy) = (src.0 + c, src.1 + r);
                 self.rgb.copy(dx, dy, prep.rgb, sx, sy);
                 let si = sy as usize * prep.w + sx as usize;
@@ -1965,9 +1972,9 @@ mod tests {
         assert_eq!(Settings::of(&DoubleSeamConfig::from_params(&p).unwrap()), s);
         let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
-        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
-        out.paste(&prep, (40, 30), (20, 0), 4, 0, 24);
-        out.paste(&prep, (3, 50), (0, 20), 0, 4, 24);
+        out.paste(&prep, (10, 5), (0, 0), 0..24, 0..24);
+        out.paste(&prep, (40, 30), (20, 0), 4..24, 0..24);
+        out.paste(&prep, (3, 50), (0, 20), 0..24, 4..24);
         let case = Case::L;
         let ls = lines(case, 24, 4, -1);
         let stats = [candidate_stats(&prep, &s, case, &ls[0]), candidate_stats(&prep, &s, case, &ls[1])];
@@ -1996,7 +2003,7 @@ mod tests {
         }
         // The natural continuation of a block scores F = 2 when its lines vary and edges agree.
         let mut out2 = Canvas::new(60, 60, (96, 96), false);
-        out2.paste(&prep, (10, 10), (0, 0), 0, 0, 24);
+        out2.paste(&prep, (10, 10), (0, 0), 0..24, 0..24);
         let hz = Case::Horizontal;
         let lh = lines(hz, 24, 4, -1);
         let st = [candidate_stats(&prep, &s, hz, &lh[0]), candidate_stats(&prep, &s, hz, &lh[1])];
@@ -2013,9 +2020,9 @@ mod tests {
         let sample = structured();
         let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
-        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
-        out.paste(&prep, (30, 5), (20, 0), 4, 0, 24);
-        out.paste(&prep, (10, 25), (0, 20), 0, 4, 24);
+        out.paste(&prep, (10, 5), (0, 0), 0..24, 0..24);
+        out.paste(&prep, (30, 5), (20, 0), 4..24, 0..24);
+        out.paste(&prep, (10, 25), (0, 20), 0..24, 4..24);
         let base = Settings {
             block: 24,
             g: 4,
@@ -2065,7 +2072,7 @@ mod tests {
         let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (96, 96), false);
         for (bi, bj) in [(0u32, 0u32), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 0), (2, 1), (2, 2)] {
-            out.paste(&prep, (7 + 23 * bj + 5 * bi, 3 + 21 * bi + 7 * bj), (20 * bj, 20 * bi), 0, 0, 20);
+            out.paste(&prep, (7 + 23 * bj + 5 * bi, 3 + 21 * bi + 7 * bj), (20 * bj, 20 * bi), 0..20, 0..20);
         }
         let base = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
         for s in [Settings { ..base }, Settings { clamp: true, ..base }, Settings { level_penalty: 10.0, ..base }] {
@@ -2109,9 +2116,9 @@ mod tests {
         });
         let prep = Prepared::of(&sample);
         let mut out = Canvas::new(60, 60, (95, 97), false);
-        out.paste(&prep, (10, 5), (0, 0), 0, 0, 24);
-        out.paste(&prep, (30, 5), (20, 0), 4, 0, 24);
-        out.paste(&prep, (10, 25), (0, 20), 0, 4, 24);
+        out.paste(&prep, (10, 5), (0, 0), 0..24, 0..24);
+        out.paste(&prep, (30, 5), (20, 0), 4..24, 0..24);
+        out.paste(&prep, (10, 25), (0, 20), 0..24, 4..24);
         let s = Settings::of(&DoubleSeamConfig { block: 24, ..DoubleSeamConfig::default() });
         for (case, origin) in [(Case::Horizontal, (20, 0)), (Case::L, (20, 20)), (Case::Vertical, (0, 20))] {
             let ls = lines(case, s.block, s.g, s.a);

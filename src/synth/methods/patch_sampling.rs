@@ -705,7 +705,7 @@ impl Method for PatchSampling {
             None
         };
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
-        let (cw, ch) = torus.map_or(layout.canvas(), |t| t.size());
+        let (cw, ch) = torus.as_ref().map_or(layout.canvas(), |t| t.size());
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
         let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
         let first = match settings.first {
@@ -727,7 +727,7 @@ impl Method for PatchSampling {
         let shares = matches!(search, Some(BlockSearch::Exact(..)));
         let mut exact = (settings.optimum && !shares).then(|| OverlapSearch::new(sample, block, block));
         let lines = (settings.search != Search::Exhaustive).then(|| SampleLines::new(sample));
-        let (cols, rows) = torus.map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
+        let (cols, rows) = torus.as_ref().map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
         let mut results: Vec<BlockResult> = Vec::with_capacity((rows * cols) as usize);
         let mut done = vec![false; (rows * cols) as usize];
         let mut placed: Vec<Option<(u32, u32)>> = vec![None; (rows * cols) as usize];
@@ -747,7 +747,7 @@ impl Method for PatchSampling {
                         Zone {
                             target: Cow::Owned(t.window(&canvas.image, bi, bj)),
                             origin: (0, 0),
-                            regions: t.regions(sides),
+                            regions: t.regions(bi, bj, sides),
                             block,
                             sides,
                         }
@@ -771,14 +771,18 @@ impl Method for PatchSampling {
                     }
                     let stride = block - overlap;
                     let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
-                    // Left, then top; on a torus the row or column before the first wraps.
-                    let neighbours = match &torus {
-                        Some(_) => [Some((bi, (bj + cols - 1) % cols)), Some(((bi + rows - 1) % rows, bj))],
-                        None => [(bj > 0).then(|| (bi, bj - 1)), (bi > 0).then(|| (bi - 1, bj))],
+                    // Left, then top; on a torus the row or column before the first wraps, and a
+                    // fitted torus spaces some blocks a pixel closer.
+                    let (neighbours, steps) = match &torus {
+                        Some(t) => {
+                            let (left, up) = ((bj + cols - 1) % cols, (bi + rows - 1) % rows);
+                            ([Some((bi, left)), Some((up, bj))], [t.spacing_x(left), t.spacing_y(up)])
+                        }
+                        None => ([(bj > 0).then(|| (bi, bj - 1)), (bi > 0).then(|| (bi - 1, bj))], [stride, stride]),
                     };
                     neighbours
                         .into_iter()
-                        .zip([(stride, 0), (0, stride)])
+                        .zip([(steps[0], 0), (0, steps[1])])
                         .filter_map(|(n, (dx, dy))| n.and_then(|(ni, nj)| placed[(ni * cols + nj) as usize]).map(|p| (p.0 + dx, p.1 + dy)))
                         .filter(|&(x, y)| x < nx && y < ny)
                         .collect()
@@ -847,8 +851,9 @@ impl Method for PatchSampling {
             }
         };
         let mut diagnostics = diagnostics((cols, rows), &settings, &results);
-        if torus.is_some() {
+        if let Some(t) = &torus {
             diagnostics["tileable"] = json!(true);
+            t.record_fit(&mut diagnostics);
         }
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }

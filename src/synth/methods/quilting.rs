@@ -292,7 +292,7 @@ impl Quilting {
                 first_block(req.seed, sample, block)
             } else {
                 let window = torus.window(&canvas.image, bi, bj);
-                let c = search.candidates(&window, (0, 0), &torus.regions(sides), cfg.tolerance);
+                let c = search.candidates(&window, (0, 0), &torus.regions(bi, bj, sides), cfg.tolerance);
                 candidate_counts.push(c.members.len());
                 pick(req.seed, bi, bj, &c.members)
             };
@@ -308,6 +308,7 @@ impl Quilting {
         if let Some(level) = search.coarse_level() {
             diagnostics["pyramid_level"] = serde_json::json!(level);
         }
+        torus.record_fit(&mut diagnostics);
         Ok(Synthesis { image, seams: Some(torus.seam_grid()), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 }
