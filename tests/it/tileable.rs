@@ -267,3 +267,67 @@ fn a_wrap_that_cuts_the_lattice_is_warned_about_with_the_sizes_that_keep_it() {
     assert_eq!(doc["tileable"]["lattice"]["continuous"], false);
     assert_eq!(doc["tileable"]["lattice"]["phase_across"], 7.0);
 }
+
+/// At a size the lattice divides, the lattice runs on across the wrap: a texel's neighbour one
+/// period on, through the wrap, correlates with it nearly as well as inside the image (quilting:
+/// 0.39 and 0.41 across the wrap against 0.56 and 0.52 inside, seed 11; cut at 425x325: 0.20 and
+/// -0.04). (At a size it does not
+/// divide, the wrap cuts texels however well the pixels join, which the test above warns about;
+/// measured here too, as the contrast that shows the measure can tell.)
+#[test]
+fn at_a_size_the_lattice_divides_the_lattice_runs_on_across_the_wrap() {
+    let sample = rgb(&repo().join("jobs/samples/metal_tread_studs.png"));
+    // metal_tread_studs repeats every 27 px across and 26 px down (t1 = (27, 0), t2 = (0, 26)).
+    let (px, py) = (27u32, 26u32);
+    let gray = |img: &RgbImage, x: u32, y: u32| {
+        let [r, g, b] = img.get(x, y);
+        (f64::from(r) + f64::from(g) + f64::from(b)) / 3.0
+    };
+    // Pearson correlation of the pixels with their neighbours one period on, split by whether
+    // that step crosses the wrap.
+    let correlations = |img: &RgbImage| -> [(f64, f64); 2] {
+        let (w, h) = img.dimensions();
+        let corr = |pairs: &[(f64, f64)]| {
+            let n = pairs.len() as f64;
+            let (ma, mb) = (pairs.iter().map(|p| p.0).sum::<f64>() / n, pairs.iter().map(|p| p.1).sum::<f64>() / n);
+            let cov: f64 = pairs.iter().map(|p| (p.0 - ma) * (p.1 - mb)).sum();
+            let va: f64 = pairs.iter().map(|p| (p.0 - ma).powi(2)).sum();
+            let vb: f64 = pairs.iter().map(|p| (p.1 - mb).powi(2)).sum();
+            cov / (va * vb).sqrt()
+        };
+        let across = |crossing: bool| -> Vec<(f64, f64)> {
+            (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .filter(|&(x, _)| (x + px >= w) == crossing)
+                .map(|(x, y)| (gray(img, x, y), gray(img, (x + px) % w, y)))
+                .collect()
+        };
+        let down = |crossing: bool| -> Vec<(f64, f64)> {
+            (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .filter(|&(_, y)| (y + py >= h) == crossing)
+                .map(|(x, y)| (gray(img, x, y), gray(img, x, (y + py) % h)))
+                .collect()
+        };
+        [(corr(&across(true)), corr(&across(false))), (corr(&down(true)), corr(&down(false)))]
+    };
+    let block = [("block", ParamValue::Int(30))];
+    for method in ["quilting", "double-seam"] {
+        let kept = correlations(&synth(method, &sample, (432, 312), &block, false).image);
+        let cut = correlations(&synth(method, &sample, (425, 325), &block, false).image);
+        println!(
+            "{method}: 432x312 (wrap, interior) across {:?} down {:?}; 425x325 across {:?} down {:?}",
+            kept[0], kept[1], cut[0], cut[1]
+        );
+        // Double-seam is measured, not held to it: its blocks are pasted verbatim and nothing keeps
+        // a row's picks in one lattice phase, so at 432x312 its wrap across breaks the lattice
+        // (correlation -0.06 against 0.55 inside; down 0.62 against 0.56). Still to do (#30).
+        if std::env::var("TEXSYN_NO_ASSERT").is_ok() || method == "double-seam" {
+            continue;
+        }
+        for (axis, (wrap, interior)) in ["across", "down"].iter().zip(kept) {
+            assert!(wrap >= 0.6 * interior, "{method} 432x312 {axis}: wrap {wrap:.3} vs interior {interior:.3}");
+        }
+        assert!(cut.iter().any(|&(wrap, interior)| wrap < 0.5 * interior), "{method} 425x325: {cut:?}");
+    }
+}
