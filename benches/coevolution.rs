@@ -34,7 +34,16 @@ fn call(method: &str, sample: &RgbImage, size: u32, given: &[(&str, ParamValue)]
     let m = find(method).unwrap();
     let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     let params = resolve(m.params(), &given).unwrap();
-    let req = Request { sample, width: size, height: size, params: &params, seed: 1, placement: false, tileable: false };
+    let req = Request {
+        sample,
+        width: size,
+        height: size,
+        params: &params,
+        seed: 1,
+        placement: false,
+        tileable: false,
+        constraints: Default::default(),
+    };
     let t = Instant::now();
     let s = m.synthesize(&req).unwrap();
     (t.elapsed().as_secs_f64(), s)

@@ -36,8 +36,16 @@ fn main() {
                     given.push(("search".to_string(), ParamValue::Str(s.into())));
                 }
                 let params = resolve(m.params(), &given).unwrap();
-                let req =
-                    Request { sample: &sample, width: size, height: size, params: &params, seed: 1, placement: false, tileable: false };
+                let req = Request {
+                    sample: &sample,
+                    width: size,
+                    height: size,
+                    params: &params,
+                    seed: 1,
+                    placement: false,
+                    tileable: false,
+                    constraints: Default::default(),
+                };
                 let mut times: Vec<f64> = (0..runs)
                     .map(|_| {
                         let t = Instant::now();

@@ -43,6 +43,7 @@ fn bench(c: &mut Criterion) {
                                 seed: 1,
                                 placement: false,
                                 tileable: false,
+                                constraints: Default::default(),
                             })
                             .unwrap()
                     })

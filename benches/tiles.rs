@@ -91,8 +91,16 @@ fn main() {
                         given.push(("tile".into(), ParamValue::Int(64)));
                     }
                     let params = resolve(m.params(), &given).unwrap();
-                    let req =
-                        Request { sample: &sample, width: 1280, height: 1280, params: &params, seed: 1, placement: false, tileable: false };
+                    let req = Request {
+                        sample: &sample,
+                        width: 1280,
+                        height: 1280,
+                        params: &params,
+                        seed: 1,
+                        placement: false,
+                        tileable: false,
+                        constraints: Default::default(),
+                    };
                     let n = if method == "quilting" { quilt_runs } else { runs };
                     if method != "quilting" {
                         pool.install(|| m.synthesize(&req).unwrap());

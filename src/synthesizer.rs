@@ -133,6 +133,7 @@ impl Session<'_> {
             seed: self.seed,
             placement: self.placement,
             tileable: self.tileable,
+            constraints: Default::default(),
         };
         self.method.synthesize(&request).map_err(|source| Error::Synthesis { method: self.method.name().into(), source })
     }
@@ -176,6 +177,7 @@ mod tests {
                 seed: 3,
                 placement: false,
                 tileable: false,
+                constraints: Default::default(),
             })
             .unwrap();
         assert_eq!(a.image, b.image);

@@ -142,6 +142,7 @@ impl JobInputs<'_> {
             seed: self.seed,
             placement: self.needs_placement(),
             tileable: self.output.tileable,
+            constraints: Default::default(),
         }
     }
 }

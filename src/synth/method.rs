@@ -6,6 +6,7 @@
 
 use crate::image::RgbImage;
 use crate::image::seam_grid::SeamGrid;
+use crate::synth::constraints::Constraints;
 use crate::synth::error::SynthError;
 use crate::synth::params::{ParamError, ParamSpec, Params};
 pub use crate::synth::placement::Placement;
@@ -24,6 +25,9 @@ pub struct Request<'a> {
     /// Make the output wrap seamlessly left↔right and top↔bottom. Only asked of a method whose
     /// [`Method::tileable`] says it can.
     pub tileable: bool,
+    /// What the output must respect besides the sample (a sample mask). Only asked of a method
+    /// that says it honours each one ([`Method::honours_sample_mask`]).
+    pub constraints: Constraints<'a>,
 }
 
 /// What a method produces.
@@ -126,6 +130,11 @@ pub trait Method: Send + Sync {
     /// `Err` says why not (shown to the user when a job asks for it, with the methods that can).
     fn tileable(&self, _params: &Params, _sample: (u32, u32), _output: (u32, u32)) -> Result<(), String> {
         Err(format!("{} cannot make its output wrap", self.name()))
+    }
+    /// Whether the method honours [`Constraints::sample_mask`](crate::synth::constraints::Constraints):
+    /// it copies only sample pixels the mask allows.
+    fn honours_sample_mask(&self) -> bool {
+        false
     }
     /// The folders of extra files ([`Synthesis::extras`] named `folder/…`) a job with these
     /// parameters writes next to its output (`{output without extension}.{folder}/`). Known before

@@ -14,7 +14,16 @@ fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValu
     let s = rgb(&repo().join("jobs/samples").join(sample));
     let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     let params = resolve(m.params(), &given).unwrap();
-    let plain = Request { sample: &s, width: size.0, height: size.1, params: &params, seed: 5, placement: false, tileable: false };
+    let plain = Request {
+        sample: &s,
+        width: size.0,
+        height: size.1,
+        params: &params,
+        seed: 5,
+        placement: false,
+        tileable: false,
+        constraints: Default::default(),
+    };
     let without = m.synthesize(&plain).unwrap();
     assert!(without.placement.is_none(), "{method}: a placement nobody asked for");
     let with = m.synthesize(&Request { placement: true, ..plain }).unwrap();

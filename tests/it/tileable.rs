@@ -23,7 +23,16 @@ fn synth(method: &str, sample: &RgbImage, size: (u32, u32), given: &[(&str, Para
     let params = resolve(m.params(), &given).unwrap();
     m.tileable(&params, sample.dimensions(), size).unwrap_or_else(|e| panic!("{method}: {e}"));
     let seed = std::env::var("TEXSYN_SEED").map_or(11, |v| v.parse().unwrap());
-    let req = Request { sample, width: size.0, height: size.1, params: &params, seed, placement, tileable: true };
+    let req = Request {
+        sample,
+        width: size.0,
+        height: size.1,
+        params: &params,
+        seed,
+        placement,
+        tileable: true,
+        constraints: Default::default(),
+    };
     let out = m.synthesize(&req).unwrap();
     assert_eq!(out.image.dimensions(), size, "{method}");
     out
@@ -233,7 +242,16 @@ fn sizes_below_two_blocks_are_refused_saying_what_would() {
     let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
     let m = methods::find("quilting").unwrap();
     let params = resolve(m.params(), &[]).unwrap();
-    let req = Request { sample: &s, width: 40, height: 100, params: &params, seed: 1, placement: false, tileable: true };
+    let req = Request {
+        sample: &s,
+        width: 40,
+        height: 100,
+        params: &params,
+        seed: 1,
+        placement: false,
+        tileable: true,
+        constraints: Default::default(),
+    };
     assert!(m.synthesize(&req).unwrap_err().to_string().contains("50 pixels a side"));
 }
 

@@ -1936,7 +1936,16 @@ mod tests {
     fn output_size_determinism_and_verbatim_pixels() {
         let s = structured();
         let p = params(&[("block", ParamValue::Int(24))]);
-        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 2, placement: false, tileable: false };
+        let req = Request {
+            sample: &s,
+            width: 100,
+            height: 70,
+            params: &p,
+            seed: 2,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let a = DoubleSeam.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (100, 70));
         assert_eq!(a.image, DoubleSeam.synthesize(&req).unwrap().image);
@@ -2248,7 +2257,16 @@ mod tests {
         assert_eq!(errs[0].key, "hue_mode");
         let s = structured();
         let e = DoubleSeam
-            .synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 20,
+                height: 20,
+                params: &p,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "hue_mode"), "{e}");
     }

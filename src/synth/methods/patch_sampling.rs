@@ -1220,7 +1220,18 @@ mod tests {
     }
 
     fn run(sample: &RgbImage, w: u32, h: u32, p: &Params, seed: u64) -> Synthesis {
-        PatchSampling.synthesize(&Request { sample, width: w, height: h, params: p, seed, placement: false, tileable: false }).unwrap()
+        PatchSampling
+            .synthesize(&Request {
+                sample,
+                width: w,
+                height: h,
+                params: p,
+                seed,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
+            .unwrap()
     }
 
     #[test]
@@ -1601,7 +1612,16 @@ mod tests {
         assert_eq!(errs[0].key, "search");
         let s = texture(64, 64);
         let e = PatchSampling
-            .synthesize(&Request { sample: &s, width: 40, height: 40, params: &p, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 40,
+                height: 40,
+                params: &p,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap_err();
         assert!(matches!(&e, SynthError::Param { key, .. } if key == "search"), "{e}");
     }

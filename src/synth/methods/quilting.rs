@@ -334,7 +334,16 @@ mod tests {
     fn output_has_the_requested_size_and_is_deterministic() {
         let s = sample();
         let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4))]);
-        let req = Request { sample: &s, width: 70, height: 45, params: &p, seed: 3, placement: false, tileable: false };
+        let req = Request {
+            sample: &s,
+            width: 70,
+            height: 45,
+            params: &p,
+            seed: 3,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let a = Quilting.synthesize(&req).unwrap();
         let b = Quilting.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (70, 45));
@@ -350,10 +359,28 @@ mod tests {
         let direct =
             params(&[("block", ParamValue::Int(18)), ("tolerance", ParamValue::Float(0.3)), ("search", ParamValue::Str("direct".into()))]);
         let a = Quilting
-            .synthesize(&Request { sample: &s, width: 80, height: 80, params: &fft, seed: 9, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 80,
+                height: 80,
+                params: &fft,
+                seed: 9,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         let b = Quilting
-            .synthesize(&Request { sample: &s, width: 80, height: 80, params: &direct, seed: 9, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 80,
+                height: 80,
+                params: &direct,
+                seed: 9,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         assert_eq!(a.image, b.image);
     }
@@ -365,7 +392,16 @@ mod tests {
             (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).map(|(x, y)| s.get(x, y)).collect();
         let p = params(&[("block", ParamValue::Int(20))]);
         let out = Quilting
-            .synthesize(&Request { sample: &s, width: 90, height: 90, params: &p, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 90,
+                height: 90,
+                params: &p,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         for y in 0..90 {
             for x in 0..90 {
@@ -381,7 +417,16 @@ mod tests {
         let s = RgbImage::from_fn(48, 48, |x, y| [(x % 8 * 30) as u8, (y % 8 * 30) as u8, ((x + y) % 8 * 20) as u8]);
         let p = params(&[("block", ParamValue::Int(16)), ("overlap", ParamValue::Int(4)), ("tolerance", ParamValue::Float(0.0))]);
         let out = Quilting
-            .synthesize(&Request { sample: &s, width: 60, height: 60, params: &p, seed: 5, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &s,
+                width: 60,
+                height: 60,
+                params: &p,
+                seed: 5,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap()
             .image;
         for y in 0..52 {
@@ -448,7 +493,16 @@ mod tests {
         let s = sample();
         assert!(
             Quilting
-                .synthesize(&Request { sample: &s, width: 20, height: 20, params: &p, seed: 1, placement: false, tileable: false })
+                .synthesize(&Request {
+                    sample: &s,
+                    width: 20,
+                    height: 20,
+                    params: &p,
+                    seed: 1,
+                    placement: false,
+                    tileable: false,
+                    constraints: std::default::Default::default()
+                })
                 .is_err()
         );
     }

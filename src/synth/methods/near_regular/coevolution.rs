@@ -898,7 +898,16 @@ mod tests {
             ("c_tol", ParamValue::Float(0.0)),
         ]);
         let out = Coevolution
-            .synthesize(&Request { sample: &img, width: 90, height: 70, params: &p, seed: 4, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &img,
+                width: 90,
+                height: 70,
+                params: &p,
+                seed: 4,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         assert_eq!(out.image.dimensions(), (90, 70));
         let hist = out.diagnostics["mean_fitness"].as_array().unwrap();
@@ -915,7 +924,16 @@ mod tests {
     fn deterministic_across_thread_counts_and_extracts_the_lattice() {
         let img = periodic();
         let p = params(&[]);
-        let req = Request { sample: &img, width: 64, height: 64, params: &p, seed: 9, placement: false, tileable: false };
+        let req = Request {
+            sample: &img,
+            width: 64,
+            height: 64,
+            params: &p,
+            seed: 9,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let a = Coevolution.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let b = one.install(|| Coevolution.synthesize(&req).unwrap());
@@ -941,6 +959,7 @@ mod tests {
                 seed: 1,
                 placement: false,
                 tileable: false,
+                constraints: std::default::Default::default(),
             })
             .unwrap_err()
             .to_string();
@@ -961,6 +980,7 @@ mod tests {
                 seed: 1,
                 placement: false,
                 tileable: false,
+                constraints: std::default::Default::default(),
             })
             .unwrap_err()
             .to_string();
@@ -990,6 +1010,7 @@ mod tests {
                         seed: 7,
                         placement: false,
                         tileable: false,
+                        constraints: std::default::Default::default(),
                     })
                     .unwrap();
                 assert_eq!(crate::image::io::rgb_pixel_digest(&out.image).sha256, want, "{name}");
@@ -1099,7 +1120,16 @@ mod tests {
             let exact = params(&given);
             given.push(("mask", ParamValue::Str("bresenham".into())));
             let p = params(&given);
-            let req = Request { sample: &img, width: 80, height: 70, params: &p, seed: 3, placement: false, tileable: false };
+            let req = Request {
+                sample: &img,
+                width: 80,
+                height: 70,
+                params: &p,
+                seed: 3,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            };
             let a = Coevolution.synthesize(&req).unwrap();
             let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
             assert_eq!(a.image, one.install(|| Coevolution.synthesize(&req).unwrap()).image);
@@ -1196,7 +1226,16 @@ mod tests {
         let mut given = lattice.to_vec();
         given.push(("r_mut", ParamValue::Int(3)));
         let on = params(&given);
-        let req = Request { sample: &img, width: 90, height: 80, params: &on, seed: 6, placement: false, tileable: false };
+        let req = Request {
+            sample: &img,
+            width: 90,
+            height: 80,
+            params: &on,
+            seed: 6,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let a = Coevolution.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         assert_eq!(a.image, one.install(|| Coevolution.synthesize(&req).unwrap()).image);

@@ -439,7 +439,16 @@ mod tests {
         let s = sample();
         let g: Vec<(String, ParamValue)> = vec![("t1_x".into(), ParamValue::Int(20)), ("t2_y".into(), ParamValue::Int(16))];
         let p = resolve(PARAMS, &g).unwrap();
-        let req = Request { sample: &s, width: 100, height: 70, params: &p, seed: 3, placement: false, tileable: false };
+        let req = Request {
+            sample: &s,
+            width: 100,
+            height: 70,
+            params: &p,
+            seed: 3,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let a = Tes.synthesize(&req).unwrap();
         assert_eq!(a.image.dimensions(), (100, 70));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();

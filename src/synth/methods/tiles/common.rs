@@ -219,7 +219,16 @@ pub(crate) mod testing {
     /// renders it exactly and that strips render the same pixels, and returns it with its
     /// `(wrap visibility, interior seam visibility)`.
     pub fn wrapping(m: &dyn Method, params: &Params, sample: &RgbImage, size: (u32, u32), seed: u64) -> (RgbImage, f64, f64) {
-        let req = Request { sample, width: size.0, height: size.1, params, seed, placement: true, tileable: true };
+        let req = Request {
+            sample,
+            width: size.0,
+            height: size.1,
+            params,
+            seed,
+            placement: true,
+            tileable: true,
+            constraints: std::default::Default::default(),
+        };
         m.tileable(params, sample.dimensions(), size).expect("a tileable size");
         let out = m.synthesize(&req).expect("synthesis");
         let placement = out.placement.as_ref().expect("the placement asked for");
@@ -271,7 +280,16 @@ pub(crate) mod testing {
                 let (mut wraps, mut interiors) = (0.0, 0.0);
                 for seed in 1..6 {
                     let (_, wrap, interior) = wrapping(m, &p, &s, size, seed);
-                    let req = Request { sample: &s, width: size.0, height: size.1, params: &p, seed, placement: false, tileable: false };
+                    let req = Request {
+                        sample: &s,
+                        width: size.0,
+                        height: size.1,
+                        params: &p,
+                        seed,
+                        placement: false,
+                        tileable: false,
+                        constraints: std::default::Default::default(),
+                    };
                     let ordinary = wrap_visibility(&m.synthesize(&req).unwrap().image).unwrap();
                     eprintln!(
                         "{} {name} {set} seed {seed}: wrap {wrap:.3}, interior seams {interior:.3}, ordinary fill's wrap {ordinary:.3}",
@@ -291,7 +309,16 @@ pub(crate) mod testing {
         let p = params(m, &[("tile", ParamValue::Int(48))]);
         wrapping(m, &p, &s, (48, 48), 2);
         wrapping(m, &p, &s, (48, 192), 2);
-        let plain = Request { sample: &s, width: 96, height: 96, params: &p, seed: 2, placement: false, tileable: false };
+        let plain = Request {
+            sample: &s,
+            width: 96,
+            height: 96,
+            params: &p,
+            seed: 2,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let without = m.synthesize(&plain).unwrap();
         let with = m.synthesize(&Request { placement: true, ..plain }).unwrap();
         assert!(without.placement.is_none() && without.diagnostics.get("wraps").is_none());
@@ -307,7 +334,16 @@ pub(crate) mod testing {
         let e = m.tileable(&p, (256, 256), (700, 100)).unwrap_err();
         assert!(e.contains("multiple of the tile size 64") && e.contains("704x128 would work"), "{e}");
         let s = sample("bricks_gray.png");
-        let req = Request { sample: &s, width: 700, height: 100, params: &p, seed: 1, placement: false, tileable: true };
+        let req = Request {
+            sample: &s,
+            width: 700,
+            height: 100,
+            params: &p,
+            seed: 1,
+            placement: false,
+            tileable: true,
+            constraints: std::default::Default::default(),
+        };
         assert!(m.synthesize(&req).unwrap_err().to_string().contains("704x128 would work"));
         let export = params(m, &[("export_tiles", ParamValue::Bool(true))]);
         assert!(m.tileable(&export, (256, 256), (128, 128)).unwrap_err().contains("export_tiles"));
@@ -315,7 +351,16 @@ pub(crate) mod testing {
         // with 50 or 100, chosen with the sample's lattice and recorded.
         let auto = params(m, &[]);
         assert_eq!(m.tileable(&auto, (256, 256), (700, 100)), Ok(()));
-        let req = Request { sample: &s, width: 700, height: 100, params: &auto, seed: 1, placement: false, tileable: true };
+        let req = Request {
+            sample: &s,
+            width: 700,
+            height: 100,
+            params: &auto,
+            seed: 1,
+            placement: false,
+            tileable: true,
+            constraints: std::default::Default::default(),
+        };
         let out = m.synthesize(&req).unwrap();
         let t = out.diagnostics["tile_choice"]["tile"].as_u64().unwrap();
         assert!(700 % t == 0 && 100 % t == 0, "{}", out.diagnostics["tile_choice"]);

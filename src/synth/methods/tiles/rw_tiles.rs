@@ -854,23 +854,59 @@ mod tests {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
         let small = RwTiles
-            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 300,
+                height: 200,
+                params: &p,
+                seed: 9,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         let big = RwTiles
-            .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 600,
+                height: 500,
+                params: &p,
+                seed: 9,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         assert_eq!(small.image.dimensions(), (300, 200));
         assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let single = one.install(|| {
             RwTiles
-                .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+                .synthesize(&Request {
+                    sample: &sample,
+                    width: 600,
+                    height: 500,
+                    params: &p,
+                    seed: 9,
+                    placement: false,
+                    tileable: false,
+                    constraints: std::default::Default::default(),
+                })
                 .unwrap()
         });
         assert_eq!(single.image, big.image);
         assert_eq!(single.diagnostics, big.diagnostics);
         let other = RwTiles
-            .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 10, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 300,
+                height: 200,
+                params: &p,
+                seed: 10,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap();
         assert_ne!(other.image, small.image);
         // Every output pixel is a sample pixel (no blending).
@@ -942,7 +978,16 @@ mod tests {
             let p = aligned(&[("patch_candidates", ParamValue::Int(candidates))]);
             for seed in 0..6 {
                 let out = RwTiles
-                    .synthesize(&Request { sample: &sample, width: 200, height: 180, params: &p, seed, placement: false, tileable: false })
+                    .synthesize(&Request {
+                        sample: &sample,
+                        width: 200,
+                        height: 180,
+                        params: &p,
+                        seed,
+                        placement: false,
+                        tileable: false,
+                        constraints: std::default::Default::default(),
+                    })
                     .unwrap();
                 assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
                 assert_eq!(out.diagnostics["patches"]["seam_cost"], 0, "{candidates} seed {seed}");
@@ -966,6 +1011,7 @@ mod tests {
                 seed: 1,
                 placement: false,
                 tileable: false,
+                constraints: std::default::Default::default(),
             })
             .unwrap();
         assert!(none.diagnostics["patches"]["seam_cost"].as_u64().unwrap() > 0);
@@ -976,7 +1022,16 @@ mod tests {
     fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
         let sample = periodic(128, 112);
         let p = aligned(&[("tile", ParamValue::Int(48)), ("patch_candidates", ParamValue::Int(6))]);
-        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3, placement: false, tileable: false };
+        let req = Request {
+            sample: &sample,
+            width: 300,
+            height: 200,
+            params: &p,
+            seed: 3,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let many = RwTiles.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let single = one.install(|| RwTiles.synthesize(&req).unwrap());
@@ -991,7 +1046,16 @@ mod tests {
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
         let e = RwTiles
-            .synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &noise,
+                width: 64,
+                height: 64,
+                params: &p,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap_err()
             .to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
@@ -1073,7 +1137,16 @@ mod tests {
     fn strips_render_the_same_output_as_the_whole_image() {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6))]);
-        let req = Request { sample: &sample, width: 301, height: 203, params: &p, seed: 9, placement: false, tileable: false };
+        let req = Request {
+            sample: &sample,
+            width: 301,
+            height: 203,
+            params: &p,
+            seed: 9,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let whole = RwTiles.synthesize(&req).unwrap();
         let strips = RwTiles.synthesize_strips(&req).unwrap();
         assert_eq!(strips.synthesis.diagnostics, whole.diagnostics);

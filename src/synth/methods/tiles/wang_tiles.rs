@@ -806,7 +806,16 @@ mod tests {
         let sample = coded(100, 90);
         let p = params(&[("tile", ParamValue::Int(32))]);
         let out = WangTiles
-            .synthesize(&Request { sample: &sample, width: 200, height: 160, params: &p, seed: 4, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &sample,
+                width: 200,
+                height: 160,
+                params: &p,
+                seed: 4,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap()
             .image;
         for y in 0..160u32 {
@@ -833,10 +842,28 @@ mod tests {
         for cut in ["dp", "shortest_path"] {
             let p = params(&[("tile", ParamValue::Int(40)), ("cut", ParamValue::Str(cut.into()))]);
             let small = WangTiles
-                .synthesize(&Request { sample: &sample, width: 300, height: 200, params: &p, seed: 9, placement: false, tileable: false })
+                .synthesize(&Request {
+                    sample: &sample,
+                    width: 300,
+                    height: 200,
+                    params: &p,
+                    seed: 9,
+                    placement: false,
+                    tileable: false,
+                    constraints: std::default::Default::default(),
+                })
                 .unwrap();
             let big = WangTiles
-                .synthesize(&Request { sample: &sample, width: 600, height: 500, params: &p, seed: 9, placement: false, tileable: false })
+                .synthesize(&Request {
+                    sample: &sample,
+                    width: 600,
+                    height: 500,
+                    params: &p,
+                    seed: 9,
+                    placement: false,
+                    tileable: false,
+                    constraints: std::default::Default::default(),
+                })
                 .unwrap();
             assert_eq!(small.image.dimensions(), (300, 200));
             assert_eq!(small.image, big.image.crop(0, 0, 300, 200));
@@ -851,6 +878,7 @@ mod tests {
                         seed: 9,
                         placement: false,
                         tileable: false,
+                        constraints: std::default::Default::default(),
                     })
                     .unwrap()
             });
@@ -913,6 +941,7 @@ mod tests {
                             seed,
                             placement: false,
                             tileable: false,
+                            constraints: std::default::Default::default(),
                         })
                         .unwrap();
                     assert_eq!(out.diagnostics["align"]["phase_residual_px"], 0.0);
@@ -939,6 +968,7 @@ mod tests {
                 seed: 1,
                 placement: false,
                 tileable: false,
+                constraints: std::default::Default::default(),
             })
             .unwrap();
         assert!(none.diagnostics["diamond_centres"]["seam_cost"].as_u64().unwrap() > 0);
@@ -949,7 +979,16 @@ mod tests {
     fn lattice_alignment_is_thread_independent_and_reports_the_residual() {
         let sample = periodic(128, 112);
         let p = aligned(&[("tile", ParamValue::Int(40)), ("patch_candidates", ParamValue::Int(6))]);
-        let req = Request { sample: &sample, width: 300, height: 200, params: &p, seed: 3, placement: false, tileable: false };
+        let req = Request {
+            sample: &sample,
+            width: 300,
+            height: 200,
+            params: &p,
+            seed: 3,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let many = WangTiles.synthesize(&req).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let single = one.install(|| WangTiles.synthesize(&req).unwrap());
@@ -971,7 +1010,16 @@ mod tests {
         let noise = RgbImage::from_fn(96, 96, |_, _| [st.below(256) as u8, st.below(256) as u8, st.below(256) as u8]);
         let p = params(&[("tile", ParamValue::Int(32)), ("align", ParamValue::Str("lattice".into()))]);
         let e = WangTiles
-            .synthesize(&Request { sample: &noise, width: 64, height: 64, params: &p, seed: 1, placement: false, tileable: false })
+            .synthesize(&Request {
+                sample: &noise,
+                width: 64,
+                height: 64,
+                params: &p,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
             .unwrap_err()
             .to_string();
         assert!(e.contains("no lattice found in the sample; give t1_x..t2_y or use align = \"none\""), "{e}");
@@ -1055,7 +1103,16 @@ mod tests {
     fn strips_render_the_same_output_as_the_whole_image() {
         let sample = coded(128, 128);
         let p = params(&[("tile", ParamValue::Int(32))]);
-        let req = Request { sample: &sample, width: 301, height: 203, params: &p, seed: 9, placement: false, tileable: false };
+        let req = Request {
+            sample: &sample,
+            width: 301,
+            height: 203,
+            params: &p,
+            seed: 9,
+            placement: false,
+            tileable: false,
+            constraints: std::default::Default::default(),
+        };
         let whole = WangTiles.synthesize(&req).unwrap();
         let strips = WangTiles.synthesize_strips(&req).unwrap();
         assert_eq!(strips.synthesis.diagnostics, whole.diagnostics);

@@ -1,0 +1,147 @@
+//! What an output must respect besides its sample, parameters and seed: today, which pixels of
+//! the sample may be copied at all (a sample mask, `sample_mask` in a job file).
+//!
+//! A photo sample often holds things that must never appear in the output: a watermark, a
+//! border, a lamp post, a scale bar. A method that copies blocks honours a mask by copying only
+//! blocks whose every pixel the mask allows, so no output pixel can come from a forbidden one.
+//! The mask is decided here once (which block positions are allowed, the largest block that
+//! fits), so that every method and the job checks use the same rule.
+
+/// Which sample pixels may be copied: `true` = allowed (white in the mask image).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SampleMask {
+    width: u32,
+    height: u32,
+    allowed: Vec<bool>,
+}
+
+impl SampleMask {
+    /// A `width × height` mask from row-major flags (`true` = may be copied).
+    pub fn new(width: u32, height: u32, allowed: Vec<bool>) -> SampleMask {
+        assert_eq!(allowed.len(), width as usize * height as usize, "one flag per pixel");
+        SampleMask { width, height, allowed }
+    }
+
+    /// A mask from an image's gray levels: a pixel at least half white may be copied.
+    pub fn from_gray(width: u32, height: u32, gray: impl Fn(u32, u32) -> u8) -> SampleMask {
+        let allowed = (0..height).flat_map(|y| (0..width).map(move |x| (x, y))).map(|(x, y)| gray(x, y) >= 128).collect();
+        SampleMask::new(width, height, allowed)
+    }
+
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    pub fn allows(&self, x: u32, y: u32) -> bool {
+        self.allowed[(y * self.width + x) as usize]
+    }
+
+    /// How many pixels may be copied.
+    pub fn allowed_pixels(&self) -> u64 {
+        self.allowed.iter().filter(|&&a| a).count() as u64
+    }
+
+    /// For every position of a `block_w × block_h` block in the sample, row-major over
+    /// `(W − block_w + 1) × (H − block_h + 1)`: whether the mask allows all of its pixels. From an
+    /// integral image of the forbidden pixels, so it costs one pass whatever the block.
+    pub fn block_positions(&self, block_w: u32, block_h: u32) -> Vec<bool> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (bw, bh) = (block_w as usize, block_h as usize);
+        if bw == 0 || bh == 0 || bw > w || bh > h {
+            return Vec::new();
+        }
+        let stride = w + 1;
+        let mut forbidden = vec![0u32; stride * (h + 1)];
+        for y in 0..h {
+            let mut row = 0;
+            for x in 0..w {
+                row += u32::from(!self.allowed[y * w + x]);
+                forbidden[(y + 1) * stride + x + 1] = forbidden[y * stride + x + 1] + row;
+            }
+        }
+        let (nx, ny) = (w - bw + 1, h - bh + 1);
+        let mut out = Vec::with_capacity(nx * ny);
+        for y in 0..ny {
+            for x in 0..nx {
+                let count = forbidden[(y + bh) * stride + x + bw] + forbidden[y * stride + x]
+                    - forbidden[y * stride + x + bw]
+                    - forbidden[(y + bh) * stride + x];
+                out.push(count == 0);
+            }
+        }
+        out
+    }
+
+    /// The side of the largest square block whose every pixel the mask allows (0 when none).
+    pub fn largest_block(&self) -> u32 {
+        // The classic recurrence: the largest allowed square ending at (x, y) is one more than
+        // the smallest of those ending left, above and diagonally.
+        let w = self.width as usize;
+        let mut previous = vec![0u32; w];
+        let mut current = vec![0u32; w];
+        let mut best = 0;
+        for y in 0..self.height as usize {
+            for x in 0..w {
+                current[x] = if !self.allowed[y * w + x] {
+                    0
+                } else if x == 0 || y == 0 {
+                    1
+                } else {
+                    1 + previous[x].min(previous[x - 1]).min(current[x - 1])
+                };
+                best = best.max(current[x]);
+            }
+            std::mem::swap(&mut previous, &mut current);
+        }
+        best
+    }
+}
+
+/// The constraints of one request; the default is none.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Constraints<'a> {
+    /// Only these sample pixels may be copied (the sample's size).
+    pub sample_mask: Option<&'a SampleMask>,
+}
+
+impl Constraints<'_> {
+    /// The block positions a `block_w × block_h` block may be copied from
+    /// ([`SampleMask::block_positions`]), or `None` when every position may be.
+    pub fn block_positions(&self, block_w: u32, block_h: u32) -> Option<Vec<bool>> {
+        self.sample_mask.map(|m| m.block_positions(block_w, block_h))
+    }
+}
+
+/// The `n`-th allowed position (row-major) of a `positions_x`-wide grid of flags.
+pub fn nth_allowed(allowed: &[bool], positions_x: u32, n: u64) -> Option<(u32, u32)> {
+    let i = allowed.iter().enumerate().filter(|(_, a)| **a).nth(n as usize)?.0 as u32;
+    Some((i % positions_x, i / positions_x))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mask(rows: &[&str]) -> SampleMask {
+        let allowed = rows.iter().flat_map(|r| r.chars().map(|c| c == '#')).collect();
+        SampleMask::new(rows[0].len() as u32, rows.len() as u32, allowed)
+    }
+
+    #[test]
+    fn a_block_position_is_allowed_only_when_every_pixel_is() {
+        let m = mask(&["###.", "###.", "####", "#.##"]);
+        assert_eq!(m.block_positions(2, 2), vec![true, true, false, true, true, false, false, false, true]);
+        assert_eq!(m.block_positions(3, 3), vec![true, false, false, false]);
+        assert!(m.block_positions(5, 1).is_empty());
+        assert_eq!(m.largest_block(), 3);
+        assert_eq!(m.allowed_pixels(), 13);
+        assert_eq!(nth_allowed(&m.block_positions(2, 2), 3, 4), Some((2, 2)));
+        assert_eq!(mask(&["..", ".."]).largest_block(), 0);
+    }
+
+    #[test]
+    fn gray_levels_from_half_white_up_are_allowed() {
+        let m = SampleMask::from_gray(3, 1, |x, _| [0, 127, 128][x as usize]);
+        assert_eq!(m.allowed, vec![false, false, true]);
+    }
+}
