@@ -52,6 +52,7 @@ fn record(k: usize) -> JobRecord {
         seams: None,
         warnings: Vec::new(),
         companions: Vec::new(),
+        sample_mask: None,
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
         timing: Some(Timing {

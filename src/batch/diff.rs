@@ -89,7 +89,15 @@ pub fn describe_changes(changes: &[KeyChange]) -> String {
     if changes.is_empty() {
         return "no input changed and neither did the tool: not reproducible (a bug)".into();
     }
-    changes.iter().map(|c| format!("{} {} → {}", c.key, short_value(&c.old), short_value(&c.new))).collect::<Vec<_>>().join("; ")
+    changes
+        .iter()
+        .map(|c| {
+            let change = format!("{} {} → {}", c.key, short_value(&c.old), short_value(&c.new));
+            // A mask is an image whose digest says little to a reader; say what it is.
+            if c.key == "sample_mask.pixels" { format!("mask changed ({change})") } else { change }
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// A changed value as people read it: a digest by its first 12 characters, `(none)` for absent.
@@ -175,7 +183,17 @@ fn input_changes(o: &JobRecord, n: &JobRecord) -> Vec<KeyChange> {
     cmp("seed", to_value(&o.seed), to_value(&n.seed));
     let sample = |r: &JobRecord| r.sample.as_ref().map(|s| s.pixel_digest.sha256.clone());
     cmp("sample.pixels", to_value(&sample(o)), to_value(&sample(n)));
-    cmp("output_spec", o.output_spec.clone().unwrap_or(Value::Null), n.output_spec.clone().unwrap_or(Value::Null));
+    let mask = |r: &JobRecord| r.sample_mask.as_ref().map(|s| s.pixel_digest.sha256.clone());
+    cmp("sample_mask.pixels", to_value(&mask(o)), to_value(&mask(n)));
+    // The mask's digest is also in the output spec (for the content key): said once, above.
+    let spec = |r: &JobRecord| {
+        let mut v = r.output_spec.clone().unwrap_or(Value::Null);
+        if let Some(m) = v.as_object_mut() {
+            m.remove("sample_mask");
+        }
+        v
+    };
+    cmp("output_spec", spec(o), spec(n));
     out
 }
 
@@ -226,6 +244,7 @@ mod tests {
             seams: None,
             warnings: Vec::new(),
             companions: Vec::new(),
+            sample_mask: None,
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

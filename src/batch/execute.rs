@@ -11,6 +11,7 @@ use crate::error::Error;
 use crate::image::RgbImage;
 use crate::image::io::{self as imageio, DecodeLimits, ImageError, NativeImage, Samples};
 use crate::metrics::MetricError;
+use crate::synth::constraints::{Constraints, SampleMask};
 use crate::synth::error::SynthError;
 use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, STRIP_ROWS, Synthesis};
 use crate::synth::params::Params;
@@ -124,6 +125,8 @@ pub struct JobInputs<'a> {
     pub output: &'a OutputSpec,
     /// Each companion with its decoded sample (the sample's size, checked by the plan).
     pub companions: Vec<(&'a Companion, &'a LoadedSample)>,
+    /// Which sample pixels may be copied (the sample's size, checked by the plan).
+    pub sample_mask: Option<&'a SampleMask>,
 }
 
 impl JobInputs<'_> {
@@ -142,7 +145,7 @@ impl JobInputs<'_> {
             seed: self.seed,
             placement: self.needs_placement(),
             tileable: self.output.tileable,
-            constraints: Default::default(),
+            constraints: Constraints { sample_mask: self.sample_mask },
         }
     }
 }

@@ -136,6 +136,10 @@ pub struct JobRecord {
     /// key through `output_spec.companions`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub companions: Vec<SampleRecord>,
+    /// The job's `sample_mask` image (its pixels are in the content key through
+    /// `output_spec.sample_mask`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_mask: Option<SampleRecord>,
     /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_spec: Option<Value>,
@@ -519,6 +523,7 @@ mod tests {
             seams: None,
             warnings: Vec::new(),
             companions: Vec::new(),
+            sample_mask: None,
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

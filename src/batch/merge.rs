@@ -226,6 +226,7 @@ mod tests {
             seams: None,
             warnings: Vec::new(),
             companions: Vec::new(),
+            sample_mask: None,
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -13,6 +13,7 @@ use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
+use crate::synth::constraints::SampleMask;
 use crate::synth::wrap;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -73,6 +74,8 @@ pub struct Entry {
     pub sample: Arc<LoadedSample>,
     /// The decoded sample of each of `job.companions`, in order.
     pub companions: Vec<Arc<LoadedSample>>,
+    /// `job.sample_mask` decoded, and the mask it makes.
+    pub sample_mask: Option<(Arc<LoadedSample>, SampleMask)>,
     pub content_key: Digest,
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
@@ -93,6 +96,7 @@ impl Entry {
             seed: job.seed,
             output: &job.output,
             companions: job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
+            sample_mask: self.sample_mask.as_ref().map(|(_, m)| m),
         }
     }
 }
@@ -175,8 +179,11 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let job_roots: Vec<String> = previous_roots.into_iter().chain(roots).collect::<BTreeSet<_>>().into_iter().collect();
 
     // Decode every distinct sample once.
-    let mut sample_paths: Vec<PathBuf> =
-        set.jobs.iter().flat_map(|j| std::iter::once(j.sample.clone()).chain(j.companions.iter().map(|c| c.sample.clone()))).collect();
+    let mut sample_paths: Vec<PathBuf> = set
+        .jobs
+        .iter()
+        .flat_map(|j| std::iter::once(j.sample.clone()).chain(j.companions.iter().map(|c| c.sample.clone())).chain(j.sample_mask.clone()))
+        .collect();
     sample_paths.sort();
     sample_paths.dedup();
     let loaded: BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>> =
@@ -206,12 +213,19 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        let sample_mask = match sample_mask_of(&job, &sample, &loaded) {
+            Ok(m) => m,
+            Err(errors) => {
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
         let needs_placement = crate::batch::execute::needs_placement(&sample, job.companions.len(), &job.output);
         let materials =
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
-        let (content_key, record) = base_record(&job, &sample, &companions, &opts.out);
+        let (content_key, record) = base_record(&job, &sample, &companions, sample_mask.as_ref().map(|(l, _)| &**l), &opts.out);
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
         if let Some(limit) = opts.max_memory.filter(|&l| estimate > l && action != Action::UpToDate) {
@@ -219,7 +233,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        entries.push(Entry { job, sample, companions, content_key, record, action, memory: estimate });
+        entries.push(Entry { job, sample, companions, sample_mask, content_key, record, action, memory: estimate });
     }
     add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
@@ -238,6 +252,54 @@ fn job_roots(inputs: &[PathBuf]) -> BTreeSet<String> {
             abs.to_string_lossy().into_owned()
         })
         .collect()
+}
+
+/// The job's sample mask, decoded and checked: the sample's size, something allowed, and room
+/// for a whole block of the method's `block` parameter (when it has one).
+fn sample_mask_of(
+    job: &Job,
+    sample: &LoadedSample,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+) -> Result<Option<(Arc<LoadedSample>, SampleMask)>, Vec<JobError>> {
+    let Some(path) = &job.sample_mask else { return Ok(None) };
+    let l = match &loaded[path] {
+        Ok(l) => l.clone(),
+        Err(e) => return Err(vec![job.error(Some("sample_mask"), format!("sample mask {e}"))]),
+    };
+    let (w, h) = l.image.dimensions();
+    let size = sample.image.dimensions();
+    if (w, h) != size {
+        return Err(vec![job.error(
+            Some("sample_mask"),
+            format!(
+                "sample mask `{}` is {w}x{h} but the sample `{}` is {}x{}; the mask must have the sample's size",
+                path.display(),
+                job.sample.display(),
+                size.0,
+                size.1
+            ),
+        )]);
+    }
+    let mask = SampleMask::from_image(&l.image);
+    if mask.allowed_pixels() == 0 {
+        return Err(vec![job.error(
+            Some("sample_mask"),
+            format!("sample mask `{}` is black everywhere: it leaves nothing to copy (white = may be copied)", path.display()),
+        )]);
+    }
+    if let Ok(block) = job.params.int("block") {
+        let largest = mask.largest_block();
+        if i64::from(largest) < block {
+            return Err(vec![job.error(
+                Some("sample_mask"),
+                format!(
+                    "sample mask `{}` leaves no whole {block}x{block} block (params.block) to copy; the largest block it allows is {largest}: use block = {largest} or less, or allow more of the sample",
+                    path.display()
+                ),
+            )]);
+        }
+    }
+    Ok(Some((l, mask)))
 }
 
 /// Checks what a job renders besides its method's 8-bit image and decides what the job file left
@@ -399,7 +461,13 @@ pub fn is_fragment(path: &Path) -> bool {
 }
 
 /// The record of a job's inputs, and its content key.
-fn base_record(job: &Job, sample: &LoadedSample, companions: &[Arc<LoadedSample>], manifest_dir: &Path) -> (Digest, JobRecord) {
+fn base_record(
+    job: &Job,
+    sample: &LoadedSample,
+    companions: &[Arc<LoadedSample>],
+    sample_mask: Option<&LoadedSample>,
+    manifest_dir: &Path,
+) -> (Digest, JobRecord) {
     let params_json = job.params.to_json();
     let mut output_json = job.output.to_json();
     if !job.companions.is_empty() {
@@ -415,6 +483,10 @@ fn base_record(job: &Job, sample: &LoadedSample, companions: &[Arc<LoadedSample>
                 })
             })
             .collect();
+    }
+    if let Some(m) = sample_mask {
+        // Which sample pixels may be copied decides the output: part of the content key.
+        output_json["sample_mask"] = serde_json::json!({ "pixels": m.pixel_digest });
     }
     let content_key = manifest::content_key(
         job.method.name(),
@@ -451,6 +523,7 @@ fn base_record(job: &Job, sample: &LoadedSample, companions: &[Arc<LoadedSample>
         timing: None,
         warnings: Vec::new(),
         companions: job.companions.iter().zip(companions).map(|(c, l)| sample_record(&c.sample, l)).collect(),
+        sample_mask: job.sample_mask.as_deref().zip(sample_mask).map(|(p, l)| sample_record(p, l)),
     };
     (content_key, record)
 }
@@ -503,5 +576,6 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         timing: None,
         warnings: Vec::new(),
         companions: Vec::new(),
+        sample_mask: None,
     }
 }

@@ -14,6 +14,7 @@ use crate::batch::memory::{self, Budget};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::io::{self as imageio, DecodeLimits};
+use crate::synth::constraints::SampleMask;
 use crate::synth::methods;
 use crate::synth::params::{self, ParamValue};
 use std::path::{Path, PathBuf};
@@ -204,6 +205,27 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         };
         companions.push((spec, loaded));
     }
+    // The sample mask: still the recorded pixels, of the sample's size.
+    let sample_mask = match (spec.get("sample_mask"), &rec.sample_mask) {
+        (None, None) => None,
+        (Some(wanted), Some(m)) => {
+            let mask = match load_sample(&dir.join(&m.path)) {
+                Ok(s) => s,
+                Err(e) => return Outcome::Mismatch(vec![format!("sample mask {e}")]),
+            };
+            if mask.pixel_digest != m.pixel_digest || wanted.get("pixels") != Some(&serde_json::json!(m.pixel_digest)) {
+                return Outcome::Mismatch(vec![format!("sample mask `{}` no longer has the recorded pixels", m.path)]);
+            }
+            if mask.image.dimensions() != size {
+                return Outcome::Mismatch(vec![format!("sample mask `{}` is not the sample's size", m.path)]);
+            }
+            Some(SampleMask::from_image(&mask.image))
+        }
+        _ => return Outcome::Mismatch(vec!["the record's sample mask does not match its output spec".into()]),
+    };
+    if sample_mask.is_some() && !method.honours_sample_mask() {
+        return Outcome::Mismatch(vec![format!("recorded `sample_mask`: {method_name} does not honour a sample mask")]);
+    }
     let inputs = JobInputs {
         method,
         sample: &loaded,
@@ -211,6 +233,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         seed,
         output: &output,
         companions: companions.iter().map(|(c, l)| (c, l)).collect(),
+        sample_mask: sample_mask.as_ref(),
     };
     match synthesize_and_encode(&inputs) {
         Err(e) => problems.push(format!("re-run failed: {e}")),

@@ -28,6 +28,15 @@ impl SampleMask {
         SampleMask::new(width, height, allowed)
     }
 
+    /// A mask from an image: a pixel whose mean of R, G and B is at least half white may be
+    /// copied (a black-and-white mask, or a gray one thresholded at 128).
+    pub fn from_image(image: &crate::image::RgbImage) -> SampleMask {
+        SampleMask::from_gray(image.width(), image.height(), |x, y| {
+            let [r, g, b] = image.get(x, y);
+            ((u16::from(r) + u16::from(g) + u16::from(b)) / 3) as u8
+        })
+    }
+
     pub fn dimensions(&self) -> (u32, u32) {
         (self.width, self.height)
     }

@@ -7,6 +7,7 @@ mod bad_input;
 mod common;
 mod compat;
 mod diff;
+mod guided;
 mod hardening;
 mod lattice;
 mod materials;

@@ -26,7 +26,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion"];
+pub const TOP_KEYS: &[&str] = &["sample", "sample_mask", "method", "seed", "output", "params", "sweep", "metrics", "companion"];
 /// The keys of the `[output]` table.
 pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth", "tileable", "source_map"];
 /// The keys of a `[[companion]]` table.
@@ -137,6 +137,8 @@ pub struct Job {
     pub file_digest: Digest,
     /// The sample, resolved against the job file's directory.
     pub sample: PathBuf,
+    /// `sample_mask`: which sample pixels may be copied (white), resolved like the sample.
+    pub sample_mask: Option<PathBuf>,
     pub method: &'static dyn Method,
     pub seed: u64,
     pub params: Params,

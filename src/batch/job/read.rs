@@ -47,6 +47,7 @@ pub fn parse_job_file(f: &JobFile, bytes: Vec<u8>) -> Result<Vec<Job>, Vec<JobEr
 fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t Spanned<DeValue<'t>>>, Option<&'t Spanned<DeValue<'t>>>) {
     let mut raw = Raw {
         sample: None,
+        sample_mask: None,
         method: None,
         seed: None,
         output_path: None,
@@ -73,6 +74,15 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
                 other => {
                     ctx.err(Some(v.span()), Some("sample"), format!("expected a string (the sample's path), found {}", type_name(other)))
                 }
+            },
+            "sample_mask" => match v.get_ref() {
+                DeValue::String(s) if !s.is_empty() => raw.sample_mask = Some((s.to_string(), v.span())),
+                DeValue::String(_) => ctx.err(Some(v.span()), Some("sample_mask"), "sample_mask path is empty"),
+                other => ctx.err(
+                    Some(v.span()),
+                    Some("sample_mask"),
+                    format!("expected a string (the mask image's path: white = may be copied, black = never), found {}", type_name(other)),
+                ),
             },
             "method" => match v.get_ref() {
                 DeValue::String(s) => match methods::find(s) {
@@ -167,6 +177,30 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             sample_path = Some(p);
         }
     }
+    // The sample mask, likewise; and only for a method that honours one.
+    let mut sample_mask = None;
+    if let Some((s, span)) = &raw.sample_mask {
+        let base = ctx.file.path.parent().unwrap_or(Path::new(""));
+        let p = base.join(s);
+        if !p.is_file() {
+            let why = missing_file_reason(&p);
+            ctx.err(
+                Some(span.clone()),
+                Some("sample_mask"),
+                format!("sample mask `{}` {why} (paths are relative to the job file)", p.display()),
+            );
+        } else {
+            sample_mask = Some(p);
+        }
+        if let Some(m) = method.filter(|m| !m.honours_sample_mask()) {
+            let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_sample_mask()).map(|m| m.name()).collect();
+            ctx.err(
+                Some(span.clone()),
+                Some("sample_mask"),
+                format!("{} does not honour a sample mask; methods that do: {}", m.name(), can.join(", ")),
+            );
+        }
+    }
     let format_and_depth = check_output_format(ctx, &raw);
     let mut companions = Vec::new();
     for c in std::mem::take(&mut raw.companions) {
@@ -211,6 +245,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     let ready = Ready {
         method,
         sample,
+        sample_mask,
         path_template,
         path_span,
         width,

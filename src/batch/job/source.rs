@@ -147,6 +147,7 @@ pub(super) fn de_param(v: &DeValue) -> Result<ParamValue, String> {
 
 pub(super) struct Raw<'a> {
     pub(super) sample: Option<(String, std::ops::Range<usize>)>,
+    pub(super) sample_mask: Option<(String, std::ops::Range<usize>)>,
     pub(super) method: Option<&'static dyn Method>,
     pub(super) seed: Option<u64>,
     pub(super) output_path: Option<(String, std::ops::Range<usize>)>,
@@ -176,6 +177,8 @@ pub(super) struct RawCompanion {
 pub(super) struct Ready {
     pub method: &'static dyn Method,
     pub sample: PathBuf,
+    /// `sample_mask`, resolved against the job file's directory.
+    pub sample_mask: Option<PathBuf>,
     pub path_template: String,
     pub path_span: std::ops::Range<usize>,
     pub width: u32,

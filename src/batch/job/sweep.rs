@@ -115,6 +115,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
     let &Ready {
         method,
         ref sample,
+        ref sample_mask,
         ref path_template,
         ref path_span,
         width,
@@ -258,6 +259,7 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
             file_rel: ctx.file.rel.clone(),
             file_digest: file_digest.clone(),
             sample: sample.clone(),
+            sample_mask: sample_mask.clone(),
             method,
             seed,
             params,

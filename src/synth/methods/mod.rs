@@ -81,16 +81,70 @@ pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u3
 pub(crate) enum BlockSearch<'a> {
     /// The exact search, by FFT or by direct sums.
     Exact(OverlapSearch<'a>, Engine),
-    Pyramid(PyramidSearch<'a>),
+    /// The coarse-to-fine search, and the positions a sample mask allows (when there is one).
+    Pyramid(PyramidSearch<'a>, Option<Allowed<'a>>),
+}
+
+/// The block positions a sample mask allows, for the pyramid: its full-resolution picks are
+/// kept to them, and when none of its re-scored positions is allowed the block falls back to the
+/// exact search of the allowed positions (rare: the coarse tracks are the best matches of the
+/// whole sample, so a mask must forbid most good ones).
+pub(crate) struct Allowed<'a> {
+    flags: Vec<bool>,
+    sample: &'a RgbImage,
+    block: u32,
+}
+
+impl Allowed<'_> {
+    fn allows(&self, x: u32, y: u32) -> bool {
+        self.flags[(y * (self.sample.width() - self.block + 1) + x) as usize]
+    }
+
+    /// The tolerance set among the allowed positions of `pool`, or by the exact search of every
+    /// allowed position when `pool` has none.
+    fn candidates(
+        &self,
+        pool: Vec<(u32, u32, u64)>,
+        canvas: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        tolerance: f64,
+    ) -> Candidates {
+        let pool: Vec<(u32, u32, u64)> = pool.into_iter().filter(|&(x, y, _)| self.allows(x, y)).collect();
+        match pool.iter().map(|c| c.2).min() {
+            Some(min) => {
+                let members = pool.into_iter().filter(|c| (c.2 as f64) <= (1.0 + tolerance) * (min as f64)).collect();
+                Candidates { min_ssd: min, members }
+            }
+            None => {
+                let mut exact = OverlapSearch::new(self.sample, self.block, self.block);
+                exact.restrict_to(self.flags.clone());
+                exact.candidates(canvas, origin, regions, tolerance)
+            }
+        }
+    }
 }
 
 impl<'a> BlockSearch<'a> {
     /// Prepares the search of `block × block` blocks of `sample` (`auto` resolved by its size).
     pub(crate) fn new(engine: Engine, sample: &'a RgbImage, block: u32) -> BlockSearch<'a> {
         match engine.for_sample(sample.dimensions()) {
-            Engine::Pyramid => BlockSearch::Pyramid(PyramidSearch::new(sample, block)),
+            Engine::Pyramid => BlockSearch::Pyramid(PyramidSearch::new(sample, block), None),
             e => BlockSearch::Exact(OverlapSearch::new(sample, block, block), e),
         }
+    }
+
+    /// [`BlockSearch::new`], copying only from the block positions `allowed` flags (row-major; a
+    /// sample mask's [`crate::synth::constraints::SampleMask::block_positions`]), when given.
+    pub(crate) fn within(engine: Engine, sample: &'a RgbImage, block: u32, allowed: Option<Vec<bool>>) -> BlockSearch<'a> {
+        let mut search = BlockSearch::new(engine, sample, block);
+        if let Some(flags) = allowed {
+            match &mut search {
+                BlockSearch::Exact(s, _) => s.restrict_to(flags),
+                BlockSearch::Pyramid(_, restriction) => *restriction = Some(Allowed { flags, sample, block }),
+            }
+        }
+        search
     }
 
     /// The tolerance set of the block at `origin` of `canvas`: the positions whose overlap error
@@ -99,7 +153,11 @@ impl<'a> BlockSearch<'a> {
         match self {
             BlockSearch::Exact(s, Engine::Direct) => s.candidates_direct(canvas, origin, regions, tolerance),
             BlockSearch::Exact(s, _) => s.candidates(canvas, origin, regions, tolerance),
-            BlockSearch::Pyramid(p) => p.candidates(canvas, origin, regions, tolerance),
+            BlockSearch::Pyramid(p, None) => p.candidates(canvas, origin, regions, tolerance),
+            BlockSearch::Pyramid(p, Some(a)) => {
+                let pool = p.rescored(canvas, origin, regions);
+                a.candidates(pool, canvas, origin, regions, tolerance)
+            }
         }
     }
 
@@ -108,7 +166,8 @@ impl<'a> BlockSearch<'a> {
         match self {
             BlockSearch::Exact(s, Engine::Direct) => queries.iter().map(|(o, r)| s.candidates_direct(canvas, *o, r, tolerance)).collect(),
             BlockSearch::Exact(s, _) => s.candidates_many(canvas, queries, tolerance),
-            BlockSearch::Pyramid(p) => p.candidates_many(canvas, queries, tolerance),
+            BlockSearch::Pyramid(p, None) => p.candidates_many(canvas, queries, tolerance),
+            BlockSearch::Pyramid(..) => queries.iter().map(|(o, r)| self.candidates(canvas, *o, r, tolerance)).collect(),
         }
     }
 
@@ -116,7 +175,7 @@ impl<'a> BlockSearch<'a> {
     pub(crate) fn coarse_level(&self) -> Option<u32> {
         match self {
             BlockSearch::Exact(..) => None,
-            BlockSearch::Pyramid(p) => Some(p.coarse_level()),
+            BlockSearch::Pyramid(p, _) => Some(p.coarse_level()),
         }
     }
 }

@@ -1058,7 +1058,9 @@ fn exhaustive_block(
             // A tolerance relative to 0 cannot express the bound: scan every position, pruned (or
             // every position the pyramid re-scored).
             match search {
-                BlockSearch::Pyramid(p) => p.rescored(canvas, origin, &regions).into_iter().filter(|m| (m.2 as f64) < threshold).collect(),
+                BlockSearch::Pyramid(p, _) => {
+                    p.rescored(canvas, origin, &regions).into_iter().filter(|m| (m.2 as f64) < threshold).collect()
+                }
                 BlockSearch::Exact(..) => members_below(sample, canvas, origin, &regions, zone.block, threshold),
             }
         } else {

@@ -10,6 +10,7 @@
 
 use super::{BlockSearch, Engine};
 use crate::image::RgbImage;
+use crate::synth::constraints::nth_allowed;
 use crate::synth::error::SynthError;
 use crate::synth::method::{Method, Request, Synthesis};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
@@ -194,13 +195,15 @@ impl Method for Quilting {
         if block > sample.width() || block > sample.height() {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
+        let allowed = allowed_positions(req, block)?;
         if req.tileable {
-            return self.synthesize_torus(req, &cfg);
+            return self.synthesize_torus(req, &cfg, allowed);
         }
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = layout.canvas();
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
-        let mut search = BlockSearch::new(cfg.search, sample, block);
+        let first = first_block(req.seed, sample, block, allowed.as_deref());
+        let mut search = BlockSearch::within(cfg.search, sample, block, allowed);
         let mut candidate_counts = Vec::with_capacity((layout.rows * layout.cols) as usize);
 
         // Raster order, but the blocks of one front are searched together: what each one reads
@@ -213,7 +216,7 @@ impl Method for Quilting {
                 .iter()
                 .map(|&(bi, bj)| {
                     let src = if bi == 0 && bj == 0 {
-                        first_block(req.seed, sample, block)
+                        first
                     } else {
                         let c = found.next().expect("one candidate set per searched block");
                         candidate_counts.push(c.members.len());
@@ -247,6 +250,10 @@ impl Method for Quilting {
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 
+    fn honours_sample_mask(&self) -> bool {
+        true
+    }
+
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = QuiltingConfig::from_params(p).map_err(|e| e.to_string())?;
         torus_of(&cfg, sample, output).map(|_| ())
@@ -254,11 +261,34 @@ impl Method for Quilting {
 }
 
 /// The first block's sample position, drawn uniformly (stream `quilt/first`).
-fn first_block(seed: u64, sample: &RgbImage, block: u32) -> (u32, u32) {
+/// With a sample mask, drawn uniformly among the positions it allows (`allowed`, row-major).
+fn first_block(seed: u64, sample: &RgbImage, block: u32, allowed: Option<&[bool]>) -> (u32, u32) {
     let mut s = Stream::new(seed, "quilt/first");
-    let x = s.below((sample.width() - block + 1) as u64) as u32;
+    let nx = sample.width() - block + 1;
+    if let Some(allowed) = allowed {
+        let count = allowed.iter().filter(|&&a| a).count() as u64;
+        return nth_allowed(allowed, nx, s.below(count)).expect("an allowed position");
+    }
+    let x = s.below(nx as u64) as u32;
     let y = s.below((sample.height() - block + 1) as u64) as u32;
     (x, y)
+}
+
+/// The block positions the request's sample mask allows, or `None` without a mask; an error
+/// naming the block and the largest one that fits when it allows none.
+fn allowed_positions(req: &Request, block: u32) -> Result<Option<Vec<bool>>, SynthError> {
+    let Some(mask) = req.constraints.sample_mask else { return Ok(None) };
+    let allowed = mask.block_positions(block, block);
+    if !allowed.contains(&true) {
+        return Err(SynthError::param(
+            "block",
+            format!(
+                "the sample mask leaves no whole {block}x{block} block to copy; the largest block it allows is {}",
+                mask.largest_block()
+            ),
+        ));
+    }
+    Ok(Some(allowed))
 }
 
 /// Block `(bi, bj)`'s pick among its tolerance set (stream `quilt/pick/bi=…/bj=…`).
@@ -277,19 +307,20 @@ impl Quilting {
     /// Quilting on a torus (`primitives::torus`): the same raster order, search and streams, but
     /// a block's overlap is every side that already holds content, the wrapped right and bottom
     /// sides of the last column and row included, and it is cut (or feathered) on all of them.
-    fn synthesize_torus(&self, req: &Request, cfg: &QuiltingConfig) -> Result<Synthesis, SynthError> {
+    fn synthesize_torus(&self, req: &Request, cfg: &QuiltingConfig, allowed: Option<Vec<bool>>) -> Result<Synthesis, SynthError> {
         let sample = req.sample;
         let torus = torus_of(cfg, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
         let (block, rule) = (cfg.block, cfg.overlap_rule());
         let (w, h) = torus.size();
         let mut canvas = Canvas::new(w, h, sample.dimensions(), req.placement);
-        let mut search = BlockSearch::new(cfg.search, sample, block);
+        let first = first_block(req.seed, sample, block, allowed.as_deref());
+        let mut search = BlockSearch::within(cfg.search, sample, block, allowed);
         let mut done = vec![false; (torus.rows * torus.cols) as usize];
         let mut candidate_counts = Vec::with_capacity(done.len());
         for (bi, bj) in torus.raster() {
             let sides = torus.sides(&done, bi, bj);
             let (sx, sy) = if bi == 0 && bj == 0 {
-                first_block(req.seed, sample, block)
+                first
             } else {
                 let window = torus.window(&canvas.image, bi, bj);
                 let c = search.candidates(&window, (0, 0), &torus.regions(bi, bj, sides), cfg.tolerance);

@@ -57,6 +57,8 @@ pub struct OverlapSearch<'a> {
     spare_work: Vec<Workspace>,
     /// ΣS² over each region set seen so far, per candidate position (exact integers as f64).
     sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
+    /// The positions a candidate may come from (row-major flags; a sample mask), or all.
+    allowed: Option<Vec<bool>>,
 }
 
 #[derive(Default)]
@@ -118,12 +120,28 @@ impl<'a> OverlapSearch<'a> {
             work: Workspace::default(),
             spare_work: Vec::new(),
             sum_sq_maps: Vec::new(),
+            allowed: None,
         };
         let mut spec = vec![Complex64::new(0.0, 0.0); 3 * (wu / 2 + 1) * hu];
         search.forward_real(&planes, hu, &mut Vec::new(), &mut spec, true);
         search.spec = spec;
         search.sample_norm = (search.integral_sq[search.integral_sq.len() - 1] as f64).sqrt();
         search
+    }
+
+    /// Restricts the candidate sets ([`OverlapSearch::candidates`] and the like) to the positions
+    /// flagged in `allowed` (row-major over the block positions; at least one), as a sample mask
+    /// asks. The minimum and the tolerance set are those of the allowed positions alone.
+    pub fn restrict_to(&mut self, allowed: Vec<bool>) {
+        let (nx, ny) = self.positions();
+        assert_eq!(allowed.len(), nx as usize * ny as usize, "one flag per block position");
+        assert!(allowed.contains(&true), "at least one allowed position");
+        self.allowed = Some(allowed);
+    }
+
+    /// Whether a candidate may come from `(x, y)`.
+    fn allows(&self, x: u32, y: u32) -> bool {
+        self.allowed.as_ref().is_none_or(|a| a[(y * self.positions().0 + x) as usize])
     }
 
     /// The searched image.
@@ -243,11 +261,12 @@ impl<'a> OverlapSearch<'a> {
     pub fn candidates_direct(&self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {
         let (nx, _) = self.positions();
         let all = self.all_ssd_direct(target, origin, regions);
-        let min = all.iter().copied().min().expect("at least one candidate");
+        let allowed = |i: usize| self.allowed.as_ref().is_none_or(|a| a[i]);
+        let min = all.iter().enumerate().filter(|(i, _)| allowed(*i)).map(|(_, s)| *s).min().expect("at least one candidate");
         let members = all
             .iter()
             .enumerate()
-            .filter(|(_, s)| within(**s, min, tolerance))
+            .filter(|(i, s)| allowed(*i) && within(**s, min, tolerance))
             .map(|(i, s)| ((i as u32) % nx, (i as u32) / nx, *s))
             .collect();
         Candidates { min_ssd: min, members }
@@ -364,9 +383,15 @@ impl<'a> OverlapSearch<'a> {
         parallel: bool,
     ) -> Candidates {
         let margin = self.approximate(work, target, origin, regions, map_index, parallel);
-        let amin = work.approx.iter().copied().fold(f64::INFINITY, f64::min);
+        let amin = match &self.allowed {
+            None => work.approx.iter().copied().fold(f64::INFINITY, f64::min),
+            Some(allowed) => work.approx.iter().zip(allowed).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min),
+        };
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
-        let rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
+        let mut rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
+        if self.allowed.is_some() {
+            rechecked.retain(|&(x, y, _)| self.allows(x, y));
+        }
         let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
         let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
         Candidates { min_ssd: min, members }
@@ -626,6 +651,36 @@ mod tests {
             let fast = search.candidates(&target, (20, 20), &regions, tol);
             let slow = search.candidates_direct(&target, (20, 20), &regions, tol);
             assert_eq!(fast, slow, "{sw}x{sh} block {b}");
+        }
+    }
+
+    #[test]
+    fn a_restricted_search_finds_the_best_allowed_position_and_never_a_forbidden_one() {
+        let (b, ov) = (10, 3);
+        let sample = noise(48, 40, 7);
+        let mut target = noise(40, 40, 8);
+        for y in 0..b {
+            for x in 0..b {
+                target.put(10 + x, 10 + y, sample.get(5 + x, 7 + y));
+            }
+        }
+        let regions = [Rect::new(0, 0, ov, b), Rect::new(ov, 0, b - ov, ov)];
+        let (nx, ny) = (48 - b + 1, 40 - b + 1);
+        // Forbid the exact match and everything left of x = 4.
+        let allowed: Vec<bool> = (0..ny).flat_map(|y| (0..nx).map(move |x| (x, y))).map(|(x, y)| x >= 4 && (x, y) != (5, 7)).collect();
+        let mut search = OverlapSearch::new(&sample, b, b);
+        assert_eq!(search.candidates(&target, (10, 10), &regions, 0.0).members[0], (5, 7, 0));
+        search.restrict_to(allowed.clone());
+        for tol in [0.0, 0.3] {
+            let fast = search.candidates(&target, (10, 10), &regions, tol);
+            let slow = search.candidates_direct(&target, (10, 10), &regions, tol);
+            assert_eq!(fast, slow);
+            assert!(fast.min_ssd > 0);
+            assert!(fast.members.iter().all(|&(x, y, _)| allowed[(y * nx + x) as usize]), "{fast:?}");
+            // The minimum is the smallest allowed one.
+            let all = search.all_ssd_direct(&target, (10, 10), &regions);
+            let best = all.iter().zip(&allowed).filter(|(_, a)| **a).map(|(s, _)| *s).min().unwrap();
+            assert_eq!(fast.min_ssd, best);
         }
     }
 

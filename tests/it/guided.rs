@@ -1,0 +1,158 @@
+//! Everyday jobs beyond "make more of this" (issue #28). So far: a sample mask (`sample_mask`),
+//! which keeps parts of a sample (a watermark, a caption bar) out of every output pixel.
+
+use crate::common::*;
+use std::path::Path;
+use texsyn::batch::source_map;
+use texsyn::synth::constraints::SampleMask;
+
+const SAMPLE: &str = "jobs/samples/guided/pebbles_beige_watermarked.png";
+const MASK: &str = "jobs/samples/guided/pebbles_beige_watermarked_mask.png";
+
+fn job(dir: &Path, name: &str, method: &str, mask: &str, extra: &str) {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(
+        dir.join(name),
+        format!(
+            "sample = \"{}\"\nsample_mask = \"{mask}\"\nmethod = \"{method}\"\nseed = 3\n[output]\npath = \"{}.png\"\nwidth = 200\nheight = 160\nsource_map = \"{}.map.exr\"\n{extra}",
+            repo().join(SAMPLE).display(),
+            name.trim_end_matches(".toml"),
+            name.trim_end_matches(".toml"),
+        ),
+    )
+    .unwrap();
+}
+
+fn mask_image() -> SampleMask {
+    SampleMask::from_image(&rgb(&repo().join(MASK)))
+}
+
+/// Every output pixel's source, through the source map, is one the mask allows; and the
+/// bundled job without the mask does copy forbidden pixels (the test can tell).
+#[test]
+fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
+    let d = scratch("mask-obeyed");
+    let mask_path = repo().join(MASK).display().to_string();
+    job(&d.join("jobs"), "masked.toml", "quilting", &mask_path, "[params]\nblock = 32\n");
+    job(&d.join("jobs"), "tileable.toml", "quilting", &mask_path, "tileable = true\n[params]\nblock = 32\n");
+    job(&d.join("jobs"), "feather.toml", "quilting", &mask_path, "[params]\nblock = 32\ncut = \"none\"\nblend = \"feather\"\n");
+    std::fs::write(
+        d.join("jobs/unmasked.toml"),
+        format!(
+            "sample = \"{}\"\nmethod = \"quilting\"\nseed = 3\n[output]\npath = \"unmasked.png\"\nwidth = 200\nheight = 160\nsource_map = \"unmasked.map.exr\"\n[params]\nblock = 32\n",
+            repo().join(SAMPLE).display()
+        ),
+    )
+    .unwrap();
+    run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let mask = mask_image();
+    let (w, _) = mask.dimensions();
+    let forbidden = |name: &str| -> usize {
+        let p = source_map::decode(&std::fs::read(d.join("out").join(name)).unwrap()).unwrap();
+        // Base sources and every blend source.
+        let mut used: Vec<u32> = p.sources().to_vec();
+        let (pw, ph) = p.dimensions();
+        for y in 0..ph {
+            for x in 0..pw {
+                used.extend(p.blends_at(x, y).iter().map(|b| b.source));
+            }
+        }
+        used.iter().filter(|&&i| !mask.allows(i % w, i / w)).count()
+    };
+    for name in ["masked.map.exr", "tileable.map.exr", "feather.map.exr"] {
+        assert_eq!(forbidden(name), 0, "{name}");
+    }
+    assert!(forbidden("unmasked.map.exr") > 100, "the unmasked job copies the watermark");
+    // Recorded: the mask's file, and its pixels in the content key.
+    let m = json(&d.join("out/manifest.json"));
+    let job = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "masked.toml").unwrap();
+    assert!(job["sample_mask"]["path"].as_str().unwrap().ends_with("pebbles_beige_watermarked_mask.png"), "{job}");
+    assert!(job["output_spec"]["sample_mask"]["pixels"].is_object() || job["output_spec"]["sample_mask"]["pixels"].is_string(), "{job}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    // The same pixels on one thread.
+    run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("out1")).arg(d.join("jobs")));
+    let m1 = json(&d.join("out1/manifest.json"));
+    for (a, b) in m["jobs"].as_array().unwrap().iter().zip(m1["jobs"].as_array().unwrap()) {
+        assert_eq!(a["outputs"][0]["pixel_digest"], b["outputs"][0]["pixel_digest"], "{}", a["id"]);
+    }
+}
+
+/// A changed mask reruns the job, and `diff` says the mask changed.
+#[test]
+fn a_changed_mask_reruns_the_job_and_diff_says_so() {
+    let d = scratch("mask-changed");
+    let mask = d.join("mask.png");
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::copy(repo().join(MASK), &mask).unwrap();
+    job(&d.join("jobs"), "m.toml", "quilting", &mask.display().to_string(), "[params]\nblock = 32\n");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("a")).arg(d.join("jobs")));
+    // Forbid the left half too.
+    let mut img = rgb(&mask);
+    for y in 0..img.height() {
+        for x in 0..img.width() / 2 {
+            img.put(x, y, [0, 0, 0]);
+        }
+    }
+    texsyn::save_image(&img, &mask).unwrap();
+    std::fs::copy(d.join("a/manifest.json"), d.join("a.json")).unwrap();
+    let again = text(&run_ok(texsyn().args(["run", "-o"]).arg(d.join("a")).arg(d.join("jobs"))));
+    assert!(again.contains("ran 1"), "{again}");
+    let out = run(texsyn().arg("diff").arg(d.join("a.json")).arg(d.join("a/manifest.json")));
+    let said = text(&out);
+    assert!(said.contains("mask changed (sample_mask.pixels"), "{said}");
+}
+
+#[test]
+fn bad_masks_are_refused_naming_the_file_and_the_reason() {
+    let d = scratch("mask-bad");
+    let jobs = d.join("jobs");
+    let mask_path = repo().join(MASK).display().to_string();
+    // Another size.
+    let small = d.join("small.png");
+    std::fs::create_dir_all(&d).unwrap();
+    texsyn::save_image(&texsyn::RgbImage::from_fn(64, 48, |_, _| [255, 255, 255]), &small).unwrap();
+    job(&jobs, "size.toml", "quilting", &small.display().to_string(), "");
+    // Black everywhere.
+    let black = d.join("black.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(256, 256, |_, _| [0, 0, 0]), &black).unwrap();
+    job(&jobs, "black.toml", "quilting", &black.display().to_string(), "");
+    // A block larger than any the mask allows: only a 40-pixel stripe is white.
+    let stripe = d.join("stripe.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(256, 256, |_, y| if (100..140).contains(&y) { [255; 3] } else { [0; 3] }), &stripe)
+        .unwrap();
+    job(&jobs, "stripe.toml", "quilting", &stripe.display().to_string(), "[params]\nblock = 50\n");
+    // A method that does not honour a mask; a mask that is not a string; a missing file.
+    job(&jobs, "method.toml", "wang-tiles", &mask_path, "");
+    job(&jobs, "missing.toml", "quilting", "nowhere/mask.png", "");
+    std::fs::write(
+        jobs.join("type.toml"),
+        format!(
+            "sample = \"{}\"\nsample_mask = 3\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"t.png\"\nwidth = 64\nheight = 64\n",
+            repo().join(SAMPLE).display()
+        ),
+    )
+    .unwrap();
+    // A good job beside them still runs.
+    job(&jobs, "good.toml", "quilting", &mask_path, "[params]\nblock = 32\n");
+    let started = std::time::Instant::now();
+    let out = run(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(&jobs));
+    let said = text(&out);
+    assert!(started.elapsed().as_secs() < 30, "refusals are quick");
+    for expected in [
+        "size.toml:2:1: `sample_mask`: sample mask",
+        "is 64x48 but the sample",
+        "is 256x256; the mask must have the sample's size",
+        "black.toml:2:1: `sample_mask`: sample mask",
+        "is black everywhere: it leaves nothing to copy",
+        "stripe.toml:2:1: `sample_mask`: sample mask",
+        "leaves no whole 50x50 block (params.block) to copy; the largest block it allows is 40",
+        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting",
+        "missing.toml:2:15: `sample_mask`: sample mask",
+        "type.toml:2:15: `sample_mask`: expected a string (the mask image's path",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
+    let m = json(&d.join("out/manifest.json"));
+    let good = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "good.toml").unwrap();
+    assert_eq!(good["status"], "ok", "{good}");
+}
