@@ -1127,6 +1127,20 @@ mod tests {
     }
 
     #[test]
+    fn a_big_sample_is_analysed_reduced_in_its_own_pixels() {
+        // The bricks (16×8 px texels) drawn 4× larger on 1536² pixels (over ANALYSIS_PIXELS):
+        // analysed on a copy reduced 2×, with lattice vectors and sizes in the sample's pixels.
+        let small = RgbImage::from_fn(384, 384, |x, y| bricks().get(x % 96, y % 96));
+        let big = RgbImage::from_fn(1536, 1536, |x, y| small.get(x / 4, y / 4));
+        let (a, b) = (analyse(&small), analyse(&big));
+        assert_eq!((b.width, b.height), (1536, 1536));
+        let (la, lb) = (a.lattice.expect("lattice of the small copy"), b.lattice.expect("lattice of the big one"));
+        assert_eq!((lb.t1, lb.t2), ((la.t1.0 * 4, la.t1.1 * 4), (la.t2.0 * 4, la.t2.1 * 4)));
+        assert_eq!(b.large_features.first().map(|e| e.0), Some(8), "{:?}", b.large_features);
+        assert!(b.flat_bands.iter().all(|e| e.0 % 4 == 0));
+    }
+
+    #[test]
     fn quilting_is_told_a_block_when_texels_are_much_larger_than_its_blocks() {
         let a = analyse(&blobs((30.0, 0.0), (0.0, 32.0)));
         let block = |b: i64| params(&[("block", ParamValue::Int(b))]);
