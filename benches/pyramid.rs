@@ -14,7 +14,7 @@
 //! sample's pixels times the output's are at most 1024²·2048²; `TEXSYN_PYRAMID_ALL=1` runs every
 //! exact case. `TEXSYN_PYRAMID_PNG=DIR` writes the 12 MP sample's outputs there, to look at.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 use texsyn::synth::methods::Engine;
 use texsyn::{QuiltingConfig, RgbImage, Synthesizer};
@@ -73,13 +73,16 @@ fn main() {
     let all = std::env::var_os("TEXSYN_PYRAMID_ALL").is_some();
     let png = std::env::var_os("TEXSYN_PYRAMID_PNG").map(std::path::PathBuf::from);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("pool");
+    // `TEXSYN_PYRAMID_PART=timing` or `quality` runs one part only.
+    let part = std::env::var("TEXSYN_PYRAMID_PART").ok();
     let base = bundled("pebbles_beige.png");
     println!("quilting, defaults (block 50), 2 threads; sample: pebbles_beige enlarged to each size");
     println!(
         "{:>11} {:>6} | {:>9} {:>9} {:>7} | pyramid / exact: {:>8} {:>8} {:>8} {:>8}",
         "sample", "output", "exact s", "pyramid s", "ratio", MEASURES[0], MEASURES[1], MEASURES[2], MEASURES[3]
     );
-    for (w, h) in [(256, 256), (1024, 1024), (2048, 2048), (4000, 3000)] {
+    let timing = if part.as_deref() == Some("quality") { vec![] } else { vec![(256, 256), (1024, 1024), (2048, 2048), (4000, 3000)] };
+    for (w, h) in timing {
         let sample = resized(&base, w, h);
         for size in [1024u32, 2048] {
             let (pyr, tp) = pool.install(|| quilt(&sample, Engine::Pyramid, size, 1));
@@ -110,31 +113,83 @@ fn main() {
         }
     }
 
-    // Quality over several real samples: each enlarged to 1024², 512² outputs.
-    println!("\nquality, 1024² samples (bundled, enlarged 4x), 512² outputs, seeds 1-2: measure means");
-    let names = ["pebbles_beige.png", "bricks_gray.png", "cork.png", "grass_gray.png", "wood_weathered.png", "tiles_terracotta.png"];
-    let (mut sum_e, mut sum_p, mut runs) = ([0.0f64; 4], [0.0f64; 4], 0.0);
-    for name in names {
-        let sample = resized(&bundled(name), 1024, 1024);
-        for seed in [1, 2] {
-            let (e, te) = pool.install(|| quilt(&sample, Engine::Fft, 512, seed));
-            let (p, tp) = pool.install(|| quilt(&sample, Engine::Pyramid, 512, seed));
-            let (me, mp) = (measures(&sample, &e), measures(&sample, &p));
-            println!("{name:>22} seed {seed}: exact {te:.2} s {me:.4?}; pyramid {tp:.2} s {mp:.4?}");
-            for k in 0..4 {
-                sum_e[k] += me[k];
-                sum_p[k] += mp[k];
-            }
-            runs += 1.0;
-        }
+    if part.as_deref().is_some_and(|p| p != "quality") {
+        return;
     }
-    for k in 0..4 {
+    // Quality over the real samples: every bundled one (jobs/samples/*.png and the materials'
+    // albedos) and those in `TEXSYN_PYRAMID_SAMPLES=DIR` (optional, *.png), each enlarged to the
+    // sample size; per sample the four measures' ratios pyramid / exact, then their mean over the
+    // samples (the goal: within 10 %, i.e. at most 1.10).
+    let mut files: Vec<PathBuf> = Vec::new();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples");
+    let dirs = [Some(root.clone()), Some(root.join("materials")), std::env::var_os("TEXSYN_PYRAMID_SAMPLES").map(PathBuf::from)];
+    for dir in dirs.into_iter().flatten() {
+        let mut here: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .expect("samples dir")
+            .map(|e| e.expect("dir entry").path())
+            .filter(|p| p.extension().is_some_and(|e| e == "png"))
+            .filter(|p| !p.to_string_lossy().contains("_normal") && !p.to_string_lossy().contains("_gloss"))
+            .collect();
+        here.sort();
+        if let Ok(only) = std::env::var("TEXSYN_PYRAMID_ONLY") {
+            here.retain(|p| only.split(',').any(|n| p.file_stem().is_some_and(|s| s.to_string_lossy() == n)));
+        }
+        files.extend(here);
+    }
+    // (sample side, output side, how many samples): 2048² samples cost ~40 s per exact run.
+    let seeds: Vec<u64> =
+        std::env::var("TEXSYN_PYRAMID_SEEDS").map_or(vec![1], |v| v.split(',').map(|s| s.parse().expect("seed")).collect());
+    let big: usize = std::env::var("TEXSYN_PYRAMID_BIG").ok().and_then(|v| v.parse().ok()).unwrap_or(4);
+    for (side, size, count) in [(1024u32, 512u32, files.len()), (2048, 1024, big.min(files.len()))] {
+        if count == 0 {
+            continue;
+        }
+        println!("\nquality, samples enlarged to {side}², {size}² outputs, seeds {seeds:?}: measures pyramid / exact");
+        let (mut sum_r, mut sum_e, mut sum_p, mut runs) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4], 0.0);
+        let (mut te_all, mut tp_all) = (0.0, 0.0);
+        // For the 2048² row, samples spread over the list (every k-th).
+        let step = files.len() / count;
+        for file in files.iter().step_by(step.max(1)).take(count) {
+            let name = file.file_name().expect("file name").to_string_lossy().to_string();
+            let sample = resized(&texsyn::load_image(file).expect("sample"), side, side);
+            for &seed in &seeds {
+                let (e, te) = pool.install(|| quilt(&sample, Engine::Fft, size, seed));
+                let (p, tp) = pool.install(|| quilt(&sample, Engine::Pyramid, size, seed));
+                if let Some(dir) = &png {
+                    std::fs::create_dir_all(dir).expect("png dir");
+                    let stem = name.trim_end_matches(".png");
+                    texsyn::save_image(&e, dir.join(format!("{stem}_{side}_{seed}_exact.png"))).expect("png");
+                    texsyn::save_image(&p, dir.join(format!("{stem}_{side}_{seed}_pyramid.png"))).expect("png");
+                }
+                let (me, mp) = (measures(&sample, &e), measures(&sample, &p));
+                let r: [f64; 4] = std::array::from_fn(|k| mp[k] / me[k]);
+                println!(
+                    "{name:>26} {seed}: exact {te:>6.2} s, pyramid {tp:>5.2} s | {} | exact {me:.4?} pyramid {mp:.4?}",
+                    r.map(|v| format!("{v:>6.3}")).join(" ")
+                );
+                for k in 0..4 {
+                    sum_r[k] += r[k];
+                    sum_e[k] += me[k];
+                    sum_p[k] += mp[k];
+                }
+                runs += 1.0;
+                te_all += te;
+                tp_all += tp;
+            }
+        }
+        let means = sum_r.map(|s| s / runs);
         println!(
-            "{:>16}: exact mean {:.4}, pyramid mean {:.4}, pyramid / exact {:.3}",
-            MEASURES[k],
-            sum_e[k] / runs,
-            sum_p[k] / runs,
-            sum_p[k] / sum_e[k]
+            "{:>26}: exact {te_all:>6.1} s, pyramid {tp_all:>5.1} s | {} | mean of the four {:.3}",
+            format!("mean over {runs} runs"),
+            means.map(|v| format!("{v:>6.3}")).join(" "),
+            means.iter().sum::<f64>() / 4.0
+        );
+        let sums: [f64; 4] = std::array::from_fn(|k| sum_p[k] / sum_e[k]);
+        println!(
+            "{:>26}: {} | mean of the four {:.3}",
+            "ratio of the sums",
+            sums.map(|v| format!("{v:>6.3}")).join(" "),
+            sums.iter().sum::<f64>() / 4.0
         );
     }
 }

@@ -71,7 +71,7 @@ pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u3
     match engine {
         Engine::Pyramid => {
             let coarse = crate::synth::primitives::pyramid_search::COARSE_PIXELS;
-            linear_memory(sample, output, 3.5, 2.0, (4 << 20) + 512 * coarse)
+            linear_memory(sample, output, 3.5, 2.0, (4 << 20) + 256 * coarse)
         }
         _ => linear_memory(sample, output, 3.5, 256.0, 4 << 20),
     }
