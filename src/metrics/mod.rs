@@ -20,6 +20,7 @@
 pub mod acf;
 pub mod histogram;
 pub mod orientation;
+pub mod repetition;
 pub mod seams;
 pub mod verbatim;
 

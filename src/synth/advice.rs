@@ -632,7 +632,8 @@ fn tile_phase(a: &Analysis, method: &str, p: &Params) -> Option<TilePhase> {
     let side = i64::from(a.width.min(a.height));
     let wang = method == "wang-tiles";
     let (sample, ov) = ((a.width, a.height), u32::try_from(overlap).ok()?);
-    let auto = if wang { WangAlign::auto_tile(Some(&al), sample, ov, None) } else { RwAlign::auto_tile(Some(&al), sample, ov, None) };
+    let auto =
+        if wang { WangAlign::auto_tile(Some(&al), sample, ov, None, None) } else { RwAlign::auto_tile(Some(&al), sample, ov, None, None) };
     // `auto` records a residual only when it found a size in phase.
     let auto_pick = auto.record.get("residual_px").map(|_| auto.tile);
     let (tile, auto) = match (int(p, "tile"), word(p, "tile")) {

@@ -12,6 +12,7 @@ use crate::image::RgbImage;
 use crate::synth::method::{Placement, Request, STRIP_ROWS, SourceRows, Strips, Synthesis, linear_memory};
 use crate::synth::params::{Default, ParamKind, ParamSpec};
 use crate::synth::primitives::overlap::pixel_error;
+use crate::synth::rng::Stream;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -189,9 +190,149 @@ pub fn pick_candidate(costs: &[u64], representative: &[bool]) -> usize {
     (0..costs.len()).filter(|&c| !any || representative[c]).min_by_key(|&c| (costs[c], c)).expect("at least one candidate")
 }
 
-/// One candidate's four patches, two per edge class: `([A₀, A₁], [B₀, B₁])` (Wang: the N/S and
-/// E/W diamond centres; RW: the "/" and "\" sub-block corners).
-pub type Patches = ([(u32, u32); 2], [(u32, u32); 2]);
+/// One candidate's patches, one per colour of each edge class: `([A₀ .. A_{K−1}], [B₀ .. B_{K−1}])`
+/// (Wang: the N/S and E/W diamond centres; RW: the "/" and "\" sub-block corners).
+pub type Patches = (Vec<(u32, u32)>, Vec<(u32, u32)>);
+
+/// The `colors` parameter of both tile methods: `K`, the colours per edge class.
+pub const COLORS_PARAM: ParamSpec = ParamSpec {
+    name: "colors",
+    kind: ParamKind::IntOr { min: 2, max: MAX_COLORS as i64, word: AUTO_COLORS_WORD },
+    default: Default::Str(AUTO_COLORS_WORD),
+    doc: "K: colours per edge class; the tile set holds K³ (minimal) or K⁴ (complete) tiles built from 2K patches, so two tiles a tile apart repeat the same patch about once in K. 2: paper 001's sets (patches drawn anywhere, as the paper does); K ≥ 3: the 2K patches come from separate cells of the sample (each K needs 2K cells of the patch size). auto (default): about the square root of the number of 64-pixel tiles the output holds, at most 8, and at most what the sample has room for; the tile size (tile = \"auto\") then shrinks, down to 32, until the sample has room for them; the choice recorded as diagnostics.colors_choice",
+};
+
+/// `colors = "auto"`.
+pub const AUTO_COLORS_WORD: &str = "auto";
+/// The most colours `colors = "auto"` picks: with 8, two tiles a tile apart share a patch about
+/// once in 8 (a fill's autocorrelation at the tile period about 1/8, near an unstructured
+/// sample's), for a set of 512 minimal tiles, still built in a fraction of a second.
+pub const AUTO_COLORS: u32 = 8;
+/// The `colors` parameter's upper bound (a complete set of 16 colours is 65536 tiles).
+pub const MAX_COLORS: u32 = 16;
+
+/// The `colors` parameter: `Some(K)`, or `None` for `"auto"`.
+pub fn colors_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {
+    p.int_or_word("colors")?
+        .map(|k| u32::try_from(k).map_err(|_| crate::synth::error::SynthError::param("colors", format!("{k} is not a number of colours"))))
+        .transpose()
+}
+
+/// How many disjoint `side × side` cells of a grid the sample holds.
+pub fn cells(sample: (u32, u32), side: u32) -> u32 {
+    (sample.0 / side.max(1)) * (sample.1 / side.max(1))
+}
+
+/// The most colours a `sample` has room for with patches of `side` pixels: `K` needs `2K` separate
+/// cells ([`spread`]). Two colours always fit: paper 001's patches are drawn anywhere, overlapping
+/// or not.
+pub fn room(sample: (u32, u32), side: u32) -> u32 {
+    (cells(sample, side) / 2).clamp(2, MAX_COLORS)
+}
+
+/// What `colors = "auto"` aims at for a `width × height` output: the square root of the number
+/// of [`super::align::FALLBACK_TILE`]-pixel tiles it holds, between 2 and [`AUTO_COLORS`]. An
+/// output of `n` tiles meets at most `n` incoming colour pairs; beyond `√n` colours the pairs
+/// seen thin out and more colours only add tiles to build. Small outputs keep the paper's 2.
+pub fn wanted_colors(output: (u32, u32)) -> u32 {
+    let t = super::align::FALLBACK_TILE as u64;
+    let n = u64::from(output.0).div_ceil(t) * u64::from(output.1).div_ceil(t);
+    (n.isqrt() as u32).clamp(2, AUTO_COLORS)
+}
+
+/// The number of colours of a job: `given`, or for `auto` [`wanted_colors`] within the room the
+/// sample has for patches of `side` pixels; with the `diagnostics.colors_choice` record for `auto`.
+pub fn resolve_colors(given: Option<u32>, output: (u32, u32), sample: (u32, u32), side: u32) -> (u32, Option<serde_json::Value>) {
+    match given {
+        Some(k) => (k, None),
+        None => {
+            let (want, fits) = (wanted_colors(output), room(sample, side));
+            let k = want.min(fits);
+            let how = if k < want {
+                format!(
+                    "auto: {k}; {want} for a {}x{} output, but the {}x{} sample has room for {fits} ({side}-pixel patches, 2 per colour)",
+                    output.0, output.1, sample.0, sample.1
+                )
+            } else {
+                format!(
+                    "auto: {k} for a {}x{} output (about the square root of its number of 64-pixel tiles, at most {AUTO_COLORS})",
+                    output.0, output.1
+                )
+            };
+            (k, Some(serde_json::json!({ "colors": k, "how": how })))
+        }
+    }
+}
+
+/// The check of `colors` against the room the sample has: `side` is the patch side of the tile
+/// size `tile_words` names (for `tile = "auto"` its smallest, [`super::align::AUTO_MIN_TILE`]).
+pub fn check_colors(colors: Option<u32>, sample: (u32, u32), side: u32, tile_words: &str) -> Option<crate::synth::params::ParamError> {
+    let k = colors?;
+    let fits = room(sample, side);
+    (k > fits).then(|| {
+        crate::synth::params::ParamError::new(
+            "colors",
+            format!(
+                "colors {k} needs {} separate {side}x{side} patches of the sample ({tile_words}); the {}x{} sample holds {}: use colors at most {fits}, or a smaller tile",
+                2 * k,
+                sample.0,
+                sample.1,
+                cells(sample, side)
+            ),
+        )
+    })
+}
+
+/// An upper bound of the bytes a tile set of more than two colours adds to a job's peak memory
+/// (8 B per tile pixel: raster, labels, sources): the largest over the tile `sizes` the job may
+/// use (those whose patch fits in the sample and, for `K` given, has room for it), with `K` given
+/// or as `colors = "auto"` would choose for that size; 0 for two colours,
+/// which the methods' measured estimates already hold. `patch(t)` is a size-`t` tile's patch side,
+/// `raster(t)` its pixels.
+pub fn tile_set_bytes(
+    colors: Option<u32>,
+    output: (u32, u32),
+    sample: (u32, u32),
+    sizes: &[i64],
+    patch: impl Fn(i64) -> i64,
+    raster: impl Fn(i64) -> i64,
+    rule: super::wang::TileSet,
+) -> u64 {
+    let fits = |t: &i64| patch(*t) >= 1 && patch(*t) <= i64::from(sample.0.min(sample.1));
+    sizes
+        .iter()
+        .filter(|t| fits(t))
+        .map(|&t| {
+            let space = room(sample, patch(t) as u32);
+            let k = colors.map_or_else(|| wanted_colors(output).min(space), |k| if k <= space { k } else { 2 });
+            if k <= 2 { 0 } else { rule.with_colors(k as u8).len() as u64 * raster(t) as u64 * 8 }
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// `n` corners of `side × side` patches in separate cells of the sample (`K ≥ 3`): the sample is
+/// cut into a grid of cells at least `side` wide, `n` cells are drawn without replacement from `st`
+/// (a partial Fisher–Yates shuffle: one `below` each) and each patch is placed in its cell at a
+/// random offset (two draws), so the patches never overlap and come from all over the sample.
+/// Needs `cells(sample, side) ≥ n`.
+pub fn spread(st: &mut Stream, sample: (u32, u32), side: u32, n: usize) -> Vec<(u32, u32)> {
+    let (cols, rows) = (sample.0 / side, sample.1 / side);
+    let total = (cols * rows) as usize;
+    assert!(total >= n, "{n} patches of {side} pixels do not fit in {sample:?}");
+    let (cw, ch) = (sample.0 / cols, sample.1 / rows);
+    let mut order: Vec<usize> = (0..total).collect();
+    (0..n)
+        .map(|i| {
+            let j = i + st.below_usize(total - i);
+            order.swap(i, j);
+            let (col, row) = ((order[i] % cols as usize) as u32, (order[i] / cols as usize) as u32);
+            let x = col * cw + st.below(u64::from(cw - side + 1)) as u32;
+            let y = row * ch + st.below(u64::from(ch - side + 1)) as u32;
+            (x, y)
+        })
+        .collect()
+}
 
 /// What the tests of both tile methods check of a wrapping output, in one place.
 #[cfg(test)]
