@@ -10,7 +10,7 @@
 use super::wang::{Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::synth::method::{Placement, Request, STRIP_ROWS, SourceRows, Strips, Synthesis, linear_memory};
-use crate::synth::params::{Default, ParamKind, ParamSpec};
+use crate::synth::params::{Choice, Default, ParamKind, ParamSpec};
 use crate::synth::primitives::overlap::pixel_error;
 use crate::synth::rng::Stream;
 use std::sync::Arc;
@@ -199,7 +199,7 @@ pub const COLORS_PARAM: ParamSpec = ParamSpec {
     name: "colors",
     kind: ParamKind::IntOr { min: 2, max: MAX_COLORS as i64, word: AUTO_COLORS_WORD },
     default: Default::Str(AUTO_COLORS_WORD),
-    doc: "K: colours per edge class; the tile set holds K³ (minimal) or K⁴ (complete) tiles built from 2K patches, so two tiles a tile apart repeat the same patch about once in K. 2: paper 001's sets (patches drawn anywhere, as the paper does); K ≥ 3: the 2K patches come from separate cells of the sample (each K needs 2K cells of the patch size). auto (default): about the square root of the number of 64-pixel tiles the output holds, at most 8, and at most what the sample has room for; the tile size (tile = \"auto\") then shrinks, down to 32, until the sample has room for them; the choice recorded as diagnostics.colors_choice",
+    doc: "K: colours per edge class; the tile set holds K³ (minimal) or K⁴ (complete) tiles built from 2K patches, so two tiles a tile apart repeat the same patch about once in K. 2: paper 001's sets (patches drawn anywhere, as the paper does); K ≥ 3: the 2K patches come from separate cells of the sample (each K needs 2K cells of the patch size). auto (default): 8 (4 for the complete set), at most what the sample has room for; the tile size (tile = \"auto\") then shrinks, down to 32, until the sample has room for them; the choice recorded as diagnostics.colors_choice",
 };
 
 /// `colors = "auto"`.
@@ -230,34 +230,32 @@ pub fn room(sample: (u32, u32), side: u32) -> u32 {
     (cells(sample, side) / 2).clamp(2, MAX_COLORS)
 }
 
-/// What `colors = "auto"` aims at for a `width × height` output: the square root of the number
-/// of [`super::align::FALLBACK_TILE`]-pixel tiles it holds, between 2 and [`AUTO_COLORS`]. An
-/// output of `n` tiles meets at most `n` incoming colour pairs; beyond `√n` colours the pairs
-/// seen thin out and more colours only add tiles to build. Small outputs keep the paper's 2.
-pub fn wanted_colors(output: (u32, u32)) -> u32 {
-    let t = super::align::FALLBACK_TILE as u64;
-    let n = u64::from(output.0).div_ceil(t) * u64::from(output.1).div_ceil(t);
-    (n.isqrt() as u32).clamp(2, AUTO_COLORS)
+/// What `colors = "auto"` aims at: [`AUTO_COLORS`] for the minimal rule; the complete rule's
+/// `K⁴` tiles stop at 4 (256 tiles). Not the output size: a keyed fill's smaller output stays
+/// exactly a crop of a larger one with the same seed (and `texsyn tiles render` of an export
+/// reproduces any size), which a size-dependent set would break.
+pub fn wanted_colors(rule: super::wang::TileSet) -> u32 {
+    match rule {
+        super::wang::TileSet::Minimal => AUTO_COLORS,
+        super::wang::TileSet::Complete => AUTO_COLORS.min(4),
+    }
 }
 
 /// The number of colours of a job: `given`, or for `auto` [`wanted_colors`] within the room the
 /// sample has for patches of `side` pixels; with the `diagnostics.colors_choice` record for `auto`.
-pub fn resolve_colors(given: Option<u32>, output: (u32, u32), sample: (u32, u32), side: u32) -> (u32, Option<serde_json::Value>) {
+pub fn resolve_colors(given: Option<u32>, rule: super::wang::TileSet, sample: (u32, u32), side: u32) -> (u32, Option<serde_json::Value>) {
     match given {
         Some(k) => (k, None),
         None => {
-            let (want, fits) = (wanted_colors(output), room(sample, side));
+            let (want, fits) = (wanted_colors(rule), room(sample, side));
             let k = want.min(fits);
             let how = if k < want {
                 format!(
-                    "auto: {k}; {want} for a {}x{} output, but the {}x{} sample has room for {fits} ({side}-pixel patches, 2 per colour)",
-                    output.0, output.1, sample.0, sample.1
+                    "auto: {k}; {want} wanted, but the {}x{} sample has room for {fits} ({side}-pixel patches, 2 per colour)",
+                    sample.0, sample.1
                 )
             } else {
-                format!(
-                    "auto: {k} for a {}x{} output (about the square root of its number of 64-pixel tiles, at most {AUTO_COLORS})",
-                    output.0, output.1
-                )
+                format!("auto: {k}, the most auto picks for a {} set", rule.name())
             };
             (k, Some(serde_json::json!({ "colors": k, "how": how })))
         }
@@ -291,7 +289,6 @@ pub fn check_colors(colors: Option<u32>, sample: (u32, u32), side: u32, tile_wor
 /// `raster(t)` its pixels.
 pub fn tile_set_bytes(
     colors: Option<u32>,
-    output: (u32, u32),
     sample: (u32, u32),
     sizes: &[i64],
     patch: impl Fn(i64) -> i64,
@@ -304,7 +301,7 @@ pub fn tile_set_bytes(
         .filter(|t| fits(t))
         .map(|&t| {
             let space = room(sample, patch(t) as u32);
-            let k = colors.map_or_else(|| wanted_colors(output).min(space), |k| if k <= space { k } else { 2 });
+            let k = colors.map_or_else(|| wanted_colors(rule).min(space), |k| if k <= space { k } else { 2 });
             if k <= 2 { 0 } else { rule.with_colors(k as u8).len() as u64 * raster(t) as u64 * 8 }
         })
         .max()
@@ -341,7 +338,7 @@ pub(crate) mod testing {
     use crate::image::RgbImage;
     use crate::metrics::seams::{seam_visibility, wrap_visibility};
     use crate::synth::method::{Method, Request};
-    use crate::synth::methods::tiles::wang::TileSet;
+    use crate::synth::methods::tiles::wang::{EdgeSet, TileSet};
     use crate::synth::params::{ParamValue, Params, resolve};
 
     /// A bundled sample, `jobs/samples/{name}`.
@@ -408,7 +405,8 @@ pub(crate) mod testing {
         for (name, size) in [("bricks_gray.png", (384, 256)), ("pebbles_beige.png", (256, 320))] {
             let s = sample(name);
             for set in ["minimal", "complete"] {
-                let p = params(m, &[("tile_set", ParamValue::Str(set.into()))]);
+                // Calibrated with paper 001's two colours (see the report for more).
+                let p = params(m, &[("tile_set", ParamValue::Str(set.into())), ("colors", ParamValue::Int(2))]);
                 let (mut wraps, mut interiors) = (0.0, 0.0);
                 for seed in 1..6 {
                     let (_, wrap, interior) = wrapping(m, &p, &s, size, seed);
@@ -469,10 +467,57 @@ pub(crate) mod testing {
         assert!(e.contains("multiple of the tile size 64") && e.contains("tile = \"auto\"'s choice"), "{e}");
     }
 
-    /// [`repeat_is_one_tiling`] for sets built by `build` (from bricks_gray), at several periods.
-    pub fn repeats_are_single_tilings<T: TileRenderer>(build: impl Fn(&RgbImage, TileSet) -> T) {
+    /// What `colors` promises, for a method whose parameters `params` resolves: the default fill of
+    /// a stochastic sample (grass_gray, 512²) repeats much less than two colours' (issue #30's
+    /// measure, [`crate::metrics::repetition`]) and at most twice as much as quilting's; K = 5
+    /// fills (plain and wrapping) do not depend on the thread count; `colors = 1` and more colours
+    /// than the sample has room for are refused naming `colors` and the largest that fits.
+    pub fn colors_repeat_less_and_are_checked(m: &dyn Method, params: impl Fn(&[(&str, ParamValue)]) -> Params) {
+        use crate::metrics::repetition::max_autocorrelation;
+        let grass = sample("grass_gray.png");
+        let fill = |p: &Params, tileable: bool| {
+            let req = Request { sample: &grass, width: 512, height: 512, params: p, seed: 5, placement: false, tileable };
+            m.synthesize(&req).expect("synthesis")
+        };
+        let default = fill(&params(&[]), false);
+        assert_eq!(default.diagnostics["colors_choice"]["colors"], 8, "{}", default.diagnostics["colors_choice"]);
+        let two = fill(&params(&[("colors", ParamValue::Int(2))]), false);
+        let quilting = crate::synth::methods::find("quilting").expect("quilting");
+        let qp = resolve(quilting.params(), &[]).unwrap();
+        let q = quilting
+            .synthesize(&Request { sample: &grass, width: 512, height: 512, params: &qp, seed: 5, placement: false, tileable: false })
+            .unwrap();
+        let [d, t, q] = [&default.image, &two.image, &q.image].map(|i| max_autocorrelation(i).unwrap());
+        assert!(d < 0.5 * t, "{}: default {d:.3}, two colours {t:.3}", m.name());
+        assert!(d <= 2.0 * q, "{}: default {d:.3}, quilting {q:.3}", m.name());
+        let five = params(&[("colors", ParamValue::Int(5)), ("tile", ParamValue::Int(32))]);
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        for tileable in [false, true] {
+            let many = fill(&five, tileable);
+            let single = one.install(|| fill(&five, tileable));
+            assert_eq!(many.image, single.image, "{} tileable {tileable}", m.name());
+            assert_eq!(many.diagnostics, single.diagnostics);
+        }
+        let refused = |given: &[(&str, ParamValue)]| -> String {
+            let g: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+            match resolve(m.params(), &g) {
+                Err(e) => e.iter().map(|e| format!("{}: {}", e.key, e.message)).collect::<Vec<_>>().join("; "),
+                Ok(p) => {
+                    m.check(&p, (256, 256), (512, 512)).iter().map(|e| format!("{}: {}", e.key, e.message)).collect::<Vec<_>>().join("; ")
+                }
+            }
+        };
+        let e = refused(&[("colors", ParamValue::Int(1))]);
+        assert!(e.contains("colors"), "{e}");
+        let e = refused(&[("colors", ParamValue::Int(16)), ("tile", ParamValue::Int(128))]);
+        assert!(e.starts_with("colors: colors 16 needs 32 separate") && e.contains("use colors at most"), "{e}");
+    }
+
+    /// [`repeat_is_one_tiling`] for sets built by `build` (from bricks_gray), at several periods,
+    /// with two colours and with three.
+    pub fn repeats_are_single_tilings<T: TileRenderer>(build: impl Fn(&RgbImage, EdgeSet) -> T) {
         let s = sample("bricks_gray.png");
-        for set in [TileSet::Minimal, TileSet::Complete] {
+        for set in [TileSet::Minimal.with_colors(2), TileSet::Complete.with_colors(2), TileSet::Minimal.with_colors(3)] {
             let tiles = build(&s, set);
             for (period, seed) in [((384, 256), 1), ((64, 64), 2), ((64, 320), 3), ((512, 128), 4)] {
                 let twice = repeat_is_one_tiling(&tiles, period, seed);

@@ -691,11 +691,11 @@ impl Method for RwTiles {
         // whole, before fills that large went strip by strip): 280 MB
         // in all, whose peak is while the PNG encoder holds its compressed stream. Sets of more
         // than two colours add their tiles.
-        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample, output)
+        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample)
     }
 
     fn strip_peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample, output)
+        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample)
     }
 
     fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
@@ -744,11 +744,11 @@ impl RwTiles {
     /// An upper bound of the bytes a tile set of more than two colours holds (raster, labels and
     /// sources of the `f × f` frameworks: 8 B per pixel): the largest over the sizes `tile =
     /// "auto"` may take.
-    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32)) -> u64 {
         let Ok(cfg) = RwTilesConfig::from_params(params) else { return 0 };
         let sizes: Vec<i64> = cfg.tile.map_or_else(|| sizes(cfg.overlap).collect(), |t| vec![i64::from(t)]);
         let ov = i64::from(cfg.overlap);
-        common::tile_set_bytes(cfg.colors, output, sample, &sizes, patch(cfg.overlap), |t| (t + ov) * (t + ov), cfg.tile_set)
+        common::tile_set_bytes(cfg.colors, sample, &sizes, patch(cfg.overlap), |t| (t + ov) * (t + ov), cfg.tile_set)
     }
 
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
@@ -758,16 +758,16 @@ impl RwTiles {
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
         let wrap = req.tileable.then_some((req.width, req.height));
-        let (dims, output) = (req.sample.dimensions(), (req.width, req.height));
+        let dims = req.sample.dimensions();
         let room = |t: i64| common::room(dims, patch(cfg.overlap)(t) as u32);
         let colors = align::ColorRoom {
             need: cfg.colors.unwrap_or(2),
-            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(output)),
+            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(cfg.tile_set)),
             room: &room,
         };
         let choice = cfg.tile.is_none().then(|| RwAlign::auto_tile(lattice.as_ref(), dims, cfg.overlap, wrap, Some(colors)));
         let (tile, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
-        let (k, colors_choice) = common::resolve_colors(cfg.colors, output, dims, patch(cfg.overlap)(i64::from(tile)) as u32);
+        let (k, colors_choice) = common::resolve_colors(cfg.colors, cfg.tile_set, dims, patch(cfg.overlap)(i64::from(tile)) as u32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
@@ -861,7 +861,7 @@ mod tests {
         for set_kind in [TileSet::Minimal, TileSet::Complete] {
             let set = build_tile_set(&sample, 24, 4, set_kind, PixelError::Squared, 5).unwrap();
             let tiling = set.tile_output(TilingOrder::Keyed, 150, 130, 5);
-            assert_eq!(tiling.violations(set_kind), 0);
+            assert_eq!(tiling.violations(set_kind.into()), 0);
             let g = set.geometry;
             let mut checked = 0;
             for y in 0..130i64 {
@@ -969,7 +969,7 @@ mod tests {
         });
         let plain = build_tile_set(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4).unwrap();
         let (one, c) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 1).unwrap();
-        assert_eq!((one.pa, one.pb, c), (plain.pa, plain.pb, 0));
+        assert_eq!((&one.pa, &one.pb, c), (&plain.pa, &plain.pb, 0));
         let (best, _) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap();
         let fit = |s: &RwTileSet| representative(&sample, &[s.pa[0], s.pa[1], s.pb[0], s.pb[1]], s.geometry.s as u32);
         assert!(fit(&best) || !fit(&plain));
@@ -1096,6 +1096,7 @@ mod tests {
             tile: Some(48),
             overlap: 6,
             tile_set: TileSet::Complete,
+            colors: Some(3),
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1108,6 +1109,7 @@ mod tests {
             cfg.tile != d.tile
                 && cfg.overlap != d.overlap
                 && cfg.tile_set != d.tile_set
+                && cfg.colors != d.colors
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1178,5 +1180,10 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&RwTiles);
+    }
+
+    #[test]
+    fn more_colours_repeat_less_stay_deterministic_and_are_checked() {
+        common::testing::colors_repeat_less_and_are_checked(&RwTiles, params);
     }
 }

@@ -648,11 +648,11 @@ impl Method for WangTiles {
         // whole, before fills that large went strip by strip): 285 MB
         // in all, whose peak is while the PNG encoder holds its compressed stream. Sets of more
         // than two colours add their tiles.
-        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample, output)
+        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample)
     }
 
     fn strip_peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample, output)
+        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample)
     }
 
     fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
@@ -700,11 +700,11 @@ fn tile_words(tile: Option<u32>) -> String {
 impl WangTiles {
     /// An upper bound of the bytes a tile set of more than two colours holds (raster, labels and
     /// sources: 8 B per tile pixel): the largest over the sizes `tile = "auto"` may take.
-    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32)) -> u64 {
         let Ok(cfg) = WangTilesConfig::from_params(params) else { return 0 };
         let sizes: Vec<i64> = cfg.tile.map_or_else(|| sizes(cfg.overlap).collect(), |t| vec![i64::from(t)]);
         let rule = cfg.tile_set;
-        common::tile_set_bytes(cfg.colors, output, sample, &sizes, patch(cfg.overlap), |t| t * t, rule)
+        common::tile_set_bytes(cfg.colors, sample, &sizes, patch(cfg.overlap), |t| t * t, rule)
     }
 
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
@@ -714,16 +714,16 @@ impl WangTiles {
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
         let wrap = req.tileable.then_some((req.width, req.height));
-        let (dims, output) = (req.sample.dimensions(), (req.width, req.height));
+        let dims = req.sample.dimensions();
         let room = |t: i64| common::room(dims, patch(cfg.overlap)(t) as u32);
         let colors = align::ColorRoom {
             need: cfg.colors.unwrap_or(2),
-            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(output)),
+            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(cfg.tile_set)),
             room: &room,
         };
         let choice = cfg.tile.is_none().then(|| WangAlign::auto_tile(lattice.as_ref(), dims, cfg.overlap, wrap, Some(colors)));
         let (t, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
-        let (k, colors_choice) = common::resolve_colors(cfg.colors, output, dims, patch(cfg.overlap)(i64::from(t)) as u32);
+        let (k, colors_choice) = common::resolve_colors(cfg.colors, cfg.tile_set, dims, patch(cfg.overlap)(i64::from(t)) as u32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
             return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
@@ -1078,6 +1078,7 @@ mod tests {
             overlap: 4,
             cut: Cut::ShortestPath,
             tile_set: TileSet::Complete,
+            colors: Some(3),
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1091,6 +1092,7 @@ mod tests {
                 && cfg.overlap != d.overlap
                 && cfg.cut != d.cut
                 && cfg.tile_set != d.tile_set
+                && cfg.colors != d.colors
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1161,5 +1163,10 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&WangTiles);
+    }
+
+    #[test]
+    fn more_colours_repeat_less_stay_deterministic_and_are_checked() {
+        common::testing::colors_repeat_less_and_are_checked(&WangTiles, params);
     }
 }
