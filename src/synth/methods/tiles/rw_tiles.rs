@@ -368,6 +368,11 @@ pub fn build_tile_set_aligned(
 }
 
 /// Builds every tile of `set` from the given patch corners.
+///
+/// A strip's seam (§3.3) depends only on the two patches on its sides, so each strip of each pair
+/// of patches is cut once ([`cut_strip`]) and shared by the tiles that hold that pair: `4K²` cuts
+/// for the `K³` tiles of the minimal set instead of `4K³`. Every tile's pixels are those of
+/// cutting its own strips (the cuts are pure functions of the two patches).
 pub fn build_from_patches(
     sample: &RgbImage,
     g: &Geometry,
@@ -376,12 +381,32 @@ pub fn build_from_patches(
     pa: &[(u32, u32)],
     pb: &[(u32, u32)],
 ) -> Result<RwTileSet, SynthError> {
+    let frame = Frame::new(g);
+    let blocks: Vec<[(u32, u32); 4]> = (0..set.len()).map(|t| patches_of(set.colours(t), pa, pb)).collect();
+    // Every (strip, patch on side A, patch on side B) the tiles need, in first-use order.
+    let mut keys: Vec<StripKey> = Vec::new();
+    let mut seen = std::collections::HashMap::new();
+    let tile_keys: Vec<[usize; 4]> = blocks
+        .iter()
+        .map(|p| {
+            std::array::from_fn(|k| {
+                let st = &frame.strips[k];
+                let key = (k, p[st.a], p[st.b]);
+                *seen.entry(key).or_insert_with(|| {
+                    keys.push(key);
+                    keys.len() - 1
+                })
+            })
+        })
+        .collect();
+    let cuts: Result<Vec<StripCut>, SynthError> = keys.par_iter().map(|&(k, a, b)| cut_strip(sample, g, &frame, k, a, b, err)).collect();
+    let cuts = cuts?;
     let tiles: Result<Vec<RwTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|t| {
-            let c = set.colours(t);
-            build_tile(sample, g, patches_of(c, pa, pb), err).map(|mut tile| {
-                tile.colours = c;
+            let strips = tile_keys[t].map(|i| &cuts[i]);
+            finish_tile(sample, g, &frame, blocks[t], strips, err).map(|mut tile| {
+                tile.colours = set.colours(t);
                 tile
             })
         })
@@ -391,116 +416,187 @@ pub fn build_from_patches(
 
 /// Builds one tile from the sample patches used as `B1..B4` (§3.2–3.4).
 pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err: PixelError) -> Result<RwTile, SynthError> {
-    let f = g.f;
+    let frame = Frame::new(g);
+    let cuts: Result<Vec<StripCut>, SynthError> =
+        (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
+    let cuts = cuts?;
+    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+}
+
+/// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
+type StripKey = (usize, (u32, u32), (u32, u32));
+
+/// What every tile of one geometry shares before any cut (§3.2): the labels of the locked edge
+/// pixels and of the corners only one block covers, the locks, and the four strips.
+struct Frame {
+    labels: Vec<u8>,
+    locked: Vec<u8>,
+    strips: [Strip; 4],
+}
+
+impl Frame {
+    fn new(g: &Geometry) -> Frame {
+        let f = g.f;
+        let n = (f * f) as usize;
+        let mut labels = vec![UNSET; n];
+        let mut locked = vec![UNSET; n];
+        for y in 0..f {
+            for x in 0..f {
+                if !g.in_r(x, y) {
+                    continue;
+                }
+                let i = g.idx(x, y);
+                if let Some(k) = g.lock(x, y) {
+                    locked[i] = k as u8;
+                    labels[i] = k as u8;
+                } else if let Some(k) = g.single(x, y) {
+                    labels[i] = k as u8;
+                }
+            }
+        }
+        let (h, s) = (g.h, g.s);
+        let strips = [
+            Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 }, // O_n: B1 west / B2 east
+            Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 }, // O_e: B2 north / B3 south
+            Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
+            Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
+        ];
+        Frame { labels, locked, strips }
+    }
+}
+
+/// One strip's seam (§3.3): its cost, its last pixel, and the labels of the strip's free pixels.
+struct StripCut {
+    cost: u64,
+    end: (i32, i32),
+    labels: Vec<(usize, u8)>,
+}
+
+/// Cuts strip `k` between the block on its side A, cut at sample corner `pa`, and the block on
+/// its side B, cut at `pb`.
+fn cut_strip(
+    sample: &RgbImage,
+    g: &Geometry,
+    frame: &Frame,
+    k: usize,
+    pa: (u32, u32),
+    pb: (u32, u32),
+    err: PixelError,
+) -> Result<StripCut, SynthError> {
+    let (f, h, s) = (g.f, g.h, g.s);
+    let n = (f * f) as usize;
+    let st = &frame.strips[k];
+    let locked = &frame.locked;
+    let px = |block: usize, p: (u32, u32), x: i32, y: i32| -> [u8; 3] {
+        let (sx, sy) = g.sample_pixel(block, p, x, y);
+        sample.get(sx, sy)
+    };
+    let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
+    let mut domain = vec![false; n];
+    let mut targets = vec![false; n];
+    let mut error = vec![0u32; n];
+    let mut start: Option<(i32, i32)> = None;
+    for y in st.ys.0..st.ys.1 {
+        for x in st.xs.0..st.xs.1 {
+            if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
+                continue;
+            }
+            let i = g.idx(x, y);
+            domain[i] = true;
+            error[i] = err.eval(px(st.a, pa, x, y), px(st.b, pb, x, y));
+            // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
+            // and the target line touching O_c.
+            let better = match (k, start) {
+                (_, None) => true,
+                (0, Some((bx, by))) => (y, x) < (by, bx),
+                (1, Some((bx, by))) => (-x, y) < (-bx, by),
+                (2, Some((bx, by))) => (-y, x) < (-by, bx),
+                (_, Some((bx, by))) => (x, y) < (bx, by),
+            };
+            if better {
+                start = Some((x, y));
+            }
+            targets[i] = match k {
+                0 => y == h - 1,
+                1 => x == s,
+                2 => y == s,
+                _ => x == h - 1,
+            };
+        }
+    }
+    let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
+    let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
+        .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
+    let last = *path.pixels.last().expect("non-empty path");
+    let end = ((last % f as usize) as i32, (last / f as usize) as i32);
+    let mut on_path = vec![false; n];
+    for &p in &path.pixels {
+        on_path[p] = true;
+    }
+    // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
+    let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
+    let mut seeds = Vec::new();
+    for y in 0..f {
+        for x in 0..f {
+            let i = g.idx(x, y);
+            if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
+                seeds.push(i);
+            }
+        }
+    }
+    let reached = flood4(f as usize, f as usize, &seeds, |i| {
+        let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
+        (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
+    });
+    let mut labels = Vec::new();
+    for y in st.ys.0..st.ys.1 {
+        for x in st.xs.0..st.xs.1 {
+            let i = g.idx(x, y);
+            if !in_strip(x, y) || locked[i] != UNSET {
+                continue;
+            }
+            let label = if on_path[i] {
+                st.path_label
+            } else if reached[i] {
+                st.a
+            } else {
+                st.b
+            };
+            labels.push((i, label as u8));
+        }
+    }
+    Ok(StripCut { cost: path.cost, end, labels })
+}
+
+/// A tile from its four strip seams: the centre (§3.4) and the raster (step 8). The centre's
+/// paths and pockets stay inside `O_c = [h, s)²`, so they are found on that `ov × ov` grid (row-major
+/// like the framework, hence the same tie rules and paths).
+fn finish_tile(
+    sample: &RgbImage,
+    g: &Geometry,
+    frame: &Frame,
+    patches: [(u32, u32); 4],
+    strips: [&StripCut; 4],
+    err: PixelError,
+) -> Result<RwTile, SynthError> {
+    let (f, h, s) = (g.f, g.h, g.s);
     let n = (f * f) as usize;
     let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
         let (sx, sy) = g.sample_pixel(k, patches[k], x, y);
         sample.get(sx, sy)
     };
-    let mut labels = vec![UNSET; n];
-    let mut locked = vec![UNSET; n];
-    for y in 0..f {
-        for x in 0..f {
-            if !g.in_r(x, y) {
-                continue;
-            }
-            let i = g.idx(x, y);
-            if let Some(k) = g.lock(x, y) {
-                locked[i] = k as u8;
-                labels[i] = k as u8;
-            } else if let Some(k) = g.single(x, y) {
-                labels[i] = k as u8;
-            }
+    let mut labels = frame.labels.clone();
+    for cut in &strips {
+        for &(i, label) in &cut.labels {
+            labels[i] = label;
         }
     }
+    let strip_costs = strips.map(|c| c.cost);
+    let ends = strips.map(|c| c.end);
 
-    // §3.3: the four strips.
-    let (h, s) = (g.h, g.s);
-    let strips = [
-        Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 }, // O_n: B1 west / B2 east
-        Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 }, // O_e: B2 north / B3 south
-        Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
-        Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
-    ];
-    let mut ends = [(0i32, 0i32); 4];
-    let mut strip_costs = [0u64; 4];
-    let mut error = vec![0u32; n];
-    for (k, st) in strips.iter().enumerate() {
-        let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
-        let mut domain = vec![false; n];
-        let mut targets = vec![false; n];
-        let mut start: Option<(i32, i32)> = None;
-        for y in st.ys.0..st.ys.1 {
-            for x in st.xs.0..st.xs.1 {
-                if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
-                    continue;
-                }
-                let i = g.idx(x, y);
-                domain[i] = true;
-                error[i] = err.eval(px(st.a, x, y), px(st.b, x, y));
-                // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
-                // and the target line touching O_c.
-                let better = match (k, start) {
-                    (_, None) => true,
-                    (0, Some((bx, by))) => (y, x) < (by, bx),
-                    (1, Some((bx, by))) => (-x, y) < (-bx, by),
-                    (2, Some((bx, by))) => (-y, x) < (-by, bx),
-                    (_, Some((bx, by))) => (x, y) < (bx, by),
-                };
-                if better {
-                    start = Some((x, y));
-                }
-                targets[i] = match k {
-                    0 => y == h - 1,
-                    1 => x == s,
-                    2 => y == s,
-                    _ => x == h - 1,
-                };
-            }
-        }
-        let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
-        let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
-            .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
-        strip_costs[k] = path.cost;
-        let end = *path.pixels.last().expect("non-empty path");
-        ends[k] = ((end % f as usize) as i32, (end / f as usize) as i32);
-        let mut on_path = vec![false; n];
-        for &p in &path.pixels {
-            on_path[p] = true;
-        }
-        // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
-        let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
-        let mut seeds = Vec::new();
-        for y in 0..f {
-            for x in 0..f {
-                let i = g.idx(x, y);
-                if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
-                    seeds.push(i);
-                }
-            }
-        }
-        let reached = flood4(f as usize, f as usize, &seeds, |i| {
-            let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
-            (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
-        });
-        for y in st.ys.0..st.ys.1 {
-            for x in st.xs.0..st.xs.1 {
-                let i = g.idx(x, y);
-                if !in_strip(x, y) || locked[i] != UNSET {
-                    continue;
-                }
-                labels[i] = if on_path[i] {
-                    st.path_label as u8
-                } else if reached[i] {
-                    st.a as u8
-                } else {
-                    st.b as u8
-                };
-            }
-        }
-    }
-
-    // §3.4: the centre O_c = [h, s)².
+    // §3.4: the centre O_c = [h, s)², on its own `c × c` grid.
+    let c = (s - h) as usize;
+    let local = |x: i32, y: i32| (y - h) as usize * c + (x - h) as usize;
     let q = [
         (ends[0].0, ends[0].1 + 1), // q_n
         (ends[1].0 - 1, ends[1].1), // q_e
@@ -523,12 +619,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let centre = (0..4).min_by_key(|&k| (totals[k], k)).expect("four blocks");
     let corners = [(h, h), (s - 1, h), (s - 1, s - 1), (h, s - 1)];
     let entries = [(q[3], q[0]), (q[0], q[1]), (q[1], q[2]), (q[2], q[3])];
-    let mut c_domain = vec![false; n];
-    for y in h..s {
-        for x in h..s {
-            c_domain[g.idx(x, y)] = true;
-        }
-    }
+    let c_domain = vec![true; c * c];
     let mut pocket_costs = Vec::with_capacity(3);
     for step in 1..4 {
         let j = (centre + step) % 4;
@@ -536,26 +627,26 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         if !in_c(e1.0, e1.1) || !in_c(e2.0, e2.1) {
             return Err(SynthError::Failed(format!("centre entry pixels {e1:?}, {e2:?} outside O_c")));
         }
-        let mut err_c = vec![0u32; n];
+        let mut err_c = vec![0u32; c * c];
         for y in h..s {
             for x in h..s {
-                err_c[g.idx(x, y)] = err.eval(px(centre, x, y), px(j, x, y));
+                err_c[local(x, y)] = err.eval(px(centre, x, y), px(j, x, y));
             }
         }
-        let mut target = vec![false; n];
-        target[g.idx(e2.0, e2.1)] = true;
-        let path = shortest_path(f as usize, f as usize, &c_domain, &err_c, g.idx(e1.0, e1.1), &target)
+        let mut target = vec![false; c * c];
+        target[local(e2.0, e2.1)] = true;
+        let path = shortest_path(c, c, &c_domain, &err_c, local(e1.0, e1.1), &target)
             .ok_or_else(|| SynthError::Failed(format!("no centre path for block {}", j + 1)))?;
         pocket_costs.push(path.cost);
-        let mut on_path = vec![false; n];
+        let mut on_path = vec![false; c * c];
         for &p in &path.pixels {
             on_path[p] = true;
         }
-        let cj = g.idx(corners[j].0, corners[j].1);
+        let cj = local(corners[j].0, corners[j].1);
         let pocket = if on_path[cj] {
             on_path.clone()
         } else {
-            let mut r = flood4(f as usize, f as usize, &[cj], |i| c_domain[i] && !on_path[i]);
+            let mut r = flood4(c, c, &[cj], |i| !on_path[i]);
             for &p in &path.pixels {
                 r[p] = true;
             }
@@ -564,7 +655,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         for y in h..s {
             for x in h..s {
                 let i = g.idx(x, y);
-                if pocket[i] && labels[i] == UNSET {
+                if pocket[local(x, y)] && labels[i] == UNSET {
                     labels[i] = j as u8;
                 }
             }
