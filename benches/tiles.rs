@@ -5,12 +5,17 @@
 //! its default overlap) at 1280×1280 from the same crop gives the "each method vs image quilting"
 //! ratio. Medians of `TEXSYN_BENCH_RUNS` runs (default 5) after one warm-up; quilting runs
 //! `TEXSYN_BENCH_QUILT_RUNS` times (default 1; it takes seconds).
-//! `cargo bench --bench tiles`.
+//! Then issue #30's judgement with every method's defaults (`defaults` below): on whole bundled
+//! samples, each tile method's fill at 512² and 2048² against image quilting's on the same sample
+//! (whole synthesis calls): repetition (`metrics::repetition::max_autocorrelation`) at most twice
+//! quilting's, and at 2048² at least 10× faster.
+//! `cargo bench --bench tiles` (both); `cargo bench --bench tiles -- defaults` (only the latter).
 
 use std::path::Path;
 use std::time::Instant;
 use texsyn::RgbImage;
 use texsyn::image::io::{DecodeLimits, read_rgb8};
+use texsyn::metrics::repetition::max_autocorrelation;
 use texsyn::synth::method::Request;
 use texsyn::synth::methods::find;
 use texsyn::synth::methods::tiles::common::PixelError;
@@ -62,6 +67,10 @@ fn main() {
     let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d).max(1);
     let runs = env("TEXSYN_BENCH_RUNS", 5);
     let quilt_runs = env("TEXSYN_BENCH_QUILT_RUNS", 1);
+    defaults(runs, quilt_runs);
+    if std::env::args().any(|a| a == "defaults") {
+        return;
+    }
     let crops = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples/crops");
     println!("median of {runs} runs after a warm-up, seconds; ratios are to RW-Tiles in the same configuration");
     for name in ["pebbles_beige", "hedge_leaves", "tiles_terracotta"] {
@@ -126,6 +135,58 @@ fn main() {
                 println!(
                     "{name:<16} 1280x1280 {threads} thread(s)  wang-tiles, whole call         {w:>8.4} s  quilting / wang-tiles {:>6.1}",
                     q / w
+                );
+            }
+        }
+    }
+}
+
+/// Issue #30's judgement: each tile method with its defaults against image quilting with its
+/// defaults, whole synthesis calls on all cores (medians of `runs`, quilting of `quilt_runs`),
+/// on whole 256² samples at 512² and 2048²: time, the ratio quilting / method, repetition and
+/// the ratio method / quilting, and whether both criteria hold (repetition ≤ 2× quilting's;
+/// at 2048² at least 10× faster).
+fn defaults(runs: usize, quilt_runs: usize) {
+    let samples = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/samples");
+    println!("issue #30: defaults, whole synthesis calls (median of {runs}; quilting of {quilt_runs}), all cores");
+    for name in ["grass_gray", "gravel_gray", "pebbles_beige"] {
+        let (sample, _) = read_rgb8(&samples.join(format!("{name}.png")), DecodeLimits::default()).unwrap();
+        println!("{name:<14} sample itself: repetition {:.3}", max_autocorrelation(&sample).unwrap());
+        for size in [512u32, 2048] {
+            let call = |method: &str, n: usize| -> (f64, f64) {
+                let m = find(method).unwrap();
+                let params = resolve(m.params(), &[]).unwrap();
+                let req = Request {
+                    sample: &sample,
+                    width: size,
+                    height: size,
+                    params: &params,
+                    seed: 1,
+                    placement: false,
+                    tileable: false,
+                    constraints: Default::default(),
+                };
+                let image = m.synthesize(&req).unwrap().image;
+                let secs = median(
+                    (0..n)
+                        .map(|_| {
+                            let t = Instant::now();
+                            m.synthesize(&req).unwrap();
+                            t.elapsed().as_secs_f64()
+                        })
+                        .collect(),
+                );
+                (secs, max_autocorrelation(&image).unwrap())
+            };
+            let (q, qr) = call("quilting", quilt_runs);
+            println!("{name:<14} {size:>4}x{size:<4} quilting    {q:>8.4} s  repetition {qr:.3}");
+            for method in ["rw-tiles", "wang-tiles"] {
+                let (t, r) = call(method, runs);
+                let (speed, rep) = (q / t, r / qr);
+                let ok = rep <= 2.0 && (size < 2048 || speed >= 10.0);
+                println!(
+                    "{name:<14} {size:>4}x{size:<4} {method:<11} {t:>8.4} s  repetition {r:.3}  quilting/method time {speed:>6.1}x  repetition/quilting's {rep:>5.2}  {}",
+                    if ok { "ok" } else { "FAILS" }
                 );
             }
         }

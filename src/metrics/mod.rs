@@ -20,6 +20,7 @@
 pub mod acf;
 pub mod histogram;
 pub mod orientation;
+pub mod repetition;
 pub mod seams;
 pub mod verbatim;
 
@@ -39,7 +40,12 @@ pub use seams::{seam_visibility, wrap_visibility};
 pub use verbatim::{SampleWindows, verbatim, verbatim_fraction};
 
 /// Every metric name [`evaluate`] accepts, in report order.
-pub const METRIC_NAMES: &[&str] = &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
+pub const METRIC_NAMES: &[&str] =
+    &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility", "repetition"];
+
+/// The metrics a job's `metrics = true` asks for: all but `repetition` (an FFT autocorrelation
+/// of the whole output, asked for by name: `metrics = ["repetition", …]`).
+pub const DEFAULT_METRICS: &[&str] = &["kl_gray", "kl_orientation", "acf_gray", "acf_orientation", "verbatim", "seam_visibility"];
 
 /// The metrics' named parameters (§5.6 "Options"); record them in the manifest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -325,6 +331,7 @@ fn score(name: &str, sample: &RgbImage, reference: &SampleReference, q: &Analysi
             .and_then(|(a, b)| defined(euclidean_distance(a.values(), b.values()))),
         "verbatim" => reference.windows(sample).fraction(sample, output),
         "seam_visibility" => grid.and_then(|g| seam_visibility(output, g)),
+        "repetition" => repetition::max_autocorrelation(output),
         _ => unreachable!("names are checked before scoring"),
     }
 }

@@ -86,6 +86,7 @@ pub fn describe(measure: &str) -> String {
         "acf_orientation" => "Euclidean distance of the orientation autocorrelations (lower is better)".into(),
         "verbatim" => "Fraction of output pixels whose 7×7 neighbourhood occurs verbatim in the sample".into(),
         "seam_visibility" => "Seam visibility: mean colour jump at seams over elsewhere (1 = invisible)".into(),
+        "repetition" => "Repetition: highest normalised gray autocorrelation at shifts of 16 px or more (lower repeats less)".into(),
         TIME => "Synthesis time in seconds (the synthesis call only)".into(),
         other => format!("{other} (as recorded)"),
     }

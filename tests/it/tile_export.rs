@@ -28,18 +28,23 @@ fn an_export_is_recorded_verified_and_renders_back_the_jobs_pixels() {
     for method in ["wang-tiles", "rw-tiles"] {
         let job = manifest["jobs"].as_array().unwrap().iter().find(|j| j["method"] == method).unwrap();
         let outputs = job["outputs"].as_array().unwrap();
-        // The main output first, then 8 tiles and the index, each hashed.
-        assert_eq!(outputs.len(), 10, "{method}: {outputs:?}");
+        // The main output first, then the K³ tiles of the minimal set and the index, each hashed
+        // (`colors = "auto"`: K = 2 for Wang tiles of 48 on the 128² crop, which has room for no
+        // more diamonds of 56; K = 8 for RW tiles of 48, whose sub-blocks of 30 leave room for 8).
+        let k: usize = job["diagnostics"]["colors_choice"]["colors"].as_u64().expect("colors = \"auto\" recorded") as usize;
+        let n = k * k * k;
+        assert_eq!((method, k), (method, if method == "wang-tiles" { 2 } else { 8 }));
+        assert_eq!(outputs.len(), n + 2, "{method}: {} outputs", outputs.len());
         assert_eq!(outputs[0]["path"], format!("{method}.png"));
-        assert_eq!(outputs[9]["path"], format!("{method}.tiles/index.json"));
-        for o in &outputs[1..9] {
+        assert_eq!(outputs[n + 1]["path"], format!("{method}.tiles/index.json"));
+        for o in &outputs[1..=n] {
             let path = out.join(o["path"].as_str().unwrap());
             assert_eq!(pixels(&path), o["pixel_digest"]["sha256"].as_str().unwrap(), "{}", path.display());
         }
         let index_path = out.join(format!("{method}.tiles/index.json"));
         let index: Value = serde_json::from_slice(&std::fs::read(&index_path).unwrap()).unwrap();
         assert_eq!(index["format"], "texsyn-tileset/1");
-        assert_eq!(index["tiles"].as_array().unwrap().len(), 8);
+        assert_eq!(index["tiles"].as_array().unwrap().len(), n);
         assert_eq!(index["output"], serde_json::json!([333, 201]));
 
         // From the export alone, the job's own output, pixel for pixel.

@@ -459,7 +459,7 @@ mod tests {
         let some = write(&d, "some.toml", &format!("metrics = [\"kl_gray\", \"verbatim\"]\n{head}").replace("o.png", "p.png"));
         let bad = write(&d, "bad.toml", &format!("metrics = [\"kl_grey\"]\n{head}").replace("o.png", "q.png"));
         let plan = read_all(&[all, some, bad]);
-        assert_eq!(plan.jobs[0].metrics.len(), crate::metrics::METRIC_NAMES.len());
+        assert_eq!(plan.jobs[0].metrics, crate::metrics::DEFAULT_METRICS);
         assert_eq!(plan.jobs[1].metrics, vec!["kl_gray", "verbatim"]);
         let msg = plan.invalid[0].errors[0].to_string();
         assert!(msg.contains("bad.toml:1:12: `metrics`: unknown metric `kl_grey` (did you mean `kl_gray`?)"), "{msg}");

@@ -259,11 +259,12 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     sweep::expand(ctx, &raw, &ready)
 }
 
-/// `metrics = true` (all), `false` (none) or a list of metric names.
+/// `metrics = true` (all but `repetition`: [`crate::metrics::DEFAULT_METRICS`]), `false` (none)
+/// or a list of metric names.
 fn read_metrics(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
     let names = crate::metrics::METRIC_NAMES;
     match v.get_ref() {
-        DeValue::Boolean(true) => raw.metrics = names.iter().map(|s| s.to_string()).collect(),
+        DeValue::Boolean(true) => raw.metrics = crate::metrics::DEFAULT_METRICS.iter().map(|s| s.to_string()).collect(),
         DeValue::Boolean(false) => raw.metrics.clear(),
         DeValue::Array(items) => {
             for item in items {

@@ -382,6 +382,16 @@ pub fn in_phase_px(al: &Alignment) -> f64 {
 /// The `tile` parameter's range (`8..=4096`).
 pub const TILE_RANGE: (i64, i64) = (8, 4096);
 
+/// What a tile set of more than two colours asks of `tile = "auto"`: sizes whose patches leave the
+/// sample room for `need` colours (the `colors` given, else 2), and among them the ones with room
+/// for most of `want` (what `colors = "auto"` aims at); `room(t)` is the most colours the sample
+/// holds with size-`t` tiles.
+pub struct ColorRoom<'a> {
+    pub need: u32,
+    pub want: u32,
+    pub room: &'a dyn Fn(i64) -> u32,
+}
+
 /// What `tile = "auto"` resolved to for a job: the size and, for `diagnostics.tile_choice`, why.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TileChoice {
@@ -403,6 +413,10 @@ pub struct TileChoice {
 /// [`FALLBACK_TILE`]. `wrap` (a tileable output's size) keeps only the sizes
 /// that divide it; without a lattice that is the dividing size nearest [`FALLBACK_TILE`], and when
 /// none divides, [`FALLBACK_TILE`] (the method's tileable check then refuses, naming it).
+/// `colors` (a set of more than two colours, [`ColorRoom`]) keeps only the sizes with room for its
+/// `need`, and without an in-phase size takes the size nearest [`FALLBACK_TILE`] among those with
+/// room for the most of its `want`: on a 256² sample Wang tiles of 64 leave room for 4 colours,
+/// of 56 for 8.
 pub fn auto_tile(
     al: Option<&Alignment>,
     sample: (u32, u32),
@@ -410,10 +424,13 @@ pub fn auto_tile(
     patch: impl Fn(i64) -> i64,
     vectors: fn(i64) -> [V; 2],
     wrap: Option<(u32, u32)>,
+    colors: Option<ColorRoom>,
 ) -> TileChoice {
     let (sw, sh) = (i64::from(sample.0), i64::from(sample.1));
     let divides = |t: i64| wrap.is_none_or(|(w, h)| i64::from(w) % t == 0 && i64::from(h) % t == 0);
-    let sizes: Vec<i64> = sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= sw.min(sh) && divides(t)).collect();
+    let has_room = |t: i64| colors.as_ref().is_none_or(|c| (c.room)(t) >= c.need);
+    let sizes: Vec<i64> =
+        sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= sw.min(sh) && divides(t) && has_room(t)).collect();
     let r3 = |x: f64| (x * 1000.0).round() / 1000.0;
     let wrapping = if wrap.is_some() { " dividing the tileable output" } else { "" };
     if let Some(al) = al {
@@ -447,6 +464,18 @@ pub fn auto_tile(
         ),
         None => "no lattice alignment".to_string(),
     };
+    let many = colors.as_ref().filter(|c| c.want.max(c.need) > 2 && !sizes.is_empty());
+    if let Some(c) = many {
+        // More colours than two: the size nearest FALLBACK_TILE among those with room for the
+        // most of the colours wanted (2K separate patches).
+        let k = |t: i64| c.want.max(c.need).min((c.room)(t));
+        let tile = sizes.iter().copied().min_by_key(|&t| (std::cmp::Reverse(k(t)), (t - FALLBACK_TILE).abs(), t)).expect("sizes");
+        let how = format!(
+            "auto: {tile}, the size{wrapping} nearest {FALLBACK_TILE} whose patches leave the sample room for {} colours ({why})",
+            k(tile)
+        );
+        return TileChoice { tile, record: serde_json::json!({ "tile": tile, "how": how }) };
+    }
     let tile = match wrap {
         Some(_) if !divides(FALLBACK_TILE) => {
             sizes.iter().copied().min_by_key(|&t| ((t - FALLBACK_TILE).abs(), t)).unwrap_or(FALLBACK_TILE)
@@ -581,20 +610,20 @@ mod tests {
         let sizes = || (16..=4096).filter(|t| t % 2 == 0);
         let patch = |t: i64| t + 8;
         // 26 misses the lattice least (1 px) but is below the smallest automatic size.
-        let c = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, None);
+        let c = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, None, None);
         assert_eq!(c.tile, 54, "{}", c.record);
         assert_eq!(c.record["residual_px"], 2.0);
         assert!(c.record["how"].as_str().unwrap().contains("64 would miss it by 12.0 px"), "{}", c.record);
         // No lattice: the paper's 64; a sample too small for any in-phase size with a cell to spare: 64.
-        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, None).tile, 64);
-        let small = auto_tile(Some(&al), (60, 60), sizes(), patch, wang, None);
+        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, None, None).tile, 64);
+        let small = auto_tile(Some(&al), (60, 60), sizes(), patch, wang, None, None);
         assert_eq!(small.tile, 64);
         assert!(small.record.get("residual_px").is_none(), "{}", small.record);
         // A tileable 640x130 output: only 130's even divisors from 32 (also dividing 640)…
-        let w = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, Some((640, 130)));
+        let w = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, Some((640, 130)), None);
         assert!(640 % w.tile == 0 && 130 % w.tile == 0 || w.tile == 64, "{}", w.record);
         // …and 700x100 without a lattice: the divisor nearest 64.
-        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, Some((700, 100))).tile, 50);
+        assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, Some((700, 100)), None).tile, 50);
         assert!(auto_tileable("wang-tiles", (256, 256), sizes(), patch, (701, 701)).unwrap_err().contains("704x704 would work"));
     }
 

@@ -17,6 +17,7 @@
 //! The export knows the built tile sets ([`super::wang_set`], [`super::rw_set`]) and not the
 //! methods: the methods call [`export_wang`] / [`export_rw`], never the reverse.
 
+use super::common::MAX_COLORS;
 use super::rw_set::{self, RwTile, RwTileSet};
 use super::wang::{TileSet, TilingOrder};
 use super::wang_set::{self, WangTile, WangTileSet};
@@ -37,8 +38,13 @@ pub struct Index {
     pub format: String,
     /// `wang-tiles` or `rw-tiles`.
     pub method: String,
-    /// `minimal` (8 tiles, `a ⊕ b ⊕ c ⊕ d = 0`) or `complete` (16).
+    /// `minimal` (`K³` tiles, `a + b ≡ c + d (mod K)`; for `K = 2` the 8 with `a ⊕ b ⊕ c ⊕ d = 0`)
+    /// or `complete` (`K⁴`).
     pub tile_set: String,
+    /// `K`, the colours per edge class: absent for paper 001's 2, so that those exports stay as
+    /// they were.
+    #[serde(default = "two", skip_serializing_if = "is_two")]
+    pub colors: u8,
     /// The method's `tile` and `overlap` parameters.
     pub tile: u32,
     pub overlap: u32,
@@ -70,6 +76,14 @@ pub struct IndexTile {
     pub height: u32,
 }
 
+fn two() -> u8 {
+    2
+}
+
+fn is_two(k: &u8) -> bool {
+    *k == 2
+}
+
 fn tile_file(k: usize) -> String {
     format!("tile_{k:02}.png")
 }
@@ -96,7 +110,8 @@ pub fn export_wang(set: &WangTileSet, order: TilingOrder, seed: u64, output: (u3
     let index = Index {
         format: FORMAT.into(),
         method: "wang-tiles".into(),
-        tile_set: set.set.name().into(),
+        tile_set: set.set.rule.name().into(),
+        colors: set.set.colors,
         tile: t,
         overlap: set.geometry.ov as u32,
         lattice: "square".into(),
@@ -153,7 +168,8 @@ pub fn export_rw(set: &RwTileSet, order: TilingOrder, seed: u64, output: (u32, u
     let index = Index {
         format: FORMAT.into(),
         method: "rw-tiles".into(),
-        tile_set: set.set.name().into(),
+        tile_set: set.set.rule.name().into(),
+        colors: set.set.colors,
         tile: g.tile() as u32,
         overlap: g.ov as u32,
         lattice: "rhombus".into(),
@@ -248,7 +264,11 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
     if index.format != FORMAT {
         return Err(at(format!("format `{}` is not `{FORMAT}`; it was written by another texsyn version", index.format)));
     }
-    let set = TileSet::parse(&index.tile_set).ok_or_else(|| at(format!("tile_set `{}` is not minimal or complete", index.tile_set)))?;
+    let rule = TileSet::parse(&index.tile_set).ok_or_else(|| at(format!("tile_set `{}` is not minimal or complete", index.tile_set)))?;
+    if !(2..=MAX_COLORS).contains(&u32::from(index.colors)) {
+        return Err(at(format!("colors {} is not in 2..={MAX_COLORS}", index.colors)));
+    }
+    let set = rule.with_colors(index.colors);
     if index.tiles.len() != set.len() {
         return Err(at(format!("a {} set has {} tiles, the index lists {}", index.tile_set, set.len(), index.tiles.len())));
     }
@@ -313,7 +333,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     sources: Vec::new(),
                 });
             }
-            Ok(Loaded::Wang(index, WangTileSet { geometry: g, set, dn: [(0, 0); 2], de: [(0, 0); 2], tiles }))
+            Ok(Loaded::Wang(index, WangTileSet { geometry: g, set, dn: Vec::new(), de: Vec::new(), tiles }))
         }
         "rw-tiles" => {
             if 2 * ov + 4 > tile {
@@ -358,7 +378,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     sources: Vec::new(),
                 });
             }
-            Ok(Loaded::Rw(index, RwTileSet { geometry: g, set, pa: [(0, 0); 2], pb: [(0, 0); 2], tiles }))
+            Ok(Loaded::Rw(index, RwTileSet { geometry: g, set, pa: Vec::new(), pb: Vec::new(), tiles }))
         }
         other => Err(at(format!("method `{other}` has no tile sets (expected wang-tiles or rw-tiles)"))),
     }

@@ -6,7 +6,7 @@
 //! back; both render through [`RwTileSet::render`]. Keeping the set here, below both, is what lets
 //! the export render a loaded set without importing the method that imports the export.
 
-use super::wang::{TileSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
+use super::wang::{EdgeSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
 use crate::synth::placement::UNCOVERED;
 use rayon::prelude::*;
@@ -128,7 +128,7 @@ pub struct RwTile {
 }
 
 /// The sample corners of a tile's blocks `B1..B4`, from its colours `[NW, NE, SE, SW]`.
-pub fn patches_of(colours: [u8; 4], pa: [(u32, u32); 2], pb: [(u32, u32); 2]) -> [(u32, u32); 4] {
+pub fn patches_of(colours: [u8; 4], pa: &[(u32, u32)], pb: &[(u32, u32)]) -> [(u32, u32); 4] {
     [pa[colours[0] as usize], pb[colours[1] as usize], pa[colours[2] as usize], pb[colours[3] as usize]]
 }
 
@@ -136,10 +136,11 @@ pub fn patches_of(colours: [u8; 4], pa: [(u32, u32); 2], pb: [(u32, u32); 2]) ->
 #[derive(Clone, Debug)]
 pub struct RwTileSet {
     pub geometry: Geometry,
-    pub set: TileSet,
-    /// Patch corners: `PA[0], PA[1]` ("/" edges, NW and SE) and `PB[0], PB[1]` ("\" edges).
-    pub pa: [(u32, u32); 2],
-    pub pb: [(u32, u32); 2],
+    pub set: EdgeSet,
+    /// Patch corners, one per colour: `PA[0] .. PA[K−1]` ("/" edges, NW and SE) and `PB[..]` ("\"
+    /// edges).
+    pub pa: Vec<(u32, u32)>,
+    pub pb: Vec<(u32, u32)>,
     pub tiles: Vec<RwTile>,
 }
 
@@ -229,7 +230,7 @@ impl RwTileSet {
     pub fn record_sources(&mut self, sample_width: u32) {
         let g = self.geometry;
         for tile in &mut self.tiles {
-            let p = patches_of(tile.colours, self.pa, self.pb);
+            let p = patches_of(tile.colours, &self.pa, &self.pb);
             tile.sources = (0..g.f * g.f)
                 .map(|i| match tile.labels[i as usize] {
                     UNSET => UNCOVERED,

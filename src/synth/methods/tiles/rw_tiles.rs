@@ -19,10 +19,10 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_rw;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
-use super::wang::{TileSet, Tiling, TilingOrder};
+use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
@@ -55,8 +55,9 @@ const PARAMS: &[ParamSpec] = &[
         name: "tile_set",
         kind: ParamKind::Choice(TileSet::NAMES),
         default: Default::Str("minimal"),
-        doc: "minimal: the 8-tile parity set (paper); complete: all 16 edge colourings",
+        doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the paper's 8-tile parity set); complete: all K⁴ edge colourings",
     },
+    COLORS_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -96,8 +97,10 @@ pub struct RwTilesConfig {
     pub tile: Option<u32>,
     /// `overlap`: ov, the overlap of the four sub-blocks (even, 2..=2048, at most T/2 − 2).
     pub overlap: u32,
-    /// `tile_set`: the 8-tile parity set or all 16 edge colourings.
+    /// `tile_set`: the minimal set (K³ tiles, the 8-tile parity set for K = 2) or all K⁴ edge colourings.
     pub tile_set: TileSet,
+    /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
+    pub colors: Option<u32>,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random patch choices are built to keep the cheapest (1..=4096).
@@ -118,6 +121,7 @@ impl std::default::Default for RwTilesConfig {
             tile: None,
             overlap: 8,
             tile_set: TileSet::Minimal,
+            colors: None,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -136,6 +140,7 @@ impl MethodConfig for RwTilesConfig {
             int_or("tile", self.tile.map(i64::from), align::AUTO_TILE),
             int("overlap", self.overlap),
             word("tile_set", self.tile_set),
+            int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -150,6 +155,7 @@ impl MethodConfig for RwTilesConfig {
             tile: common::tile_param(p)?,
             overlap: p.uint("overlap")?,
             tile_set: p.choice("tile_set")?,
+            colors: common::colors_param(p)?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -170,7 +176,14 @@ struct Strip {
 }
 
 /// Builds the tile set (§3.2–3.5). Patch corners come from stream `rwtiles/patches`.
-pub fn build_tile_set(sample: &RgbImage, tile: i32, ov: i32, set: TileSet, err: PixelError, seed: u64) -> Result<RwTileSet, SynthError> {
+pub fn build_tile_set(
+    sample: &RgbImage,
+    tile: i32,
+    ov: i32,
+    set: impl Into<EdgeSet>,
+    err: PixelError,
+    seed: u64,
+) -> Result<RwTileSet, SynthError> {
     build_tile_set_searched(sample, tile, ov, set, err, seed, 1).map(|(s, _)| s)
 }
 
@@ -183,17 +196,18 @@ pub fn seam_cost(set: &RwTileSet) -> u64 {
 /// [`pick_candidate`] [not in the paper: `patch_candidates`]. Candidate `c`'s four
 /// patches are draws `8c .. 8c + 8` of stream `rwtiles/patches` (in the order `PA[0], PA[1],
 /// PB[0], PB[1]`, `x` then `y`), so with one candidate this is the paper's random choice. Returns
-/// the set and the index of the chosen candidate.
+/// the set and the index of the chosen candidate. More than two colours draw their patches in
+/// separate cells of the sample instead ([`common::spread`], `PA` first).
 pub fn build_tile_set_searched(
     sample: &RgbImage,
     tile: i32,
     ov: i32,
-    set: TileSet,
+    set: impl Into<EdgeSet>,
     err: PixelError,
     seed: u64,
     candidates: usize,
 ) -> Result<(RwTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, tile, ov, set, err, seed, candidates, None)
+    build_tile_set_aligned(sample, tile, ov, set.into(), err, seed, candidates, None)
 }
 
 /// `align = "lattice"` for RW-Tiles (phase analysis in [`super::align`]). Class A are the
@@ -214,8 +228,14 @@ pub struct RwAlign {
 impl RwAlign {
     /// The size of `tile = "auto"` with overlap `ov` on a `sample`-sized sample aligned to
     /// `lattice` (if any), for a tileable output of `wrap` pixels (if any): [`align::auto_tile`].
-    pub fn auto_tile(lattice: Option<&Alignment>, sample: (u32, u32), ov: u32, wrap: Option<(u32, u32)>) -> align::TileChoice {
-        align::auto_tile(lattice, sample, sizes(ov), patch(ov), RwAlign::vectors, wrap)
+    pub fn auto_tile(
+        lattice: Option<&Alignment>,
+        sample: (u32, u32),
+        ov: u32,
+        wrap: Option<(u32, u32)>,
+        colors: Option<align::ColorRoom>,
+    ) -> align::TileChoice {
+        align::auto_tile(lattice, sample, sizes(ov), patch(ov), RwAlign::vectors, wrap, colors)
     }
 
     /// The tile translation vectors `h(1, 1), h(−1, 1)` for tile `T = 2h`.
@@ -242,12 +262,12 @@ impl RwAlign {
         RwAlign { lattice, offset, errors: errors(offset) }
     }
 
-    /// Patch corners for one candidate: `PA[0]` is `first`; `PA[1]` a lattice translate of it,
-    /// `PB[0]`, `PB[1]` lattice translates of `ψ_A − δ + (h, 0)`, drawn from `st` (one draw each)
-    /// among the corners whose sub-block fits in the sample; then each `PB`, and after them `PA[1]`,
-    /// is [`align::refine`]d against the other class's patches, in all the roles where they
-    /// meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Patches, SynthError> {
+    /// Patch corners for one candidate of `k` colours: `PA[0]` is `first`; `PA[1..k]` lattice
+    /// translates of it, `PB[0..k]` lattice translates of `ψ_A − δ + (h, 0)`, drawn from `st` (one
+    /// draw each) among the corners whose sub-block fits in the sample, each preferring places no
+    /// earlier patch took; then each `PB`, and after them `PA[1..]`, is [`align::refine`]d against
+    /// the other class's patches, in all the roles where they meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32), k: usize) -> Result<Patches, SynthError> {
         let (lo, hi) = ((0, 0), ((sample.width() as i32 - g.s) as i64, (sample.height() as i32 - g.s) as i64));
         let h = g.h as i64;
         let pa0 = (first.0 as i64, first.1 as i64);
@@ -265,14 +285,22 @@ impl RwAlign {
                 overlaps.push(Overlap { anchors, pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
         }
-        let pa1 = self.lattice.place(st, pa0, lo, hi, &[pa0])?;
+        let mut pa = vec![pa0];
+        for _ in 1..k {
+            pa.push(self.lattice.place(st, pa0, lo, hi, &pa)?);
+        }
         let ideal_b = (pa0.0 - self.offset.0 + h, pa0.1 - self.offset.1);
-        let fit_b = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[pa0, pa1], &overlaps, true));
-        let pb0 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1])?);
-        let pb1 = fit_b(self.lattice.place(st, ideal_b, lo, hi, &[pa0, pa1, pb0])?);
-        let pa1 = align::refine(pa1, lo, hi, r, |q| overlap_error(sample, q, &[pb0, pb1], &overlaps, false));
-        let u = |p: V| (p.0 as u32, p.1 as u32);
-        Ok(([first, u(pa1)], [u(pb0), u(pb1)]))
+        let fit_b = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &pa, &overlaps, true));
+        let mut pb: Vec<V> = Vec::with_capacity(k);
+        for _ in 0..k {
+            let used: Vec<V> = pa.iter().chain(&pb).copied().collect();
+            pb.push(fit_b(self.lattice.place(st, ideal_b, lo, hi, &used)?));
+        }
+        for p in &mut pa[1..] {
+            *p = align::refine(*p, lo, hi, r, |q| overlap_error(sample, q, &pb, &overlaps, false));
+        }
+        let u = |p: &V| (p.0 as u32, p.1 as u32);
+        Ok((pa.iter().map(u).collect(), pb.iter().map(u).collect()))
     }
 
     /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
@@ -293,7 +321,7 @@ pub fn build_tile_set_aligned(
     sample: &RgbImage,
     tile: i32,
     ov: i32,
-    set: TileSet,
+    set: EdgeSet,
     err: PixelError,
     seed: u64,
     candidates: usize,
@@ -304,6 +332,10 @@ pub fn build_tile_set_aligned(
     if g.s > sw || g.s > sh {
         return Err(SynthError::Failed(format!("sub-block side {} (tile/2 + overlap) does not fit in the {sw}x{sh} sample", g.s)));
     }
+    let k = usize::from(set.colors);
+    if let Some(e) = common::check_colors(Some(k as u32), (sw as u32, sh as u32), g.s as u32, &format!("tile {tile}, overlap {ov}")) {
+        return Err(SynthError::param("colors", e.message));
+    }
     let mut st = Stream::new(seed, "rwtiles/patches");
     let draw = |st: &mut Stream| {
         let x = st.below((sw - g.s + 1) as u64) as u32;
@@ -312,157 +344,259 @@ pub fn build_tile_set_aligned(
     };
     let choices: Result<Vec<Patches>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
-            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            None if k == 2 => Ok((vec![draw(&mut st), draw(&mut st)], vec![draw(&mut st), draw(&mut st)])),
+            None => {
+                let mut pa = common::spread(&mut st, (sw as u32, sh as u32), g.s as u32, 2 * k);
+                let pb = pa.split_off(k);
+                Ok((pa, pb))
+            }
             Some(al) => align::first_fitting(&al.lattice, || {
                 let first = draw(&mut st);
-                al.place(sample, &g, &mut st, first)
+                al.place(sample, &g, &mut st, first, k)
             }),
         })
         .collect();
     let choices = choices?;
     let built: Result<Vec<RwTileSet>, SynthError> =
-        choices.par_iter().map(|&(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+        choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
-    let fit: Vec<bool> = choices.iter().map(|(pa, pb)| representative(sample, &[pa[0], pa[1], pb[0], pb[1]], g.s as u32)).collect();
+    let fit: Vec<bool> =
+        choices.iter().map(|(pa, pb)| representative(sample, &pa.iter().chain(pb).copied().collect::<Vec<_>>(), g.s as u32)).collect();
     let best = pick_candidate(&costs, &fit);
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
 
 /// Builds every tile of `set` from the given patch corners.
+///
+/// A strip's seam (§3.3) depends only on the two patches on its sides, so each strip of each pair
+/// of patches is cut once ([`cut_strip`]) and shared by the tiles that hold that pair: `4K²` cuts
+/// for the `K³` tiles of the minimal set instead of `4K³`. Every tile's pixels are those of
+/// cutting its own strips (the cuts are pure functions of the two patches).
 pub fn build_from_patches(
     sample: &RgbImage,
     g: &Geometry,
-    set: TileSet,
+    set: EdgeSet,
     err: PixelError,
-    pa: [(u32, u32); 2],
-    pb: [(u32, u32); 2],
+    pa: &[(u32, u32)],
+    pb: &[(u32, u32)],
 ) -> Result<RwTileSet, SynthError> {
+    let frame = Frame::new(g);
+    let blocks: Vec<[(u32, u32); 4]> = (0..set.len()).map(|t| patches_of(set.colours(t), pa, pb)).collect();
+    // Every (strip, patch on side A, patch on side B) the tiles need, in first-use order.
+    let mut keys: Vec<StripKey> = Vec::new();
+    let mut seen = std::collections::HashMap::new();
+    let tile_keys: Vec<[usize; 4]> = blocks
+        .iter()
+        .map(|p| {
+            std::array::from_fn(|k| {
+                let st = &frame.strips[k];
+                let key = (k, p[st.a], p[st.b]);
+                *seen.entry(key).or_insert_with(|| {
+                    keys.push(key);
+                    keys.len() - 1
+                })
+            })
+        })
+        .collect();
+    let cuts: Result<Vec<StripCut>, SynthError> = keys.par_iter().map(|&(k, a, b)| cut_strip(sample, g, &frame, k, a, b, err)).collect();
+    let cuts = cuts?;
     let tiles: Result<Vec<RwTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|t| {
-            let c = set.colours(t);
-            build_tile(sample, g, patches_of(c, pa, pb), err).map(|mut tile| {
-                tile.colours = c;
+            let strips = tile_keys[t].map(|i| &cuts[i]);
+            finish_tile(sample, g, &frame, blocks[t], strips, err).map(|mut tile| {
+                tile.colours = set.colours(t);
                 tile
             })
         })
         .collect();
-    Ok(RwTileSet { geometry: *g, set, pa, pb, tiles: tiles? })
+    Ok(RwTileSet { geometry: *g, set, pa: pa.to_vec(), pb: pb.to_vec(), tiles: tiles? })
 }
 
 /// Builds one tile from the sample patches used as `B1..B4` (§3.2–3.4).
 pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err: PixelError) -> Result<RwTile, SynthError> {
-    let f = g.f;
+    let frame = Frame::new(g);
+    let cuts: Result<Vec<StripCut>, SynthError> =
+        (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
+    let cuts = cuts?;
+    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+}
+
+/// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
+type StripKey = (usize, (u32, u32), (u32, u32));
+
+/// What every tile of one geometry shares before any cut (§3.2): the labels of the locked edge
+/// pixels and of the corners only one block covers, the locks, and the four strips.
+struct Frame {
+    labels: Vec<u8>,
+    locked: Vec<u8>,
+    strips: [Strip; 4],
+}
+
+impl Frame {
+    fn new(g: &Geometry) -> Frame {
+        let f = g.f;
+        let n = (f * f) as usize;
+        let mut labels = vec![UNSET; n];
+        let mut locked = vec![UNSET; n];
+        for y in 0..f {
+            for x in 0..f {
+                if !g.in_r(x, y) {
+                    continue;
+                }
+                let i = g.idx(x, y);
+                if let Some(k) = g.lock(x, y) {
+                    locked[i] = k as u8;
+                    labels[i] = k as u8;
+                } else if let Some(k) = g.single(x, y) {
+                    labels[i] = k as u8;
+                }
+            }
+        }
+        let (h, s) = (g.h, g.s);
+        let strips = [
+            Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 }, // O_n: B1 west / B2 east
+            Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 }, // O_e: B2 north / B3 south
+            Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
+            Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
+        ];
+        Frame { labels, locked, strips }
+    }
+}
+
+/// One strip's seam (§3.3): its cost, its last pixel, and the labels of the strip's free pixels.
+struct StripCut {
+    cost: u64,
+    end: (i32, i32),
+    labels: Vec<(usize, u8)>,
+}
+
+/// Cuts strip `k` between the block on its side A, cut at sample corner `pa`, and the block on
+/// its side B, cut at `pb`.
+fn cut_strip(
+    sample: &RgbImage,
+    g: &Geometry,
+    frame: &Frame,
+    k: usize,
+    pa: (u32, u32),
+    pb: (u32, u32),
+    err: PixelError,
+) -> Result<StripCut, SynthError> {
+    let (f, h, s) = (g.f, g.h, g.s);
+    let n = (f * f) as usize;
+    let st = &frame.strips[k];
+    let locked = &frame.locked;
+    let px = |block: usize, p: (u32, u32), x: i32, y: i32| -> [u8; 3] {
+        let (sx, sy) = g.sample_pixel(block, p, x, y);
+        sample.get(sx, sy)
+    };
+    let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
+    let mut domain = vec![false; n];
+    let mut targets = vec![false; n];
+    let mut error = vec![0u32; n];
+    let mut start: Option<(i32, i32)> = None;
+    for y in st.ys.0..st.ys.1 {
+        for x in st.xs.0..st.xs.1 {
+            if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
+                continue;
+            }
+            let i = g.idx(x, y);
+            domain[i] = true;
+            error[i] = err.eval(px(st.a, pa, x, y), px(st.b, pb, x, y));
+            // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
+            // and the target line touching O_c.
+            let better = match (k, start) {
+                (_, None) => true,
+                (0, Some((bx, by))) => (y, x) < (by, bx),
+                (1, Some((bx, by))) => (-x, y) < (-bx, by),
+                (2, Some((bx, by))) => (-y, x) < (-by, bx),
+                (_, Some((bx, by))) => (x, y) < (bx, by),
+            };
+            if better {
+                start = Some((x, y));
+            }
+            targets[i] = match k {
+                0 => y == h - 1,
+                1 => x == s,
+                2 => y == s,
+                _ => x == h - 1,
+            };
+        }
+    }
+    let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
+    let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
+        .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
+    let last = *path.pixels.last().expect("non-empty path");
+    let end = ((last % f as usize) as i32, (last / f as usize) as i32);
+    let mut on_path = vec![false; n];
+    for &p in &path.pixels {
+        on_path[p] = true;
+    }
+    // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
+    let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
+    let mut seeds = Vec::new();
+    for y in 0..f {
+        for x in 0..f {
+            let i = g.idx(x, y);
+            if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
+                seeds.push(i);
+            }
+        }
+    }
+    let reached = flood4(f as usize, f as usize, &seeds, |i| {
+        let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
+        (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
+    });
+    let mut labels = Vec::new();
+    for y in st.ys.0..st.ys.1 {
+        for x in st.xs.0..st.xs.1 {
+            let i = g.idx(x, y);
+            if !in_strip(x, y) || locked[i] != UNSET {
+                continue;
+            }
+            let label = if on_path[i] {
+                st.path_label
+            } else if reached[i] {
+                st.a
+            } else {
+                st.b
+            };
+            labels.push((i, label as u8));
+        }
+    }
+    Ok(StripCut { cost: path.cost, end, labels })
+}
+
+/// A tile from its four strip seams: the centre (§3.4) and the raster (step 8). The centre's
+/// paths and pockets stay inside `O_c = [h, s)²`, so they are found on that `ov × ov` grid (row-major
+/// like the framework, hence the same tie rules and paths).
+fn finish_tile(
+    sample: &RgbImage,
+    g: &Geometry,
+    frame: &Frame,
+    patches: [(u32, u32); 4],
+    strips: [&StripCut; 4],
+    err: PixelError,
+) -> Result<RwTile, SynthError> {
+    let (f, h, s) = (g.f, g.h, g.s);
     let n = (f * f) as usize;
     let px = |k: usize, x: i32, y: i32| -> [u8; 3] {
         let (sx, sy) = g.sample_pixel(k, patches[k], x, y);
         sample.get(sx, sy)
     };
-    let mut labels = vec![UNSET; n];
-    let mut locked = vec![UNSET; n];
-    for y in 0..f {
-        for x in 0..f {
-            if !g.in_r(x, y) {
-                continue;
-            }
-            let i = g.idx(x, y);
-            if let Some(k) = g.lock(x, y) {
-                locked[i] = k as u8;
-                labels[i] = k as u8;
-            } else if let Some(k) = g.single(x, y) {
-                labels[i] = k as u8;
-            }
+    let mut labels = frame.labels.clone();
+    for cut in &strips {
+        for &(i, label) in &cut.labels {
+            labels[i] = label;
         }
     }
+    let strip_costs = strips.map(|c| c.cost);
+    let ends = strips.map(|c| c.end);
 
-    // §3.3: the four strips.
-    let (h, s) = (g.h, g.s);
-    let strips = [
-        Strip { xs: (h, s), ys: (0, h), a: 0, b: 1, path_label: 0 }, // O_n: B1 west / B2 east
-        Strip { xs: (s, f), ys: (h, s), a: 1, b: 2, path_label: 1 }, // O_e: B2 north / B3 south
-        Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
-        Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
-    ];
-    let mut ends = [(0i32, 0i32); 4];
-    let mut strip_costs = [0u64; 4];
-    let mut error = vec![0u32; n];
-    for (k, st) in strips.iter().enumerate() {
-        let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
-        let mut domain = vec![false; n];
-        let mut targets = vec![false; n];
-        let mut start: Option<(i32, i32)> = None;
-        for y in st.ys.0..st.ys.1 {
-            for x in st.xs.0..st.xs.1 {
-                if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
-                    continue;
-                }
-                let i = g.idx(x, y);
-                domain[i] = true;
-                error[i] = err.eval(px(st.a, x, y), px(st.b, x, y));
-                // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
-                // and the target line touching O_c.
-                let better = match (k, start) {
-                    (_, None) => true,
-                    (0, Some((bx, by))) => (y, x) < (by, bx),
-                    (1, Some((bx, by))) => (-x, y) < (-bx, by),
-                    (2, Some((bx, by))) => (-y, x) < (-by, bx),
-                    (_, Some((bx, by))) => (x, y) < (bx, by),
-                };
-                if better {
-                    start = Some((x, y));
-                }
-                targets[i] = match k {
-                    0 => y == h - 1,
-                    1 => x == s,
-                    2 => y == s,
-                    _ => x == h - 1,
-                };
-            }
-        }
-        let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
-        let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
-            .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
-        strip_costs[k] = path.cost;
-        let end = *path.pixels.last().expect("non-empty path");
-        ends[k] = ((end % f as usize) as i32, (end / f as usize) as i32);
-        let mut on_path = vec![false; n];
-        for &p in &path.pixels {
-            on_path[p] = true;
-        }
-        // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
-        let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
-        let mut seeds = Vec::new();
-        for y in 0..f {
-            for x in 0..f {
-                let i = g.idx(x, y);
-                if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
-                    seeds.push(i);
-                }
-            }
-        }
-        let reached = flood4(f as usize, f as usize, &seeds, |i| {
-            let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
-            (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
-        });
-        for y in st.ys.0..st.ys.1 {
-            for x in st.xs.0..st.xs.1 {
-                let i = g.idx(x, y);
-                if !in_strip(x, y) || locked[i] != UNSET {
-                    continue;
-                }
-                labels[i] = if on_path[i] {
-                    st.path_label as u8
-                } else if reached[i] {
-                    st.a as u8
-                } else {
-                    st.b as u8
-                };
-            }
-        }
-    }
-
-    // §3.4: the centre O_c = [h, s)².
+    // §3.4: the centre O_c = [h, s)², on its own `c × c` grid.
+    let c = (s - h) as usize;
+    let local = |x: i32, y: i32| (y - h) as usize * c + (x - h) as usize;
     let q = [
         (ends[0].0, ends[0].1 + 1), // q_n
         (ends[1].0 - 1, ends[1].1), // q_e
@@ -485,12 +619,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let centre = (0..4).min_by_key(|&k| (totals[k], k)).expect("four blocks");
     let corners = [(h, h), (s - 1, h), (s - 1, s - 1), (h, s - 1)];
     let entries = [(q[3], q[0]), (q[0], q[1]), (q[1], q[2]), (q[2], q[3])];
-    let mut c_domain = vec![false; n];
-    for y in h..s {
-        for x in h..s {
-            c_domain[g.idx(x, y)] = true;
-        }
-    }
+    let c_domain = vec![true; c * c];
     let mut pocket_costs = Vec::with_capacity(3);
     for step in 1..4 {
         let j = (centre + step) % 4;
@@ -498,26 +627,26 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         if !in_c(e1.0, e1.1) || !in_c(e2.0, e2.1) {
             return Err(SynthError::Failed(format!("centre entry pixels {e1:?}, {e2:?} outside O_c")));
         }
-        let mut err_c = vec![0u32; n];
+        let mut err_c = vec![0u32; c * c];
         for y in h..s {
             for x in h..s {
-                err_c[g.idx(x, y)] = err.eval(px(centre, x, y), px(j, x, y));
+                err_c[local(x, y)] = err.eval(px(centre, x, y), px(j, x, y));
             }
         }
-        let mut target = vec![false; n];
-        target[g.idx(e2.0, e2.1)] = true;
-        let path = shortest_path(f as usize, f as usize, &c_domain, &err_c, g.idx(e1.0, e1.1), &target)
+        let mut target = vec![false; c * c];
+        target[local(e2.0, e2.1)] = true;
+        let path = shortest_path(c, c, &c_domain, &err_c, local(e1.0, e1.1), &target)
             .ok_or_else(|| SynthError::Failed(format!("no centre path for block {}", j + 1)))?;
         pocket_costs.push(path.cost);
-        let mut on_path = vec![false; n];
+        let mut on_path = vec![false; c * c];
         for &p in &path.pixels {
             on_path[p] = true;
         }
-        let cj = g.idx(corners[j].0, corners[j].1);
+        let cj = local(corners[j].0, corners[j].1);
         let pocket = if on_path[cj] {
             on_path.clone()
         } else {
-            let mut r = flood4(f as usize, f as usize, &[cj], |i| c_domain[i] && !on_path[i]);
+            let mut r = flood4(c, c, &[cj], |i| !on_path[i]);
             for &p in &path.pixels {
                 r[p] = true;
             }
@@ -526,7 +655,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         for y in h..s {
             for x in h..s {
                 let i = g.idx(x, y);
-                if pocket[i] && labels[i] == UNSET {
+                if pocket[local(x, y)] && labels[i] == UNSET {
                     labels[i] = j as u8;
                 }
             }
@@ -612,6 +741,13 @@ impl Method for RwTiles {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is too wide for {named}: use at most {}", (tile - 4) / 2)));
         }
         errors.extend(align::check(cfg.align, cfg.lattice, sample));
+        // `auto` can shrink down to its smallest size to make room for the colours.
+        let smallest = cfg.tile.map_or(align::AUTO_MIN_TILE.max(2 * ov + 4), i64::from);
+        let words = match cfg.tile {
+            Some(t) => format!("tile {t}, overlap {ov}"),
+            None => format!("tile = \"auto\" at its smallest, {smallest}, overlap {ov}"),
+        };
+        errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
         if s > smaller {
@@ -640,16 +776,17 @@ impl Method for RwTiles {
         errors
     }
 
-    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+    fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256², tile 64): the rendered output (3 B per
         // pixel) and the tile set, built from sample-sized cost planes; 4096²: 76 MB, 8192² (rendered
         // whole, before fills that large went strip by strip): 280 MB
-        // in all, whose peak is while the PNG encoder holds its compressed stream.
-        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20)
+        // in all, whose peak is while the PNG encoder holds its compressed stream. Sets of more
+        // than two colours add their tiles.
+        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample)
     }
 
-    fn strip_peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        common::strip_peak_memory(sample, output)
+    fn strip_peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample)
     }
 
     fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
@@ -695,6 +832,16 @@ fn tile_words(tile: Option<u32>) -> String {
 }
 
 impl RwTiles {
+    /// An upper bound of the bytes a tile set of more than two colours holds (raster, labels and
+    /// sources of the `f × f` frameworks: 8 B per pixel): the largest over the sizes `tile =
+    /// "auto"` may take.
+    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32)) -> u64 {
+        let Ok(cfg) = RwTilesConfig::from_params(params) else { return 0 };
+        let sizes: Vec<i64> = cfg.tile.map_or_else(|| sizes(cfg.overlap).collect(), |t| vec![i64::from(t)]);
+        let ov = i64::from(cfg.overlap);
+        common::tile_set_bytes(cfg.colors, sample, &sizes, patch(cfg.overlap), |t| (t + ov) * (t + ov), cfg.tile_set)
+    }
+
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
     fn fill(&self, req: &Request) -> Result<(Synthesis, RwTileSet, Tiling), SynthError> {
@@ -702,8 +849,16 @@ impl RwTiles {
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
         let wrap = req.tileable.then_some((req.width, req.height));
-        let choice = cfg.tile.is_none().then(|| RwAlign::auto_tile(lattice.as_ref(), req.sample.dimensions(), cfg.overlap, wrap));
+        let dims = req.sample.dimensions();
+        let room = |t: i64| common::room(dims, patch(cfg.overlap)(t) as u32);
+        let colors = align::ColorRoom {
+            need: cfg.colors.unwrap_or(2),
+            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(cfg.tile_set)),
+            room: &room,
+        };
+        let choice = cfg.tile.is_none().then(|| RwAlign::auto_tile(lattice.as_ref(), dims, cfg.overlap, wrap, Some(colors)));
         let (tile, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
+        let (k, colors_choice) = common::resolve_colors(cfg.colors, cfg.tile_set, dims, patch(cfg.overlap)(i64::from(tile)) as u32);
         if tile % 2 != 0 || ov % 2 != 0 || 2 * ov + 4 > tile {
             return Err(SynthError::Failed(format!("tile {tile} / overlap {ov}: both must be even with overlap at most tile/2 - 2")));
         }
@@ -711,7 +866,7 @@ impl RwTiles {
             common::tileable(self.name(), tile as u32, cfg.export_tiles, (req.width, req.height))
                 .map_err(|e| SynthError::Failed(common::auto_named(e, choice.as_ref())))?;
         }
-        let (set, order) = (cfg.tile_set, cfg.tiling);
+        let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
         let (tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
@@ -743,6 +898,10 @@ impl RwTiles {
         if let Some(c) = choice {
             // Only for `tile = "auto"`, so that the record of a given size stays as it was.
             diagnostics["tile_choice"] = c.record;
+        }
+        if let Some(c) = colors_choice {
+            // Likewise only for `colors = "auto"`.
+            diagnostics["colors_choice"] = c;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -793,7 +952,7 @@ mod tests {
         for set_kind in [TileSet::Minimal, TileSet::Complete] {
             let set = build_tile_set(&sample, 24, 4, set_kind, PixelError::Squared, 5).unwrap();
             let tiling = set.tile_output(TilingOrder::Keyed, 150, 130, 5);
-            assert_eq!(tiling.violations(set_kind), 0);
+            assert_eq!(tiling.violations(set_kind.into()), 0);
             let g = set.geometry;
             let mut checked = 0;
             for y in 0..130i64 {
@@ -937,7 +1096,7 @@ mod tests {
         });
         let plain = build_tile_set(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4).unwrap();
         let (one, c) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 1).unwrap();
-        assert_eq!((one.pa, one.pb, c), (plain.pa, plain.pb, 0));
+        assert_eq!((&one.pa, &one.pb, c), (&plain.pa, &plain.pb, 0));
         let (best, _) = build_tile_set_searched(&sample, 32, 6, TileSet::Minimal, PixelError::Squared, 4, 16).unwrap();
         let fit = |s: &RwTileSet| representative(&sample, &[s.pa[0], s.pa[1], s.pb[0], s.pb[1]], s.geometry.s as u32);
         assert!(fit(&best) || !fit(&plain));
@@ -1092,6 +1251,7 @@ mod tests {
             tile: Some(48),
             overlap: 6,
             tile_set: TileSet::Complete,
+            colors: Some(3),
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1104,6 +1264,7 @@ mod tests {
             cfg.tile != d.tile
                 && cfg.overlap != d.overlap
                 && cfg.tile_set != d.tile_set
+                && cfg.colors != d.colors
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1183,5 +1344,10 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&RwTiles);
+    }
+
+    #[test]
+    fn more_colours_repeat_less_stay_deterministic_and_are_checked() {
+        common::testing::colors_repeat_less_and_are_checked(&RwTiles, params);
     }
 }

@@ -13,21 +13,49 @@
 use crate::synth::rng::Stream;
 
 crate::choice! {
-    /// Which tiles exist (the `tile_set` parameter of both tile methods, and an export's
-    /// `tile_set`).
+    /// Which tiles exist for `K` colours per edge class (the `tile_set` parameter of both tile
+    /// methods, and an export's `tile_set`); with `K` itself, an [`EdgeSet`].
     pub enum TileSet {
-        /// The 8 tiles with `a ⊕ b ⊕ c ⊕ d = 0`; index `a·4 + b·2 + c`, `d = a ⊕ b ⊕ c`.
+        /// The `K³` tiles with `a + b ≡ c + d (mod K)`: for each incoming pair `(a, b)` one tile per
+        /// outgoing `c`, with `d = a + b − c`. Index `(a·K + b)·K + c`. For `K = 2` this is the
+        /// 8-tile parity set `a ⊕ b ⊕ c ⊕ d = 0` (index `a·4 + b·2 + c`).
         Minimal = "minimal",
-        /// All 16 colourings; index `a·8 + b·4 + c·2 + d`.
+        /// All `K⁴` colourings; index `((a·K + b)·K + c)·K + d` (for `K = 2`, `a·8 + b·4 + c·2 + d`).
         Complete = "complete",
     }
 }
 
 impl TileSet {
+    /// This rule with `colors` colours per edge class.
+    pub fn with_colors(self, colors: u8) -> EdgeSet {
+        assert!(colors >= 2, "at least two colours per edge class");
+        EdgeSet { rule: self, colors }
+    }
+}
+
+/// The tiles of a set: its rule ([`TileSet`]) and the number `K` of colours per edge class (the
+/// `colors` parameter). More colours are what keeps a fill from repeating: two tiles a tile
+/// apart show the same patch across an edge only when their colours there agree, about once in
+/// `K` (with `K = 2`, half the edges of a fill are copies of one patch).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeSet {
+    pub rule: TileSet,
+    pub colors: u8,
+}
+
+/// The set of paper 001: two colours.
+impl From<TileSet> for EdgeSet {
+    fn from(rule: TileSet) -> EdgeSet {
+        rule.with_colors(2)
+    }
+}
+
+impl EdgeSet {
     pub fn len(&self) -> usize {
-        match self {
-            TileSet::Minimal => 8,
-            TileSet::Complete => 16,
+        let k = self.colors as usize;
+        match self.rule {
+            TileSet::Minimal => k * k * k,
+            TileSet::Complete => k * k * k * k,
         }
     }
 
@@ -37,42 +65,56 @@ impl TileSet {
 
     /// The colours `[a, b, c, d]` of tile `index`.
     pub fn colours(&self, index: usize) -> [u8; 4] {
-        let k = index as u8;
-        match self {
+        let k = self.colors as usize;
+        let digit = |place: u32| (index / k.pow(place) % k) as u8;
+        match self.rule {
             TileSet::Minimal => {
-                let (a, b, c) = (k >> 2 & 1, k >> 1 & 1, k & 1);
-                [a, b, c, a ^ b ^ c]
+                let (a, b, c) = (digit(2), digit(1), digit(0));
+                [a, b, c, ((a as usize + b as usize + k - c as usize) % k) as u8]
             }
-            TileSet::Complete => [k >> 3 & 1, k >> 2 & 1, k >> 1 & 1, k & 1],
+            TileSet::Complete => [digit(3), digit(2), digit(1), digit(0)],
         }
     }
 
     /// The index of the tile with colours `[a, b, c, d]` (for the minimal set they must satisfy
-    /// its parity rule).
+    /// its rule).
     pub fn index(&self, [a, b, c, d]: [u8; 4]) -> usize {
-        match self {
+        let k = self.colors as usize;
+        let (a, b, c, d) = (a as usize, b as usize, c as usize, d as usize);
+        match self.rule {
             TileSet::Minimal => {
-                assert_eq!(a ^ b ^ c ^ d, 0, "colours {:?} are not a minimal-set tile", [a, b, c, d]);
-                (a * 4 + b * 2 + c) as usize
+                assert_eq!((a + b) % k, (c + d) % k, "colours {:?} are not a minimal-set tile", [a, b, c, d]);
+                (a * k + b) * k + c
             }
-            TileSet::Complete => (a * 8 + b * 4 + c * 2 + d) as usize,
+            TileSet::Complete => ((a * k + b) * k + c) * k + d,
         }
     }
 
-    /// Picks uniformly (one `below(k)`) among the tiles, in index order, whose colours agree with
-    /// every fixed colour. Both sets always have a match (`k ≥ 1`).
+    /// Picks uniformly (one `below(n)`) among the `n` tiles, in index order, whose colours agree
+    /// with every fixed colour. Both rules always have a match when at most two colours are fixed.
+    /// Only the free colours are enumerated (in index order: the index is lexicographic in
+    /// `[a, b, c, d]`), so a choice costs `K` or `K²` steps, not one per tile of the set.
     pub fn choose(&self, fixed: [Option<u8>; 4], stream: &mut Stream) -> usize {
-        let mut matching = [0usize; 16];
-        let mut k = 0;
-        for t in 0..self.len() {
-            let c = self.colours(t);
-            if (0..4).all(|e| fixed[e].is_none_or(|f| f == c[e])) {
-                matching[k] = t;
-                k += 1;
+        let k = self.colors;
+        let range = |e: usize| fixed[e].map_or(0..k, |f| f..f + 1);
+        let mut matching = Vec::new();
+        for a in range(0) {
+            for b in range(1) {
+                for c in range(2) {
+                    match self.rule {
+                        TileSet::Minimal => {
+                            let d = ((u32::from(a) + u32::from(b) + u32::from(k) - u32::from(c)) % u32::from(k)) as u8;
+                            if fixed[3].is_none_or(|f| f == d) {
+                                matching.push(self.index([a, b, c, d]));
+                            }
+                        }
+                        TileSet::Complete => matching.extend(range(3).map(|d| self.index([a, b, c, d]))),
+                    }
+                }
             }
         }
-        assert!(k > 0, "no tile matches {fixed:?}");
-        matching[stream.below_usize(k)]
+        assert!(!matching.is_empty(), "no tile matches {fixed:?}");
+        matching[stream.below_usize(matching.len())]
     }
 }
 
@@ -99,7 +141,7 @@ pub struct Tiling {
     pub rows: usize,
     pub cols: usize,
     /// Tile indices, row-major.
-    pub tiles: Vec<u8>,
+    pub tiles: Vec<u16>,
 }
 
 impl Tiling {
@@ -112,7 +154,7 @@ impl Tiling {
     }
 
     /// Number of shared edges whose two colours differ (0 for a valid tiling).
-    pub fn violations(&self, set: TileSet) -> usize {
+    pub fn violations(&self, set: EdgeSet) -> usize {
         let mut bad = 0;
         for dr in 0..self.rows {
             for dc in 0..self.cols {
@@ -129,7 +171,7 @@ impl Tiling {
     }
 
     /// How often each tile is used.
-    pub fn usage(&self, set: TileSet) -> Vec<usize> {
+    pub fn usage(&self, set: EdgeSet) -> Vec<usize> {
         let mut u = vec![0; set.len()];
         for &t in &self.tiles {
             u[t as usize] += 1;
@@ -141,7 +183,7 @@ impl Tiling {
 /// Stochastic scanline tiling (B12) of rows `r0..=r1` × columns `c0..=c1`. In keyed order,
 /// `anchor` is the column each row starts from (it must lie in `c0..=c1`).
 pub fn tile_rect(
-    set: TileSet,
+    set: EdgeSet,
     order: TilingOrder,
     (r0, r1): (i64, i64),
     (c0, c1): (i64, i64),
@@ -152,8 +194,8 @@ pub fn tile_rect(
     assert!(r0 <= r1 && c0 <= c1, "empty tiling range");
     let rows = (r1 - r0 + 1) as usize;
     let cols = (c1 - c0 + 1) as usize;
-    let mut tiles = vec![0u8; rows * cols];
-    const UNSET: u8 = u8::MAX;
+    let mut tiles = vec![0u16; rows * cols];
+    const UNSET: u16 = u16::MAX;
     match order {
         TilingOrder::Scanline => {
             let mut stream = Stream::new(seed, label);
@@ -161,7 +203,7 @@ pub fn tile_rect(
                 for dc in 0..cols {
                     let a = (dr > 0).then(|| set.colours(tiles[(dr - 1) * cols + dc] as usize)[2]);
                     let b = (dc > 0).then(|| set.colours(tiles[dr * cols + dc - 1] as usize)[3]);
-                    tiles[dr * cols + dc] = set.choose([a, b, None, None], &mut stream) as u8;
+                    tiles[dr * cols + dc] = set.choose([a, b, None, None], &mut stream) as u16;
                 }
             }
         }
@@ -171,17 +213,17 @@ pub fn tile_rect(
             let start = (anchor - c0) as usize;
             for dr in 0..rows {
                 let r = r0 + dr as i64;
-                let above = |tiles: &[u8], dc: usize| (dr > 0).then(|| set.colours(tiles[(dr - 1) * cols + dc] as usize)[2]);
+                let above = |tiles: &[u16], dc: usize| (dr > 0).then(|| set.colours(tiles[(dr - 1) * cols + dc] as usize)[2]);
                 let mut fwd = Stream::new(seed, &format!("{label}/r={r}"));
                 for dc in start..cols {
                     let b = (dc > start).then(|| set.colours(tiles[dr * cols + dc - 1] as usize)[3]);
-                    tiles[dr * cols + dc] = set.choose([above(&tiles, dc), b, None, None], &mut fwd) as u8;
+                    tiles[dr * cols + dc] = set.choose([above(&tiles, dc), b, None, None], &mut fwd) as u16;
                 }
                 let mut back = Stream::new(seed, &format!("{label}/r={r}/back"));
                 for dc in (0..start).rev() {
                     // The tile to the right is placed: its incoming `b` fixes my outgoing `d`.
                     let d = Some(set.colours(tiles[dr * cols + dc + 1] as usize)[1]);
-                    tiles[dr * cols + dc] = set.choose([above(&tiles, dc), None, None, d], &mut back) as u8;
+                    tiles[dr * cols + dc] = set.choose([above(&tiles, dc), None, None, d], &mut back) as u16;
                 }
             }
         }
@@ -249,37 +291,43 @@ impl Torus {
 /// fixed, which the minimal set cannot always match), the colours of the torus's edges are drawn
 /// from stream `label` and each tile is the one with its four edge colours. `south[k]` is the edge
 /// below class `k` (its `c`, the `a` of the tile a row down), `east[k]` the one to its right (its
-/// `d`, the next column's `b`). The complete set takes any colours. The minimal set needs an even
-/// number of colour-1 edges at every tile, i.e. the colour-1 edges form a cycle of the tile graph:
-/// so they are a random sum of the 4-cycles around tile corners and of the two loops along rows
-/// and columns, all of which are cycles.
-pub fn tile_torus(set: TileSet, torus: &Torus, (r0, r1): (i64, i64), (c0, c1): (i64, i64), seed: u64, label: &str) -> Tiling {
+/// `d`, the next column's `b`). The complete set takes any colours. The minimal set needs
+/// `a + b ≡ c + d (mod K)` at every tile: the colours are a circulation of the tile graph with
+/// values in `Z_K` (what flows in flows out), so they are a random combination (coefficients
+/// drawn in `0..K`) of the 4-cycles around tile corners and of the two loops along rows and
+/// columns, which span every circulation. For `K = 2` this is a random sum of those cycles.
+pub fn tile_torus(set: EdgeSet, torus: &Torus, (r0, r1): (i64, i64), (c0, c1): (i64, i64), seed: u64, label: &str) -> Tiling {
     assert!(r0 <= r1 && c0 <= c1, "empty tiling range");
     let n = torus.len();
+    let k = u64::from(set.colors);
+    let add = |edge: &mut u8, m: u64| *edge = ((u64::from(*edge) + m) % k) as u8;
     let mut stream = Stream::new(seed, label);
     let (mut south, mut east) = (vec![0u8; n], vec![0u8; n]);
-    match set {
+    match set.rule {
         TileSet::Complete => {
-            for k in 0..n {
-                south[k] = stream.below(2) as u8;
-                east[k] = stream.below(2) as u8;
+            for i in 0..n {
+                south[i] = stream.below(k) as u8;
+                east[i] = stream.below(k) as u8;
             }
         }
         TileSet::Minimal => {
-            for k in 0..n {
-                if stream.below(2) == 1 {
-                    let (r, c) = torus.position(k);
-                    south[k] ^= 1;
-                    east[torus.class(r + 1, c)] ^= 1;
-                    south[torus.class(r, c + 1)] ^= 1;
-                    east[k] ^= 1;
+            for i in 0..n {
+                let m = stream.below(k);
+                if m != 0 {
+                    // `m` down then right from tile `(r, c)`, and back along right then down.
+                    let (r, c) = torus.position(i);
+                    add(&mut south[i], m);
+                    add(&mut east[torus.class(r + 1, c)], m);
+                    add(&mut south[torus.class(r, c + 1)], k - m);
+                    add(&mut east[i], k - m);
                 }
             }
             for (step, edges) in [((1, 0), &mut south), ((0, 1), &mut east)] {
-                if stream.below(2) == 1 {
+                let m = stream.below(k);
+                if m != 0 {
                     let mut p = (0i64, 0i64);
                     loop {
-                        edges[torus.class(p.0, p.1)] ^= 1;
+                        add(&mut edges[torus.class(p.0, p.1)], m);
                         p = (p.0 + step.0, p.1 + step.1);
                         if torus.class(p.0, p.1) == 0 {
                             break;
@@ -293,8 +341,8 @@ pub fn tile_torus(set: TileSet, torus: &Torus, (r0, r1): (i64, i64), (c0, c1): (
     let mut tiles = Vec::with_capacity(rows * cols);
     for r in r0..=r1 {
         for c in c0..=c1 {
-            let k = torus.class(r, c);
-            tiles.push(set.index([south[torus.class(r - 1, c)], east[torus.class(r, c - 1)], south[k], east[k]]) as u8);
+            let i = torus.class(r, c);
+            tiles.push(set.index([south[torus.class(r - 1, c)], east[torus.class(r, c - 1)], south[i], east[i]]) as u16);
         }
     }
     Tiling { r0, c0, rows, cols, tiles }
@@ -306,7 +354,7 @@ mod tests {
 
     #[test]
     fn tile_sets_follow_the_parity_rule_and_index_order() {
-        let m = TileSet::Minimal;
+        let m = TileSet::Minimal.with_colors(2);
         for t in 0..8 {
             let [a, b, c, d] = m.colours(t);
             assert_eq!(a ^ b ^ c ^ d, 0);
@@ -315,7 +363,7 @@ mod tests {
         // For each incoming pair exactly two tiles, with outgoing (0, a⊕b) and (1, 1⊕a⊕b).
         assert_eq!(m.colours(0b110), [1, 1, 0, 0]);
         assert_eq!(m.colours(0b111), [1, 1, 1, 1]);
-        let c = TileSet::Complete;
+        let c = TileSet::Complete.with_colors(2);
         let all: std::collections::HashSet<[u8; 4]> = (0..16).map(|t| c.colours(t)).collect();
         assert_eq!(all.len(), 16);
         assert_eq!(c.colours(0b1011), [1, 0, 1, 1]);
@@ -326,13 +374,13 @@ mod tests {
         // k = 2, 4, 8 (minimal) and 4, 8, 16 (complete) with 2, 1, 0 incoming colours fixed:
         // check through the distribution of choices over many streams.
         for (set, fixed, k) in [
-            (TileSet::Minimal, [Some(1), Some(0), None, None], 2),
-            (TileSet::Minimal, [None, Some(1), None, None], 4),
-            (TileSet::Minimal, [None, None, None, None], 8),
-            (TileSet::Complete, [Some(0), Some(1), None, None], 4),
-            (TileSet::Complete, [Some(0), None, None, None], 8),
-            (TileSet::Complete, [None, None, None, None], 16),
-            (TileSet::Minimal, [Some(1), None, None, Some(0)], 2),
+            (TileSet::Minimal.with_colors(2), [Some(1), Some(0), None, None], 2),
+            (TileSet::Minimal.with_colors(2), [None, Some(1), None, None], 4),
+            (TileSet::Minimal.with_colors(2), [None, None, None, None], 8),
+            (TileSet::Complete.with_colors(2), [Some(0), Some(1), None, None], 4),
+            (TileSet::Complete.with_colors(2), [Some(0), None, None, None], 8),
+            (TileSet::Complete.with_colors(2), [None, None, None, None], 16),
+            (TileSet::Minimal.with_colors(2), [Some(1), None, None, Some(0)], 2),
         ] {
             let mut seen = std::collections::HashSet::new();
             let mut s = Stream::new(3, "test/choose");
@@ -348,7 +396,7 @@ mod tests {
 
     #[test]
     fn tilings_never_violate_an_edge_colour() {
-        for set in [TileSet::Minimal, TileSet::Complete] {
+        for set in [TileSet::Minimal.with_colors(2), TileSet::Complete.with_colors(2)] {
             for order in [TilingOrder::Scanline, TilingOrder::Keyed] {
                 for seed in 0..5 {
                     let t = tile_rect(set, order, (-3, 17), (-9, 12), 0, seed, "test/tiling");
@@ -361,7 +409,7 @@ mod tests {
 
     #[test]
     fn keyed_tiling_does_not_depend_on_the_range() {
-        let set = TileSet::Minimal;
+        let set = TileSet::Minimal.with_colors(2);
         let small = tile_rect(set, TilingOrder::Keyed, (-1, 6), (-4, 5), 0, 11, "t");
         let big = tile_rect(set, TilingOrder::Keyed, (-1, 20), (-15, 30), 0, 11, "t");
         for r in -1..=6 {
@@ -396,7 +444,7 @@ mod tests {
 
     #[test]
     fn torus_tilings_match_every_edge_across_the_periods_too() {
-        for set in [TileSet::Minimal, TileSet::Complete] {
+        for set in [TileSet::Minimal.with_colors(2), TileSet::Complete.with_colors(2)] {
             for (v1, v2) in [
                 ((1, 0), (0, 1)),
                 ((1, 0), (0, 4)),
@@ -425,6 +473,71 @@ mod tests {
                 let big = tile_torus(set, &Torus::new(v1, v2), (0, 40), (0, 40), 1, "test/torus");
                 assert!(big.usage(set).iter().all(|&u| u > 0), "{set:?} {v1:?} {v2:?}: every tile is used");
             }
+        }
+    }
+
+    #[test]
+    fn k_colour_sets_are_their_rules_and_choose_among_k_or_k_squared() {
+        for k in 2..=5u8 {
+            for (rule, per_pair) in [(TileSet::Minimal, k as usize), (TileSet::Complete, k as usize * k as usize)] {
+                let set = rule.with_colors(k);
+                let all: std::collections::HashSet<[u8; 4]> = (0..set.len()).map(|t| set.colours(t)).collect();
+                assert_eq!(all.len(), set.len(), "{set:?}: distinct colourings");
+                for t in 0..set.len() {
+                    let c = set.colours(t);
+                    assert!(c.iter().all(|&x| x < k));
+                    assert_eq!(set.index(c), t, "{set:?}");
+                    if rule == TileSet::Minimal {
+                        assert_eq!((c[0] + c[1]) % k, (c[2] + c[3]) % k);
+                    }
+                }
+                // Every incoming pair (and the keyed order's `a` with `d`) has K (minimal) or K²
+                // (complete) tiles to choose from, all of which get chosen.
+                for fixed in [[Some(k - 1), Some(0), None, None], [Some(1), None, None, Some(k - 1)]] {
+                    let mut seen = std::collections::HashSet::new();
+                    let mut s = Stream::new(u64::from(k), "test/choose");
+                    for _ in 0..2000 {
+                        seen.insert(set.choose(fixed, &mut s));
+                    }
+                    assert_eq!(seen.len(), per_pair, "{set:?} {fixed:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn k_colour_tilings_are_valid_on_the_plane_and_on_the_torus() {
+        for k in 2..=5u8 {
+            for set in [TileSet::Minimal.with_colors(k), TileSet::Complete.with_colors(k)] {
+                for order in [TilingOrder::Scanline, TilingOrder::Keyed] {
+                    for seed in 0..3 {
+                        let t = tile_rect(set, order, (-3, 17), (-9, 12), 0, seed, "test/tiling");
+                        assert_eq!(t.violations(set), 0, "{set:?} {order:?} seed {seed}");
+                    }
+                }
+                for (v1, v2) in [((1, 0), (0, 1)), ((3, 0), (0, 4)), ((5, 0), (0, 6)), ((3, -3), (2, 2)), ((5, -5), (1, 1))] {
+                    let torus = Torus::new(v1, v2);
+                    for seed in 0..4 {
+                        let t = tile_torus(set, &torus, (-6, 9), (-8, 7), seed, "test/torus");
+                        assert_eq!(t.violations(set), 0, "{set:?} {v1:?} {v2:?} seed {seed}");
+                        for r in -6..=9 - v1.0.max(v2.0) {
+                            for c in -8..=7 {
+                                for v in [v1, v2] {
+                                    if (-8..=7).contains(&(c + v.1)) && r + v.0 <= 9 {
+                                        assert_eq!(t.at(r, c), t.at(r + v.0, c + v.1), "({r},{c}) + {v:?}");
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            // A large fill uses every colour on both edge classes.
+            let set = TileSet::Minimal.with_colors(k);
+            let big = tile_rect(set, TilingOrder::Keyed, (0, 40), (0, 40), 0, 1, "test/tiling");
+            let used: std::collections::HashSet<(u8, u8)> =
+                big.tiles.iter().map(|&t| set.colours(t as usize)).map(|c| (c[2], c[3])).collect();
+            assert_eq!(used.len(), k as usize * k as usize);
         }
     }
 }

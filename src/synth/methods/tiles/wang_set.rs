@@ -5,7 +5,7 @@
 //! it back; both render through [`WangTileSet::render`]. Keeping the set here, below both, is what
 //! lets the export render a loaded set without importing the method that imports the export.
 
-use super::wang::{TileSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
+use super::wang::{EdgeSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
 use rayon::prelude::*;
 
@@ -90,7 +90,7 @@ pub struct WangTile {
 }
 
 /// The sample centres of a tile's diamonds in N, E, S, W order, from its colours `[N, W, S, E]`.
-pub fn diamonds_of(colours: [u8; 4], dn: [(u32, u32); 2], de: [(u32, u32); 2]) -> [(u32, u32); 4] {
+pub fn diamonds_of(colours: [u8; 4], dn: &[(u32, u32)], de: &[(u32, u32)]) -> [(u32, u32); 4] {
     [dn[colours[0] as usize], de[colours[3] as usize], dn[colours[2] as usize], de[colours[1] as usize]]
 }
 
@@ -98,10 +98,11 @@ pub fn diamonds_of(colours: [u8; 4], dn: [(u32, u32); 2], de: [(u32, u32); 2]) -
 #[derive(Clone, Debug)]
 pub struct WangTileSet {
     pub geometry: Geometry,
-    pub set: TileSet,
-    /// Sample centres of the N/S diamonds (`DN[0], DN[1]`) and of the E/W diamonds.
-    pub dn: [(u32, u32); 2],
-    pub de: [(u32, u32); 2],
+    pub set: EdgeSet,
+    /// Sample centres of the N/S diamonds (`DN[0] .. DN[K−1]`, one per colour) and of the E/W
+    /// diamonds.
+    pub dn: Vec<(u32, u32)>,
+    pub de: Vec<(u32, u32)>,
     pub tiles: Vec<WangTile>,
 }
 
@@ -182,7 +183,7 @@ impl WangTileSet {
     pub fn record_sources(&mut self, sample_width: u32) {
         let g = self.geometry;
         for tile in &mut self.tiles {
-            let q = diamonds_of(tile.colours, self.dn, self.de);
+            let q = diamonds_of(tile.colours, &self.dn, &self.de);
             tile.sources = (0..g.t * g.t)
                 .map(|i| {
                     let (sx, sy) = g.sample_pixel(tile.labels[i as usize] as usize, q[tile.labels[i as usize] as usize], i % g.t, i / g.t);

@@ -17,9 +17,9 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
-use super::common::{self, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_wang;
-use super::wang::{TileSet, Tiling, TilingOrder};
+use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
@@ -59,8 +59,9 @@ const PARAMS: &[ParamSpec] = &[
         name: "tile_set",
         kind: ParamKind::Choice(TileSet::NAMES),
         default: Default::Str("minimal"),
-        doc: "minimal: the 8-tile parity set; complete: all 16 edge colourings",
+        doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the 8-tile parity set); complete: all K⁴ edge colourings",
     },
+    COLORS_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -112,8 +113,10 @@ pub struct WangTilesConfig {
     pub overlap: u32,
     /// `cut`: how two diamonds are stitched.
     pub cut: Cut,
-    /// `tile_set`: the 8-tile parity set or all 16 edge colourings.
+    /// `tile_set`: the minimal set (K³ tiles, the 8-tile parity set for K = 2) or all K⁴ edge colourings.
     pub tile_set: TileSet,
+    /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
+    pub colors: Option<u32>,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random diamond choices are built to keep the cheapest (1..=4096).
@@ -135,6 +138,7 @@ impl std::default::Default for WangTilesConfig {
             overlap: 8,
             cut: Cut::Dp,
             tile_set: TileSet::Minimal,
+            colors: None,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -154,6 +158,7 @@ impl MethodConfig for WangTilesConfig {
             int("overlap", self.overlap),
             word("cut", self.cut),
             word("tile_set", self.tile_set),
+            int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -169,6 +174,7 @@ impl MethodConfig for WangTilesConfig {
             overlap: p.uint("overlap")?,
             cut: p.choice("cut")?,
             tile_set: p.choice("tile_set")?,
+            colors: common::colors_param(p)?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -182,13 +188,14 @@ impl MethodConfig for WangTilesConfig {
 /// Tile pixels no cut or flood has labelled yet.
 const UNSET: u8 = u8::MAX;
 
-/// Builds the tile set; diamond centres come from stream `wang/patches` (`DN[0], DN[1], DE[0],
-/// DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the sample).
+/// Builds the tile set; diamond centres come from stream `wang/patches` (for two colours `DN[0],
+/// DN[1], DE[0], DE[1]`, `x` then `y` each, uniform over the centres whose diamond fits in the
+/// sample; for more, [`common::spread`] over the diamonds' bounding squares, `DN` first).
 pub fn build_tile_set(
     sample: &RgbImage,
     t: i32,
     ov: i32,
-    set: TileSet,
+    set: impl Into<EdgeSet>,
     cut: Cut,
     err: PixelError,
     seed: u64,
@@ -210,13 +217,13 @@ pub fn build_tile_set_searched(
     sample: &RgbImage,
     t: i32,
     ov: i32,
-    set: TileSet,
+    set: impl Into<EdgeSet>,
     cut: Cut,
     err: PixelError,
     seed: u64,
     candidates: usize,
 ) -> Result<(WangTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, t, ov, set, cut, err, seed, candidates, None)
+    build_tile_set_aligned(sample, t, ov, set.into(), cut, err, seed, candidates, None)
 }
 
 /// `align = "lattice"` for Wang tiles (phase analysis in [`super::align`]). Class A are the
@@ -235,8 +242,14 @@ pub struct WangAlign {
 impl WangAlign {
     /// The size of `tile = "auto"` with overlap `ov` on a `sample`-sized sample aligned to
     /// `lattice` (if any), for a tileable output of `wrap` pixels (if any): [`align::auto_tile`].
-    pub fn auto_tile(lattice: Option<&Alignment>, sample: (u32, u32), ov: u32, wrap: Option<(u32, u32)>) -> align::TileChoice {
-        align::auto_tile(lattice, sample, sizes(ov), patch(ov), WangAlign::vectors, wrap)
+    pub fn auto_tile(
+        lattice: Option<&Alignment>,
+        sample: (u32, u32),
+        ov: u32,
+        wrap: Option<(u32, u32)>,
+        colors: Option<align::ColorRoom>,
+    ) -> align::TileChoice {
+        align::auto_tile(lattice, sample, sizes(ov), patch(ov), WangAlign::vectors, wrap, colors)
     }
 
     /// The tile translation vectors `(t, 0), (0, t)`.
@@ -260,12 +273,12 @@ impl WangAlign {
         WangAlign { lattice, offset, errors: errors(offset) }
     }
 
-    /// Diamond centres for one candidate: `DN[0]` is `first`; `DN[1]` a lattice translate of it,
-    /// `DE[0]`, `DE[1]` lattice translates of `ψ_A − δ + (0, m)`, drawn from `st` (one draw
-    /// each) among the centres whose diamond fits in the sample; then each `DE`, and after them
-    /// `DN[1]`, is [`align::refine`]d against the other class's diamonds, in all the roles
-    /// where they meet.
-    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32)) -> Result<Patches, SynthError> {
+    /// Diamond centres for one candidate of `k` colours: `DN[0]` is `first`; `DN[1..k]` lattice
+    /// translates of it, `DE[0..k]` lattice translates of `ψ_A − δ + (0, m)`, drawn from `st` (one
+    /// draw each) among the centres whose diamond fits in the sample, each preferring places no
+    /// earlier diamond took; then each `DE`, and after them `DN[1..]`, is [`align::refine`]d
+    /// against the other class's diamonds, in all the roles where they meet.
+    fn place(&self, sample: &RgbImage, g: &Geometry, st: &mut Stream, first: (u32, u32), k: usize) -> Result<Patches, SynthError> {
         let (a, m) = (g.a as i64, (g.t / 2) as i64);
         let (lo, hi) = ((a, a), (sample.width() as i64 - a, sample.height() as i64 - a));
         let dn0 = (first.0 as i64, first.1 as i64);
@@ -281,14 +294,22 @@ impl WangAlign {
                 overlaps.push(Overlap { anchors: (anchor(e), anchor(n)), pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
         }
-        let dn1 = self.lattice.place(st, dn0, lo, hi, &[dn0])?;
+        let mut dn = vec![dn0];
+        for _ in 1..k {
+            dn.push(self.lattice.place(st, dn0, lo, hi, &dn)?);
+        }
         let ideal_e = (psi_a.0 - self.offset.0, psi_a.1 - self.offset.1 + m);
-        let fit_e = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &[dn0, dn1], &overlaps, true));
-        let de0 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1])?);
-        let de1 = fit_e(self.lattice.place(st, ideal_e, lo, hi, &[dn0, dn1, de0])?);
-        let dn1 = align::refine(dn1, lo, hi, r, |q| overlap_error(sample, q, &[de0, de1], &overlaps, false));
-        let u = |p: V| (p.0 as u32, p.1 as u32);
-        Ok(([first, u(dn1)], [u(de0), u(de1)]))
+        let fit_e = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &dn, &overlaps, true));
+        let mut de: Vec<V> = Vec::with_capacity(k);
+        for _ in 0..k {
+            let used: Vec<V> = dn.iter().chain(&de).copied().collect();
+            de.push(fit_e(self.lattice.place(st, ideal_e, lo, hi, &used)?));
+        }
+        for p in &mut dn[1..] {
+            *p = align::refine(*p, lo, hi, r, |q| overlap_error(sample, q, &de, &overlaps, false));
+        }
+        let u = |p: &V| (p.0 as u32, p.1 as u32);
+        Ok((dn.iter().map(u).collect(), de.iter().map(u).collect()))
     }
 
     /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
@@ -301,15 +322,16 @@ impl WangAlign {
 }
 
 /// [`build_tile_set_searched`] with `align = "lattice"` when `align` is given: candidate `c`'s
-/// `DN[0]` is draws `x, y` of `wang/patches` as before, and its other three diamonds take one
-/// draw each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
-/// is drawn again ([`align::first_fitting`]).
+/// `DN[0]` is draws `x, y` of `wang/patches` as before, and its other diamonds take one draw
+/// each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
+/// is drawn again ([`align::first_fitting`]). Without `align`, a set of more than two colours draws
+/// its diamonds in separate cells of the sample ([`common::spread`]; `Err` when it has no room).
 #[allow(clippy::too_many_arguments)]
 pub fn build_tile_set_aligned(
     sample: &RgbImage,
     t: i32,
     ov: i32,
-    set: TileSet,
+    set: EdgeSet,
     cut: Cut,
     err: PixelError,
     seed: u64,
@@ -321,6 +343,11 @@ pub fn build_tile_set_aligned(
     if 2 * g.a > sw || 2 * g.a > sh {
         return Err(SynthError::Failed(format!("diamonds of {0}x{0} (tile + overlap) do not fit in the {sw}x{sh} sample", 2 * g.a)));
     }
+    let k = usize::from(set.colors);
+    let side = 2 * g.a as u32;
+    if let Some(e) = common::check_colors(Some(k as u32), (sw as u32, sh as u32), side, &format!("tile {t}, overlap {ov}")) {
+        return Err(SynthError::param("colors", e.message));
+    }
     let mut st = Stream::new(seed, "wang/patches");
     let draw = |st: &mut Stream| {
         let x = g.a as u32 + st.below((sw - 2 * g.a + 1) as u64) as u32;
@@ -329,21 +356,34 @@ pub fn build_tile_set_aligned(
     };
     let choices: Result<Vec<Patches>, SynthError> = (0..candidates.max(1))
         .map(|_| match align {
-            None => Ok(([draw(&mut st), draw(&mut st)], [draw(&mut st), draw(&mut st)])),
+            None if k == 2 => Ok((vec![draw(&mut st), draw(&mut st)], vec![draw(&mut st), draw(&mut st)])),
+            None => {
+                let mut centres: Vec<(u32, u32)> = common::spread(&mut st, (sw as u32, sh as u32), side, 2 * k)
+                    .into_iter()
+                    .map(|(x, y)| (x + g.a as u32, y + g.a as u32))
+                    .collect();
+                let de = centres.split_off(k);
+                Ok((centres, de))
+            }
             Some(al) => align::first_fitting(&al.lattice, || {
                 let first = draw(&mut st);
-                al.place(sample, &g, &mut st, first)
+                al.place(sample, &g, &mut st, first, k)
             }),
         })
         .collect();
     let choices = choices?;
     let built: Result<Vec<WangTileSet>, SynthError> =
-        choices.par_iter().map(|&(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+        choices.par_iter().map(|(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let a = g.a as u32;
-    let fit: Vec<bool> =
-        choices.iter().map(|(dn, de)| representative(sample, &[dn[0], dn[1], de[0], de[1]].map(|(x, y)| (x - a, y - a)), 2 * a)).collect();
+    let fit: Vec<bool> = choices
+        .iter()
+        .map(|(dn, de)| {
+            let corners: Vec<(u32, u32)> = dn.iter().chain(de).map(|&(x, y)| (x - a, y - a)).collect();
+            representative(sample, &corners, 2 * a)
+        })
+        .collect();
     let best = pick_candidate(&costs, &fit);
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
@@ -352,11 +392,11 @@ pub fn build_tile_set_aligned(
 pub fn build_from_diamonds(
     sample: &RgbImage,
     g: &Geometry,
-    set: TileSet,
+    set: EdgeSet,
     cut: Cut,
     err: PixelError,
-    dn: [(u32, u32); 2],
-    de: [(u32, u32); 2],
+    dn: &[(u32, u32)],
+    de: &[(u32, u32)],
 ) -> Result<WangTileSet, SynthError> {
     let tiles: Result<Vec<WangTile>, SynthError> = (0..set.len())
         .into_par_iter()
@@ -368,7 +408,7 @@ pub fn build_from_diamonds(
             })
         })
         .collect();
-    Ok(WangTileSet { geometry: *g, set, dn, de, tiles: tiles? })
+    Ok(WangTileSet { geometry: *g, set, dn: dn.to_vec(), de: de.to_vec(), tiles: tiles? })
 }
 
 /// DP staircase cut (§3.10) from `corner` to `centre` over `domain` (`t × t`, row-major).
@@ -568,6 +608,13 @@ impl Method for WangTiles {
             errors.push(ParamError::new("overlap", format!("overlap {ov} is more than half the {tile} ({t}); use at most {}", t / 2)));
         }
         errors.extend(align::check(cfg.align, cfg.lattice, sample));
+        // `auto` can shrink down to its smallest size to make room for the colours.
+        let smallest = cfg.tile.map_or(align::AUTO_MIN_TILE.max(2 * ov), i64::from);
+        let words = match cfg.tile {
+            Some(t) => format!("tile {t}, overlap {ov}"),
+            None => format!("tile = \"auto\" at its smallest, {smallest}, overlap {ov}"),
+        };
+        errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
         if need > smaller {
@@ -595,16 +642,17 @@ impl Method for WangTiles {
         errors
     }
 
-    fn peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+    fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         // Measured (VmHWM of `texsyn run`, bricks_gray 256², tile 64): the rendered output (3 B per
         // pixel) and the tile set, built from sample-sized cost planes; 4096²: 78 MB, 8192² (rendered
         // whole, before fills that large went strip by strip): 285 MB
-        // in all, whose peak is while the PNG encoder holds its compressed stream.
-        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20)
+        // in all, whose peak is while the PNG encoder holds its compressed stream. Sets of more
+        // than two colours add their tiles.
+        crate::synth::method::linear_memory(sample, output, 3.0, 64.0, 4 << 20) + self.tile_set_bytes(params, sample)
     }
 
-    fn strip_peak_memory(&self, _params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        common::strip_peak_memory(sample, output)
+    fn strip_peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
+        common::strip_peak_memory(sample, output) + self.tile_set_bytes(params, sample)
     }
 
     fn tileable(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
@@ -650,6 +698,15 @@ fn tile_words(tile: Option<u32>) -> String {
 }
 
 impl WangTiles {
+    /// An upper bound of the bytes a tile set of more than two colours holds (raster, labels and
+    /// sources: 8 B per tile pixel): the largest over the sizes `tile = "auto"` may take.
+    fn tile_set_bytes(&self, params: &Params, sample: (u32, u32)) -> u64 {
+        let Ok(cfg) = WangTilesConfig::from_params(params) else { return 0 };
+        let sizes: Vec<i64> = cfg.tile.map_or_else(|| sizes(cfg.overlap).collect(), |t| vec![i64::from(t)]);
+        let rule = cfg.tile_set;
+        common::tile_set_bytes(cfg.colors, sample, &sizes, patch(cfg.overlap), |t| t * t, rule)
+    }
+
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
     fn fill(&self, req: &Request) -> Result<(Synthesis, WangTileSet, Tiling), SynthError> {
@@ -657,8 +714,16 @@ impl WangTiles {
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
         let wrap = req.tileable.then_some((req.width, req.height));
-        let choice = cfg.tile.is_none().then(|| WangAlign::auto_tile(lattice.as_ref(), req.sample.dimensions(), cfg.overlap, wrap));
+        let dims = req.sample.dimensions();
+        let room = |t: i64| common::room(dims, patch(cfg.overlap)(t) as u32);
+        let colors = align::ColorRoom {
+            need: cfg.colors.unwrap_or(2),
+            want: cfg.colors.unwrap_or_else(|| common::wanted_colors(cfg.tile_set)),
+            room: &room,
+        };
+        let choice = cfg.tile.is_none().then(|| WangAlign::auto_tile(lattice.as_ref(), dims, cfg.overlap, wrap, Some(colors)));
         let (t, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
+        let (k, colors_choice) = common::resolve_colors(cfg.colors, cfg.tile_set, dims, patch(cfg.overlap)(i64::from(t)) as u32);
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
             return Err(SynthError::Failed(format!("tile {t} / overlap {ov}: both must be even with overlap at most tile/2")));
         }
@@ -666,7 +731,7 @@ impl WangTiles {
             common::tileable(self.name(), t as u32, cfg.export_tiles, (req.width, req.height))
                 .map_err(|e| SynthError::Failed(common::auto_named(e, choice.as_ref())))?;
         }
-        let (set, order) = (cfg.tile_set, cfg.tiling);
+        let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
         let (tiles, chosen) = build_tile_set_aligned(
             req.sample,
@@ -706,6 +771,10 @@ impl WangTiles {
         if let Some(c) = choice {
             // Only for `tile = "auto"`, so that the record of a given size stays as it was.
             diagnostics["tile_choice"] = c.record;
+        }
+        if let Some(c) = colors_choice {
+            // Likewise only for `colors = "auto"`.
+            diagnostics["colors_choice"] = c;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1057,6 +1126,7 @@ mod tests {
             overlap: 4,
             cut: Cut::ShortestPath,
             tile_set: TileSet::Complete,
+            colors: Some(3),
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1070,6 +1140,7 @@ mod tests {
                 && cfg.overlap != d.overlap
                 && cfg.cut != d.cut
                 && cfg.tile_set != d.tile_set
+                && cfg.colors != d.colors
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1149,5 +1220,10 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&WangTiles);
+    }
+
+    #[test]
+    fn more_colours_repeat_less_stay_deterministic_and_are_checked() {
+        common::testing::colors_repeat_less_and_are_checked(&WangTiles, params);
     }
 }
