@@ -115,7 +115,9 @@ fn estimate(rec: &JobRecord) -> u64 {
         return 0;
     }
     let Ok(given) = serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) else { return 0 };
-    let (Ok(params), Ok(output)) = (params::resolve(method.params(), &given.into_iter().collect::<Vec<_>>()), output_spec(spec)) else {
+    let mut given: Vec<(String, ParamValue)> = given.into_iter().collect();
+    method.fill_older_record(&mut given);
+    let (Ok(params), Ok(output)) = (params::resolve(method.params(), &given), output_spec(spec)) else {
         return 0;
     };
     let materials = memory::Materials { companions: rec.companions.len(), source_map: output.source_map.is_some() };
@@ -143,11 +145,12 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         )]);
     }
     // Parameters: they must resolve to exactly what was recorded.
-    let given: Vec<(String, ParamValue)> =
+    let mut given: Vec<(String, ParamValue)> =
         match serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) {
             Ok(m) => m.into_iter().collect(),
             Err(e) => return Outcome::Mismatch(vec![format!("recorded params are malformed: {e}")]),
         };
+    method.fill_older_record(&mut given);
     let params = match params::resolve(method.params(), &given) {
         Ok(p) => p,
         Err(errs) => {

@@ -136,6 +136,11 @@ pub trait Method: Send + Sync {
     fn honours_sample_mask(&self) -> bool {
         false
     }
+    /// Recorded parameters as a manifest written before some of today's parameters existed holds
+    /// them: each missing one gets the value that reproduces what the method did then (not
+    /// today's default, which may differ), so that `verify` re-makes old records. Manifests
+    /// record every resolved parameter, so a missing key can only mean an older texsyn.
+    fn fill_older_record(&self, _given: &mut Vec<(String, crate::synth::params::ParamValue)>) {}
     /// The folders of extra files ([`Synthesis::extras`] named `folder/…`) a job with these
     /// parameters writes next to its output (`{output without extension}.{folder}/`). Known before
     /// the job runs, so that the plan can refuse another job whose files would land in them.

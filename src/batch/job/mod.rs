@@ -26,7 +26,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "sample_mask", "method", "seed", "output", "params", "sweep", "metrics", "companion"];
+pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask"];
 /// The keys of the `[output]` table.
 pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth", "tileable", "source_map"];
 /// The keys of a `[[companion]]` table.

@@ -572,6 +572,13 @@ pub fn seam_grid(g: &Geometry, width: u32, height: u32) -> SeamGrid {
 }
 
 impl Method for WangTiles {
+    /// `colors` came after the first manifests; two colours is what every tile set had before.
+    fn fill_older_record(&self, given: &mut Vec<(String, ParamValue)>) {
+        if !given.iter().any(|(k, _)| k == "colors") {
+            given.push(("colors".to_string(), ParamValue::Int(2)));
+        }
+    }
+
     fn name(&self) -> &'static str {
         WangTilesConfig::METHOD
     }
