@@ -42,7 +42,9 @@ fn diff_names_each_change_with_its_reason() {
     // The second night: a parameter, a sample and a size change, a job loses its lattice.
     job(&jobs, "param", &quilt(pebbles, 40, 96, "param.png"));
     std::fs::copy(hedge, jobs.join("varying.png")).unwrap();
-    job(&jobs, "slow", &quilt(hedge, 24, 512, "slow.png"));
+    // 1024² against 128²: about 25 times the synthesis time, well clear of the thresholds below
+    // (at 512² quilting became fast enough to land on the 0.05 s one).
+    job(&jobs, "slow", &quilt(hedge, 24, 1024, "slow.png"));
     job(&jobs, "fails", &fails(""));
     run_expect(texsyn().arg("run").arg(&jobs).arg("-o").arg(&new).arg("-q"), 1);
     // The algorithm version moved between the nights (as a method change would): edit the old
@@ -73,7 +75,7 @@ fn diff_names_each_change_with_its_reason() {
     assert!(line("PIXELS", "sample.toml").contains("sample.pixels"), "{t}");
     assert!(line("PIXELS", "algo.toml").contains("algorithm_version 0 → 1"), "{t}");
     let slow = line("PIXELS", "slow.toml");
-    assert!(slow.contains("output_spec.width 128 → 512") && slow.contains("output_spec.height 128 → 512"), "{t}");
+    assert!(slow.contains("output_spec.width 128 → 1024") && slow.contains("output_spec.height 128 → 1024"), "{t}");
     assert!(line("SLOWER", "slow.toml").contains("×"), "16 times the pixels is well over 1.5 times slower:\n{t}");
     assert!(line("FAILS NOW", "fails.toml").contains("no lattice found"), "{t}");
     // (Its time may move with the machine's load; its pixels and status may not.)
