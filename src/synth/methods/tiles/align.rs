@@ -228,6 +228,39 @@ impl Alignment {
         pool.sort_by_key(|p| (p.1, p.0));
         Ok(pool[st.below(pool.len() as u64) as usize])
     }
+
+    /// `k` translates of each of a tile method's two patch classes: the first class at `first`
+    /// and `k − 1` lattice translates of it; the second at translates of its in-phase position
+    /// `ideal_second`, each refined against the first class over `overlaps`; then the first
+    /// class's added ones refined against the second. What both tile methods place.
+    #[allow(clippy::too_many_arguments)]
+    pub fn place_classes(
+        &self,
+        sample: &RgbImage,
+        st: &mut Stream,
+        first: V,
+        ideal_second: V,
+        (lo, hi): (V, V),
+        radius: i64,
+        overlaps: &[Overlap],
+        k: usize,
+    ) -> Result<(Vec<(u32, u32)>, Vec<(u32, u32)>), SynthError> {
+        let mut a = vec![first];
+        for _ in 1..k {
+            a.push(self.place(st, first, lo, hi, &a)?);
+        }
+        let fit = |p: V| refine(p, lo, hi, radius, |q| overlap_error(sample, q, &a, overlaps, true));
+        let mut b: Vec<V> = Vec::with_capacity(k);
+        for _ in 0..k {
+            let used: Vec<V> = a.iter().chain(&b).copied().collect();
+            b.push(fit(self.place(st, ideal_second, lo, hi, &used)?));
+        }
+        for p in &mut a[1..] {
+            *p = refine(*p, lo, hi, radius, |q| overlap_error(sample, q, &b, overlaps, false));
+        }
+        let u = |p: &V| (p.0 as u32, p.1 as u32);
+        Ok((a.iter().map(u).collect(), b.iter().map(u).collect()))
+    }
 }
 
 /// How many first patches [`first_fitting`] draws before giving up.

@@ -18,7 +18,7 @@
 //! This module builds the tiles and is the method (its parameters as [`RwTilesConfig`]); the built
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
-use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
+use super::align::{self, Align, Alignment, Overlap, V, best_offset};
 use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_rw;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
@@ -285,22 +285,8 @@ impl RwAlign {
                 overlaps.push(Overlap { anchors, pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
         }
-        let mut pa = vec![pa0];
-        for _ in 1..k {
-            pa.push(self.lattice.place(st, pa0, lo, hi, &pa)?);
-        }
         let ideal_b = (pa0.0 - self.offset.0 + h, pa0.1 - self.offset.1);
-        let fit_b = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &pa, &overlaps, true));
-        let mut pb: Vec<V> = Vec::with_capacity(k);
-        for _ in 0..k {
-            let used: Vec<V> = pa.iter().chain(&pb).copied().collect();
-            pb.push(fit_b(self.lattice.place(st, ideal_b, lo, hi, &used)?));
-        }
-        for p in &mut pa[1..] {
-            *p = align::refine(*p, lo, hi, r, |q| overlap_error(sample, q, &pb, &overlaps, false));
-        }
-        let u = |p: &V| (p.0 as u32, p.1 as u32);
-        Ok((pa.iter().map(u).collect(), pb.iter().map(u).collect()))
+        self.lattice.place_classes(sample, st, pa0, ideal_b, (lo, hi), r, &overlaps, k)
     }
 
     /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.

@@ -16,7 +16,7 @@
 //! built set, its geometry and the filling live in [`super::wang_set`], shared with the tile-set
 //! export.
 
-use super::align::{self, Align, Alignment, Overlap, V, best_offset, overlap_error};
+use super::align::{self, Align, Alignment, Overlap, V, best_offset};
 use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_wang;
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
@@ -294,22 +294,8 @@ impl WangAlign {
                 overlaps.push(Overlap { anchors: (anchor(e), anchor(n)), pixels: pixels.map(|(x, y)| (x as i64, y as i64)).collect() });
             }
         }
-        let mut dn = vec![dn0];
-        for _ in 1..k {
-            dn.push(self.lattice.place(st, dn0, lo, hi, &dn)?);
-        }
         let ideal_e = (psi_a.0 - self.offset.0, psi_a.1 - self.offset.1 + m);
-        let fit_e = |p: V| align::refine(p, lo, hi, r, |q| overlap_error(sample, q, &dn, &overlaps, true));
-        let mut de: Vec<V> = Vec::with_capacity(k);
-        for _ in 0..k {
-            let used: Vec<V> = dn.iter().chain(&de).copied().collect();
-            de.push(fit_e(self.lattice.place(st, ideal_e, lo, hi, &used)?));
-        }
-        for p in &mut dn[1..] {
-            *p = align::refine(*p, lo, hi, r, |q| overlap_error(sample, q, &de, &overlaps, false));
-        }
-        let u = |p: &V| (p.0 as u32, p.1 as u32);
-        Ok((dn.iter().map(u).collect(), de.iter().map(u).collect()))
+        self.lattice.place_classes(sample, st, dn0, ideal_e, (lo, hi), r, &overlaps, k)
     }
 
     /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
