@@ -94,7 +94,7 @@ pub fn describe_changes(changes: &[KeyChange]) -> String {
         .map(|c| {
             let change = format!("{} {} → {}", c.key, short_value(&c.old), short_value(&c.new));
             // A mask is an image whose digest says little to a reader; say what it is.
-            if c.key == "sample_mask.pixels" { format!("mask changed ({change})") } else { change }
+            if c.key == "sample_mask.pixels" || c.key == "inpaint.mask.pixels" { format!("mask changed ({change})") } else { change }
         })
         .collect::<Vec<_>>()
         .join("; ")
@@ -185,11 +185,17 @@ fn input_changes(o: &JobRecord, n: &JobRecord) -> Vec<KeyChange> {
     cmp("sample.pixels", to_value(&sample(o)), to_value(&sample(n)));
     let mask = |r: &JobRecord| r.sample_mask.as_ref().map(|s| s.pixel_digest.sha256.clone());
     cmp("sample_mask.pixels", to_value(&mask(o)), to_value(&mask(n)));
+    let inpaint_mask = |r: &JobRecord| r.inpaint_mask.as_ref().map(|s| s.pixel_digest.sha256.clone());
+    cmp("inpaint.mask.pixels", to_value(&inpaint_mask(o)), to_value(&inpaint_mask(n)));
     // The mask's digest is also in the output spec (for the content key): said once, above.
     let spec = |r: &JobRecord| {
         let mut v = r.output_spec.clone().unwrap_or(Value::Null);
         if let Some(m) = v.as_object_mut() {
             m.remove("sample_mask");
+            // An inpaint mask image likewise; a channel stays in the spec, where it is named.
+            if let Some(i) = m.get_mut("inpaint").and_then(|i| i.as_object_mut()) {
+                i.remove("mask");
+            }
         }
         v
     };
@@ -245,6 +251,7 @@ mod tests {
             warnings: Vec::new(),
             companions: Vec::new(),
             sample_mask: None,
+            inpaint_mask: None,
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

@@ -140,6 +140,10 @@ pub struct JobRecord {
     /// `output_spec.sample_mask`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample_mask: Option<SampleRecord>,
+    /// An inpainting job's mask image, when it has one (its pixels are in the content key through
+    /// `output_spec.inpaint.mask`; a channel of the image is named there instead).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inpaint_mask: Option<SampleRecord>,
     /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_spec: Option<Value>,
@@ -524,6 +528,7 @@ mod tests {
             warnings: Vec::new(),
             companions: Vec::new(),
             sample_mask: None,
+            inpaint_mask: None,
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -227,6 +227,7 @@ mod tests {
             warnings: Vec::new(),
             companions: Vec::new(),
             sample_mask: None,
+            inpaint_mask: None,
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

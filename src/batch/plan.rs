@@ -6,14 +6,15 @@
 //! very plan it would have printed.
 
 use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
-use crate::batch::job::{self, InvalidJob, Job, JobError, JobSet};
+use crate::batch::inpaint::{MaskSource, fill_region};
+use crate::batch::job::{self, InpaintMask, InvalidJob, Job, JobError, JobSet};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
 use crate::batch::memory;
 use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
-use crate::synth::constraints::SampleMask;
+use crate::synth::constraints::{FillRegion, SampleMask};
 use crate::synth::wrap;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -76,6 +77,8 @@ pub struct Entry {
     pub companions: Vec<Arc<LoadedSample>>,
     /// `job.sample_mask` decoded, and the mask it makes.
     pub sample_mask: Option<(Arc<LoadedSample>, SampleMask)>,
+    /// `job.inpaint`: its mask image decoded (none for a channel of the image), and the region it fills.
+    pub fill: Option<(Option<Arc<LoadedSample>>, FillRegion)>,
     pub content_key: Digest,
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
@@ -97,6 +100,7 @@ impl Entry {
             output: &job.output,
             companions: job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
             sample_mask: self.sample_mask.as_ref().map(|(_, m)| m),
+            fill: self.fill.as_ref().map(|(_, f)| f),
         }
     }
 }
@@ -182,7 +186,12 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
     let mut sample_paths: Vec<PathBuf> = set
         .jobs
         .iter()
-        .flat_map(|j| std::iter::once(j.sample.clone()).chain(j.companions.iter().map(|c| c.sample.clone())).chain(j.sample_mask.clone()))
+        .flat_map(|j| {
+            std::iter::once(j.sample.clone())
+                .chain(j.companions.iter().map(|c| c.sample.clone()))
+                .chain(j.sample_mask.clone())
+                .chain(j.inpaint_mask_file())
+        })
         .collect();
     sample_paths.sort();
     sample_paths.dedup();
@@ -200,6 +209,21 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             }
         };
         job.method.resolve_for_sample(&mut job.params, sample.image.dimensions());
+        if job.inpaint.is_some() && (job.output.width, job.output.height) != sample.image.dimensions() {
+            let (w, h) = sample.image.dimensions();
+            let errors = vec![job.error(
+                Some("output.width"),
+                format!(
+                    "an inpainting job's output has its image's size: `{}` is {w}x{h} but the output asks for {}x{}; leave output.width and \
+                     output.height out",
+                    job.sample.display(),
+                    job.output.width,
+                    job.output.height
+                ),
+            )];
+            invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+            continue;
+        }
         let issues = job.method.check(&job.params, sample.image.dimensions(), (job.output.width, job.output.height));
         if !issues.is_empty() {
             let errors: Vec<JobError> = issues.into_iter().map(|e| job.error(Some(&format!("params.{}", e.key)), e.message)).collect();
@@ -220,12 +244,23 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        let fill = match fill_of(&job, &sample, &loaded, sample_mask.as_ref().map(|(_, m)| m)) {
+            Ok(f) => f,
+            Err(errors) => {
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
         let needs_placement = crate::batch::execute::needs_placement(&sample, job.companions.len(), &job.output);
         let materials =
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
-        let (content_key, record) = base_record(&job, &sample, &companions, sample_mask.as_ref().map(|(l, _)| &**l), &opts.out);
+        let masks = Masks {
+            sample_mask: sample_mask.as_ref().map(|(l, _)| &**l),
+            inpaint: job.inpaint.as_ref().map(|i| inpaint_source(&i.mask, fill.as_ref().and_then(|(l, _)| l.as_deref()))),
+        };
+        let (content_key, record) = base_record(&job, &sample, &companions, &masks, &opts.out);
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
         if let Some(limit) = opts.max_memory.filter(|&l| estimate > l && action != Action::UpToDate) {
@@ -233,7 +268,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        entries.push(Entry { job, sample, companions, sample_mask, content_key, record, action, memory: estimate });
+        entries.push(Entry { job, sample, companions, sample_mask, fill, content_key, record, action, memory: estimate });
     }
     add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
@@ -300,6 +335,44 @@ fn sample_mask_of(
         }
     }
     Ok(Some((l, mask)))
+}
+
+/// The job's fill region when it inpaints, from its mask image or one of its image's channels,
+/// checked ([`crate::batch::inpaint::fill_region`]).
+fn fill_of(
+    job: &Job,
+    sample: &LoadedSample,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+    sample_mask: Option<&SampleMask>,
+) -> Result<Option<(Option<Arc<LoadedSample>>, FillRegion)>, Vec<JobError>> {
+    let Some(inpaint) = &job.inpaint else { return Ok(None) };
+    let mask_file = match &inpaint.mask {
+        InpaintMask::File(p) => match &loaded[p] {
+            Ok(l) => Some(l.clone()),
+            Err(e) => return Err(vec![job.error(Some("inpaint.mask"), format!("inpaint mask {e}"))]),
+        },
+        InpaintMask::Channel(_) => None,
+    };
+    let source = inpaint_source(&inpaint.mask, mask_file.as_deref());
+    match fill_region(sample, &job.sample, &source, job.params.int("block").ok(), sample_mask) {
+        Ok(region) => Ok(Some((mask_file, region))),
+        Err(message) => Err(vec![job.error(Some(source.key()), message)]),
+    }
+}
+
+/// An inpaint mask as [`crate::batch::inpaint`] takes it (`loaded`: the mask file's image).
+fn inpaint_source<'a>(mask: &'a InpaintMask, loaded: Option<&'a LoadedSample>) -> MaskSource<'a> {
+    match (mask, loaded) {
+        (InpaintMask::File(path), Some(loaded)) => MaskSource::File { path, loaded },
+        (InpaintMask::Channel(c), _) => MaskSource::Channel(*c),
+        (InpaintMask::File(_), None) => unreachable!("a mask file is decoded before its job is recorded"),
+    }
+}
+
+/// The masks a job's record and content key hold besides its sample.
+struct Masks<'a> {
+    sample_mask: Option<&'a LoadedSample>,
+    inpaint: Option<MaskSource<'a>>,
 }
 
 /// Checks what a job renders besides its method's 8-bit image and decides what the job file left
@@ -404,7 +477,12 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
                 .as_ref()
                 .filter(|_| e.job.output.tileable)
                 .and_then(|l| wrap::warning(l, (e.job.output.width, e.job.output.height)));
-            advice::warning(a, e.job.method.name(), &e.job.params).into_iter().chain(wrap).collect()
+            let nothing_to_fill = e
+                .fill
+                .as_ref()
+                .filter(|(_, f)| f.count() == 0)
+                .map(|_| "the inpaint mask marks no pixel to fill (white = fill): the output is the image, unchanged".to_string());
+            advice::warning(a, e.job.method.name(), &e.job.params).into_iter().chain(wrap).chain(nothing_to_fill).collect()
         };
     }
 }
@@ -465,9 +543,10 @@ fn base_record(
     job: &Job,
     sample: &LoadedSample,
     companions: &[Arc<LoadedSample>],
-    sample_mask: Option<&LoadedSample>,
+    masks: &Masks,
     manifest_dir: &Path,
 ) -> (Digest, JobRecord) {
+    let sample_mask = masks.sample_mask;
     let params_json = job.params.to_json();
     let mut output_json = job.output.to_json();
     if !job.companions.is_empty() {
@@ -487,6 +566,10 @@ fn base_record(
     if let Some(m) = sample_mask {
         // Which sample pixels may be copied decides the output: part of the content key.
         output_json["sample_mask"] = serde_json::json!({ "pixels": m.pixel_digest });
+    }
+    if let Some(source) = &masks.inpaint {
+        // Which pixels are filled decides the output: part of the content key.
+        output_json["inpaint"] = source.spec();
     }
     let content_key = manifest::content_key(
         job.method.name(),
@@ -524,6 +607,10 @@ fn base_record(
         warnings: Vec::new(),
         companions: job.companions.iter().zip(companions).map(|(c, l)| sample_record(&c.sample, l)).collect(),
         sample_mask: job.sample_mask.as_deref().zip(sample_mask).map(|(p, l)| sample_record(p, l)),
+        inpaint_mask: match &masks.inpaint {
+            Some(MaskSource::File { path, loaded }) => Some(sample_record(path, loaded)),
+            _ => None,
+        },
     };
     (content_key, record)
 }
@@ -577,5 +664,6 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         warnings: Vec::new(),
         companions: Vec::new(),
         sample_mask: None,
+        inpaint_mask: None,
     }
 }

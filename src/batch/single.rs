@@ -124,7 +124,10 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
 /// messages, the same pixels, and a manifest that `verify` re-runs.
 #[derive(Clone, Debug)]
 pub struct OneOff {
+    /// The sample; when inpainting, the image to repair (it is its own sample).
     pub sample: PathBuf,
+    /// Inpaint `sample` instead of making a new image from it: which pixels to fill.
+    pub inpaint: Option<OneOffMask>,
     /// The image to write (.png or .exr); its manifest goes beside it as `{stem}.manifest.json`.
     pub output: PathBuf,
     pub method: String,
@@ -135,6 +138,13 @@ pub struct OneOff {
     /// `[params]` entries as `key = value` with the value in TOML (`40`, `0.1`, `"dp"`, `true`).
     pub params: Vec<(String, String)>,
     pub max_memory: Option<u64>,
+}
+
+/// A one-off inpainting job's mask: an image (white = fill) or a channel of the image.
+#[derive(Clone, Debug)]
+pub enum OneOffMask {
+    File(PathBuf),
+    Channel(String),
 }
 
 /// What `texsyn synth` wrote.
@@ -166,15 +176,33 @@ impl OneOff {
         let q = |s: &str| toml::Value::String(s.to_string()).to_string();
         let name = self.output.file_name().and_then(|n| n.to_str()).unwrap_or_default();
         let mut t = String::from("# The job file of a `texsyn synth` one-off: put it in a job directory to make it part of a run.\n");
-        t += &format!(
-            "sample = {}\nmethod = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
-            q(&self.sample.to_string_lossy()),
-            q(&self.method),
-            self.seed,
-            q(name),
-            size.0,
-            size.1
-        );
+        match &self.inpaint {
+            None => {
+                t += &format!(
+                    "sample = {}\nmethod = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
+                    q(&self.sample.to_string_lossy()),
+                    q(&self.method),
+                    self.seed,
+                    q(name),
+                    size.0,
+                    size.1
+                );
+            }
+            Some(mask) => {
+                // The output has the image's size: the job file leaves it out.
+                let mask = match mask {
+                    OneOffMask::File(p) => format!("mask = {}", q(&p.to_string_lossy())),
+                    OneOffMask::Channel(c) => format!("channel = {}", q(c)),
+                };
+                t += &format!(
+                    "method = {}\nseed = {}\n\n[inpaint]\nimage = {}\n{mask}\n\n[output]\npath = {}\n",
+                    q(&self.method),
+                    self.seed,
+                    q(&self.sample.to_string_lossy()),
+                    q(name)
+                );
+            }
+        }
         if self.tileable {
             t += "tileable = true\n";
         }
@@ -208,7 +236,11 @@ impl OneOff {
         };
         // The sample by its absolute path: the job file is read from a scratch folder.
         let sample = std::path::absolute(&self.sample).map_err(|e| Error::io(&self.sample, "resolve", e))?;
-        let this = OneOff { sample, ..self.clone() };
+        let inpaint = match &self.inpaint {
+            Some(OneOffMask::File(m)) => Some(OneOffMask::File(std::path::absolute(m).map_err(|e| Error::io(m, "resolve", e))?)),
+            other => other.clone(),
+        };
+        let this = OneOff { sample, inpaint, ..self.clone() };
         let text = this.job_text(this.size()?);
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let scratch = std::env::temp_dir().join(format!(

@@ -16,6 +16,7 @@ use crate::error::Error;
 use crate::image::io::{self as imageio, DecodeLimits};
 use crate::synth::constraints::SampleMask;
 use crate::synth::methods;
+use crate::synth::params::Choice;
 use crate::synth::params::{self, ParamValue};
 use std::path::{Path, PathBuf};
 
@@ -229,6 +230,43 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     if sample_mask.is_some() && !method.honours_sample_mask() {
         return Outcome::Mismatch(vec![format!("recorded `sample_mask`: {method_name} does not honour a sample mask")]);
     }
+    // Inpainting: the mask image still has the recorded pixels (or the channel is a real one),
+    // and the region it makes passes the checks a job file's would.
+    let fill = match (spec.get("inpaint"), &rec.inpaint_mask) {
+        (None, None) => None,
+        (Some(wanted), mask_record) => {
+            if !method.honours_inpaint() {
+                return Outcome::Mismatch(vec![format!("recorded `inpaint`: {method_name} cannot inpaint")]);
+            }
+            let mask_loaded = match mask_record {
+                Some(m) => match load_sample(&dir.join(&m.path)) {
+                    Ok(l)
+                        if l.pixel_digest == m.pixel_digest
+                            && wanted.pointer("/mask/pixels") == Some(&serde_json::json!(m.pixel_digest)) =>
+                    {
+                        Some((l, dir.join(&m.path)))
+                    }
+                    Ok(_) => return Outcome::Mismatch(vec![format!("inpaint mask `{}` no longer has the recorded pixels", m.path)]),
+                    Err(e) => return Outcome::Mismatch(vec![format!("inpaint mask {e}")]),
+                },
+                None => None,
+            };
+            let channel = wanted.get("channel").and_then(|c| c.as_str()).and_then(crate::batch::job::MaskChannel::parse);
+            let source = match (&mask_loaded, channel) {
+                (Some((l, path)), None) => crate::batch::inpaint::MaskSource::File { path, loaded: l },
+                (None, Some(c)) => crate::batch::inpaint::MaskSource::Channel(c),
+                _ => return Outcome::Mismatch(vec!["the record's inpaint mask does not match its output spec".into()]),
+            };
+            match crate::batch::inpaint::fill_region(&loaded, &sample_path, &source, params.int("block").ok(), sample_mask.as_ref()) {
+                Ok(region) => Some(region),
+                Err(e) => return Outcome::Mismatch(vec![format!("recorded `{}`: {e}", source.key())]),
+            }
+        }
+        (None, Some(_)) => return Outcome::Mismatch(vec!["the record's inpaint mask does not match its output spec".into()]),
+    };
+    if fill.is_some() && (output.width, output.height) != size {
+        return Outcome::Mismatch(vec!["recorded `inpaint`: the output is not the image's size".into()]);
+    }
     let inputs = JobInputs {
         method,
         sample: &loaded,
@@ -237,6 +275,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         output: &output,
         companions: companions.iter().map(|(c, l)| (c, l)).collect(),
         sample_mask: sample_mask.as_ref(),
+        fill: fill.as_ref(),
     };
     match synthesize_and_encode(&inputs) {
         Err(e) => problems.push(format!("re-run failed: {e}")),

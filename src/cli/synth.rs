@@ -4,7 +4,7 @@
 use super::{Outcome, say};
 use std::path::PathBuf;
 use texsyn::Error;
-use texsyn::batch::single::OneOff;
+use texsyn::batch::single::{OneOff, OneOffMask};
 
 pub const HELP: &str = "\
 Writes OUT and its manifest beside it (OUT's name with .manifest.json), which `texsyn verify`
@@ -14,8 +14,18 @@ running it, so that a one-off can join a job directory.";
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The sample image (PNG 8/16-bit, JPEG, EXR).
-    sample: PathBuf,
+    /// The sample image (PNG 8/16-bit, JPEG, EXR); leave it out with --inpaint.
+    #[arg(required_unless_present = "inpaint", conflicts_with = "inpaint")]
+    sample: Option<PathBuf>,
+    /// Repair IMAGE instead: fill the pixels --mask marks (or --mask-channel), keep every other one.
+    #[arg(long, value_name = "IMAGE", requires = "inpaint_mask")]
+    inpaint: Option<PathBuf>,
+    /// With --inpaint: the mask image, white = fill.
+    #[arg(long, value_name = "MASK", group = "inpaint_mask", requires = "inpaint")]
+    mask: Option<PathBuf>,
+    /// With --inpaint: fill where this channel of IMAGE is below half (`a`: the transparent pixels).
+    #[arg(long, value_name = "CHANNEL", group = "inpaint_mask", requires = "inpaint")]
+    mask_channel: Option<String>,
     /// The image to write (.png or .exr).
     #[arg(short, long)]
     output: PathBuf,
@@ -53,8 +63,20 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         let (k, v) = kv.split_once('=').ok_or_else(|| Error::Usage(format!("--set {kv:?}: use key=value, e.g. --set block=40")))?;
         params.push((k.trim().to_string(), OneOff::param_value(v.trim())));
     }
+    let inpaint = match (&args.inpaint, args.mask, args.mask_channel) {
+        (None, None, None) => None,
+        (None, ..) => return Err(Error::Usage("--mask and --mask-channel go with --inpaint IMAGE".into())),
+        (Some(_), Some(m), _) => Some(OneOffMask::File(m)),
+        (Some(_), None, Some(c)) => Some(OneOffMask::Channel(c)),
+        (Some(_), None, None) => return Err(Error::Usage("--inpaint needs --mask MASK or --mask-channel CHANNEL".into())),
+    };
+    if inpaint.is_some() && args.size.is_some() {
+        return Err(Error::Usage("--inpaint makes an output of the image's size: leave --size out".into()));
+    }
+    let sample = args.inpaint.or(args.sample).expect("clap requires a sample or --inpaint");
     let one = OneOff {
-        sample: args.sample,
+        sample,
+        inpaint,
         output: args.output,
         method: args.method,
         size: args.size.as_deref().map(parse_size).transpose()?,

@@ -1,5 +1,6 @@
-//! What an output must respect besides its sample, parameters and seed: today, which pixels of
-//! the sample may be copied at all (a sample mask, `sample_mask` in a job file).
+//! What an output must respect besides its sample, parameters and seed: which pixels of the
+//! sample may be copied at all (a sample mask, `sample_mask` in a job file), and which pixels of
+//! an image are to be filled while every other one stays (inpainting, `[inpaint]`).
 //!
 //! A photo sample often holds things that must never appear in the output: a watermark, a
 //! border, a lamp post, a scale bar. A method that copies blocks honours a mask by copying only
@@ -106,18 +107,84 @@ impl SampleMask {
     }
 }
 
+/// The pixels of an image to fill (`true`; white in an inpaint mask); every other pixel is
+/// known and stays as it is, bit for bit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FillRegion {
+    width: u32,
+    height: u32,
+    fill: Vec<bool>,
+}
+
+impl FillRegion {
+    /// A `width × height` region from row-major flags (`true` = to fill).
+    pub fn new(width: u32, height: u32, fill: Vec<bool>) -> FillRegion {
+        assert_eq!(fill.len(), width as usize * height as usize, "one flag per pixel");
+        FillRegion { width, height, fill }
+    }
+
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    pub fn fills(&self, x: u32, y: u32) -> bool {
+        self.fill[(y * self.width + x) as usize]
+    }
+
+    /// How many pixels are to be filled.
+    pub fn count(&self) -> u64 {
+        self.fill.iter().filter(|&&f| f).count() as u64
+    }
+
+    /// The smallest rectangle `[x0, x1) × [y0, y1)` holding every pixel to fill, or `None`.
+    pub fn bounds(&self) -> Option<(u32, u32, u32, u32)> {
+        let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if self.fills(x, y) {
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+                }
+            }
+        }
+        (x1 > 0).then_some((x0, y0, x1, y1))
+    }
+
+    /// The known pixels as a sample mask: what a fill may copy from when the image is its own
+    /// sample (the pixels to fill hold what must go: a logo, a cable, a hole).
+    pub fn known(&self) -> SampleMask {
+        SampleMask::new(self.width, self.height, self.fill.iter().map(|f| !f).collect())
+    }
+}
+
 /// The constraints of one request; the default is none.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Constraints<'a> {
     /// Only these sample pixels may be copied (the sample's size).
     pub sample_mask: Option<&'a SampleMask>,
+    /// Inpainting: the sample is the image to repair, the output has its size, and only these
+    /// pixels are made; every other output pixel is the image's own (its placement is itself).
+    pub fill: Option<&'a FillRegion>,
 }
 
 impl Constraints<'_> {
     /// The block positions a `block_w × block_h` block may be copied from
     /// ([`SampleMask::block_positions`]), or `None` when every position may be.
     pub fn block_positions(&self, block_w: u32, block_h: u32) -> Option<Vec<bool>> {
-        self.sample_mask.map(|m| m.block_positions(block_w, block_h))
+        self.copyable().map(|m| m.block_positions(block_w, block_h))
+    }
+
+    /// Which sample pixels may be copied: those the sample mask allows and, when inpainting,
+    /// that are not to be filled. `None` when every pixel may be.
+    pub fn copyable(&self) -> Option<SampleMask> {
+        match (self.sample_mask, self.fill) {
+            (None, None) => None,
+            (Some(m), None) => Some(m.clone()),
+            (None, Some(f)) => Some(f.known()),
+            (Some(m), Some(f)) => {
+                let known = f.known();
+                Some(SampleMask::new(m.width, m.height, m.allowed.iter().zip(&known.allowed).map(|(a, b)| *a && *b).collect()))
+            }
+        }
     }
 }
 

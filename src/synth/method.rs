@@ -136,6 +136,11 @@ pub trait Method: Send + Sync {
     fn honours_sample_mask(&self) -> bool {
         false
     }
+    /// Whether the method can inpaint ([`Constraints::fill`](crate::synth::constraints::Constraints)):
+    /// fill those pixels of its sample (the image) and keep every other one, bit for bit.
+    fn honours_inpaint(&self) -> bool {
+        false
+    }
     /// Recorded parameters as a manifest written before some of today's parameters existed holds
     /// them: each missing one gets the value that reproduces what the method did then (not
     /// today's default, which may differ), so that `verify` re-makes old records. Manifests

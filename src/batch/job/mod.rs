@@ -26,7 +26,9 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask"];
+pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask", "inpaint"];
+/// The keys of the `[inpaint]` table.
+pub const INPAINT_KEYS: &[&str] = &["image", "mask", "channel"];
 /// The keys of the `[output]` table.
 pub const OUTPUT_KEYS: &[&str] = &["path", "width", "height", "bit_depth", "tileable", "source_map"];
 /// The keys of a `[[companion]]` table.
@@ -125,6 +127,34 @@ impl OutputSpec {
     }
 }
 
+/// `[inpaint]`: repair an image instead of making a new one. The image is the job's sample (it
+/// is what is copied from, outside the mask) and the output has its size.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Inpaint {
+    /// Which pixels to fill.
+    pub mask: InpaintMask,
+}
+
+/// Where an inpainting job's fill region comes from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum InpaintMask {
+    /// `mask = "…"`: an image of the image's size, white (at least half) = fill.
+    File(PathBuf),
+    /// `channel = "a" | "r" | "g" | "b"`: one of the image's own channels, below half = fill (for
+    /// `a`: the transparent pixels).
+    Channel(MaskChannel),
+}
+
+crate::choice! {
+    /// A channel of an image used as its inpaint mask (`[inpaint] channel`).
+    pub enum MaskChannel {
+        R = "r",
+        G = "g",
+        B = "b",
+        A = "a",
+    }
+}
+
 /// One runnable job (a job file, or one point of its sweep).
 #[derive(Clone)]
 pub struct Job {
@@ -139,6 +169,8 @@ pub struct Job {
     pub sample: PathBuf,
     /// `sample_mask`: which sample pixels may be copied (white), resolved like the sample.
     pub sample_mask: Option<PathBuf>,
+    /// `[inpaint]`: fill part of the sample (the image) and keep the rest.
+    pub inpaint: Option<Inpaint>,
     pub method: &'static dyn Method,
     pub seed: u64,
     pub params: Params,
@@ -158,6 +190,14 @@ impl fmt::Debug for Job {
 }
 
 impl Job {
+    /// The inpaint mask image, when the job inpaints with one (decoded with the samples).
+    pub fn inpaint_mask_file(&self) -> Option<PathBuf> {
+        match &self.inpaint {
+            Some(Inpaint { mask: InpaintMask::File(p) }) => Some(p.clone()),
+            _ => None,
+        }
+    }
+
     /// Every file the job asks for by name: the output, its companions and its source map.
     pub fn written_paths(&self) -> Vec<&str> {
         let mut v = vec![self.output.path.as_str()];

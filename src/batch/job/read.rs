@@ -1,13 +1,17 @@
 //! Reading one job file: TOML with positions, every top-level and `[output]` key checked, each
 //! problem recorded with its line, column and key; the values handed to `sweep`.
 
-use super::source::{Ctx, Raw, RawCompanion, Ready, de_int, de_param, type_name};
+use super::source::{Ctx, Raw, RawCompanion, RawInpaint, Ready, de_int, de_param, type_name};
 use super::sweep;
-use super::{COMPANION_KEYS, Companion, Job, JobError, JobFile, MAX_OUTPUT_SIDE, OUTPUT_KEYS, TOP_KEYS, normalise_output_path};
+use super::{
+    COMPANION_KEYS, Companion, INPAINT_KEYS, Inpaint, InpaintMask, Job, JobError, JobFile, MAX_OUTPUT_SIDE, MaskChannel, OUTPUT_KEYS,
+    TOP_KEYS, normalise_output_path,
+};
 use crate::digest::Digest;
 use crate::image::io::Format;
 use crate::synth::methods;
 use crate::synth::params;
+use crate::synth::params::Choice;
 use crate::synth::placement::MapKind;
 use std::path::Path;
 use toml::Spanned;
@@ -48,6 +52,7 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
     let mut raw = Raw {
         sample: None,
         sample_mask: None,
+        inpaint: None,
         method: None,
         seed: None,
         output_path: None,
@@ -115,6 +120,14 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
             },
             "metrics" => read_metrics(ctx, v, &mut raw),
             "companion" => read_companions(ctx, v, &mut raw),
+            "inpaint" => match v.get_ref() {
+                DeValue::Table(t) => raw.inpaint = Some(read_inpaint(ctx, t, v.span())),
+                other => ctx.err(
+                    Some(v.span()),
+                    Some("inpaint"),
+                    format!("expected a table ([inpaint] with image and mask or channel), found {}", type_name(other)),
+                ),
+            },
             other => ctx.err(Some(k.span()), Some(other), params::unknown_key_message(other, TOP_KEYS)),
         }
     }
@@ -124,15 +137,21 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
 /// Reads one file's keys, reports every problem, and expands the valid result into jobs.
 fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     let (mut raw, params_table, sweep_table) = read_top_level(ctx, table);
-    for (key, what) in [("sample", raw.sample.is_some()), ("method", table.get("method").is_some())] {
+    for (key, what) in [("sample", raw.sample.is_some() || raw.inpaint.is_some()), ("method", table.get("method").is_some())] {
         if !what && table.get(key).is_none() {
             ctx.err(None, Some(key), format!("missing required key `{key}`"));
         }
     }
+    // An inpainting job's output has its image's size: width and height may be left out.
+    let inpaint_sized = raw.inpaint.is_some();
     if table.get("output").is_none() {
         ctx.err(None, Some("output"), "missing required table [output] (with path, width and height)");
     } else if matches!(table.get("output").map(|v| v.get_ref()), Some(DeValue::Table(_))) {
-        for (k, present) in [("path", raw.output_path.is_some()), ("width", raw.width.is_some()), ("height", raw.height.is_some())] {
+        for (k, present) in [
+            ("path", raw.output_path.is_some()),
+            ("width", raw.width.is_some() || inpaint_sized),
+            ("height", raw.height.is_some() || inpaint_sized),
+        ] {
             let output = table.get("output").and_then(|v| v.get_ref().as_table());
             if !present && output.is_some_and(|t| t.get(k).is_none()) {
                 ctx.err(None, Some(&format!("output.{k}")), format!("missing required key `output.{k}`"));
@@ -201,6 +220,16 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             );
         }
     }
+    let inpaint = match raw.inpaint.take() {
+        Some(r) => check_inpaint(ctx, r, &raw, method, &mut sample_path).map(|(inpaint, size)| {
+            if let Some((w, h)) = size {
+                raw.width.get_or_insert(w);
+                raw.height.get_or_insert(h);
+            }
+            inpaint
+        }),
+        None => None,
+    };
     let format_and_depth = check_output_format(ctx, &raw);
     let mut companions = Vec::new();
     for c in std::mem::take(&mut raw.companions) {
@@ -246,6 +275,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         method,
         sample,
         sample_mask,
+        inpaint,
         path_template,
         path_span,
         width,
@@ -257,6 +287,145 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         companions,
     };
     sweep::expand(ctx, &raw, &ready)
+}
+
+/// `[inpaint]`: `image` (a path), and `mask` (a path) or `channel` (a word), each checked for type.
+fn read_inpaint(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawInpaint {
+    let mut r = RawInpaint { span, channel_given: t.get("channel").is_some(), ..RawInpaint::default() };
+    for (k, v) in t.iter() {
+        let key = format!("inpaint.{}", k.get_ref());
+        ctx.at(&key, k.span());
+        match k.get_ref().as_ref() {
+            which @ ("image" | "mask") => match v.get_ref() {
+                DeValue::String(s) if !s.is_empty() => {
+                    let value = Some((s.to_string(), v.span()));
+                    if which == "image" { r.image = value } else { r.mask = value }
+                }
+                other => {
+                    let what = if which == "image" { "the image to repair" } else { "the mask image: white = fill" };
+                    ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string ({what}), found {}", type_name(other)))
+                }
+            },
+            "channel" => match v.get_ref() {
+                DeValue::String(s) => match MaskChannel::parse(s) {
+                    Some(c) => r.channel = Some(c),
+                    None => {
+                        let hint = params::nearest(s, MaskChannel::NAMES).map(|n| format!(" (did you mean `{n}`?)")).unwrap_or_default();
+                        ctx.err(
+                            Some(v.span()),
+                            Some(&key),
+                            format!("unknown channel `{s}`{hint}; use one of {}", MaskChannel::NAMES.join(", ")),
+                        );
+                    }
+                },
+                other => ctx.err(Some(v.span()), Some(&key), format!("expected \"r\", \"g\", \"b\" or \"a\", found {}", type_name(other))),
+            },
+            other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, INPAINT_KEYS)),
+        }
+    }
+    r
+}
+
+/// `[inpaint]` checked against the rest of the file: an image that exists (it becomes the
+/// sample, so `sample` must not be given), exactly one of `mask` and `channel`, a method that
+/// inpaints, and the output's size (the image's, read from its header when the file leaves it out).
+fn check_inpaint(
+    ctx: &mut Ctx,
+    r: RawInpaint,
+    raw: &Raw,
+    method: Option<&'static dyn crate::synth::method::Method>,
+    sample_path: &mut Option<std::path::PathBuf>,
+) -> Option<(Inpaint, Option<(u32, u32)>)> {
+    let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mut ok = true;
+    if let Some((_, span)) = &raw.sample {
+        ctx.err(
+            Some(span.clone()),
+            Some("sample"),
+            "an [inpaint] job copies from its image (outside the mask): leave `sample` out (a separate sample for inpainting is not supported yet)",
+        );
+        ok = false;
+    }
+    if let Some(m) = method.filter(|m| !m.honours_inpaint()) {
+        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_inpaint()).map(|m| m.name()).collect();
+        ctx.err(Some(r.span.clone()), Some("inpaint"), format!("{} cannot inpaint; methods that can: {}", m.name(), can.join(", ")));
+        ok = false;
+    }
+    let image = match &r.image {
+        None => {
+            ctx.err(Some(r.span.clone()), Some("inpaint.image"), "missing required key `inpaint.image` (the image to repair)");
+            None
+        }
+        Some((s, span)) => {
+            let p = base.join(s);
+            if p.is_file() {
+                Some(p)
+            } else {
+                let why = missing_file_reason(&p);
+                ctx.err(
+                    Some(span.clone()),
+                    Some("inpaint.image"),
+                    format!("image `{}` {why} (paths are relative to the job file)", p.display()),
+                );
+                None
+            }
+        }
+    };
+    let mask = match (&r.mask, r.channel) {
+        (Some(_), Some(_)) => {
+            ctx.err(
+                Some(r.span.clone()),
+                Some("inpaint.channel"),
+                "give either `mask` (an image) or `channel` (one of the image's), not both",
+            );
+            None
+        }
+        (None, None) if r.channel_given => None,
+        (None, None) => {
+            ctx.err(
+                Some(r.span.clone()),
+                Some("inpaint.mask"),
+                "missing `inpaint.mask` (an image, white = fill) or `inpaint.channel` (\"a\": fill the transparent pixels)",
+            );
+            None
+        }
+        (None, Some(c)) => Some(InpaintMask::Channel(c)),
+        (Some((s, span)), None) => {
+            let p = base.join(s);
+            if p.is_file() {
+                Some(InpaintMask::File(p))
+            } else {
+                let why = missing_file_reason(&p);
+                ctx.err(
+                    Some(span.clone()),
+                    Some("inpaint.mask"),
+                    format!("mask `{}` {why} (paths are relative to the job file)", p.display()),
+                );
+                None
+            }
+        }
+    };
+    let (image, mask) = (image?, mask?);
+    if !ok {
+        return None;
+    }
+    let mut size = None;
+    if raw.width.is_none() || raw.height.is_none() {
+        let header = ::image::ImageReader::open(&image)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| e.to_string())
+            .and_then(|r| r.into_dimensions().map_err(|e| e.to_string()));
+        match header {
+            Ok(dims) => size = Some(dims),
+            Err(e) => {
+                let span = r.image.as_ref().map(|(_, s)| s.clone());
+                ctx.err(span, Some("inpaint.image"), format!("cannot read the size of `{}`: {e}", image.display()));
+                return None;
+            }
+        }
+    }
+    *sample_path = Some(image);
+    Some((Inpaint { mask }, size))
 }
 
 /// `metrics = true` (all but `repetition`: [`crate::metrics::DEFAULT_METRICS`]), `false` (none)

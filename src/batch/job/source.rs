@@ -148,6 +148,8 @@ pub(super) fn de_param(v: &DeValue) -> Result<ParamValue, String> {
 pub(super) struct Raw<'a> {
     pub(super) sample: Option<(String, std::ops::Range<usize>)>,
     pub(super) sample_mask: Option<(String, std::ops::Range<usize>)>,
+    /// `[inpaint]`: the image (path, span) and the mask as read; checked in `read`.
+    pub(super) inpaint: Option<RawInpaint>,
     pub(super) method: Option<&'static dyn Method>,
     pub(super) seed: Option<u64>,
     pub(super) output_path: Option<(String, std::ops::Range<usize>)>,
@@ -161,6 +163,17 @@ pub(super) struct Raw<'a> {
     pub(super) metrics: Vec<String>,
     pub(super) sweep: Vec<(String, Vec<(ParamValue, std::ops::Range<usize>)>)>,
     pub(super) _src: std::marker::PhantomData<&'a ()>,
+}
+
+/// `[inpaint]` as read, each key checked for type.
+#[derive(Default)]
+pub(super) struct RawInpaint {
+    pub(super) span: std::ops::Range<usize>,
+    pub(super) image: Option<(String, std::ops::Range<usize>)>,
+    pub(super) mask: Option<(String, std::ops::Range<usize>)>,
+    pub(super) channel: Option<super::MaskChannel>,
+    /// `channel` is in the file, valid or not (a bad word is reported once, not also as missing).
+    pub(super) channel_given: bool,
 }
 
 /// A `[[companion]]` as read, checked key by key; `index` is its place (0-based) in the file.
@@ -179,6 +192,7 @@ pub(super) struct Ready {
     pub sample: PathBuf,
     /// `sample_mask`, resolved against the job file's directory.
     pub sample_mask: Option<PathBuf>,
+    pub inpaint: Option<super::Inpaint>,
     pub path_template: String,
     pub path_span: std::ops::Range<usize>,
     pub width: u32,

@@ -8,7 +8,7 @@
 //! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
 //! last row and column of blocks are cropped.
 
-use super::{BlockSearch, Engine};
+use super::{BlockSearch, Engine, inpaint};
 use crate::image::RgbImage;
 use crate::synth::constraints::nth_allowed;
 use crate::synth::error::SynthError;
@@ -196,6 +196,19 @@ impl Method for Quilting {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
         let allowed = allowed_positions(req, block)?;
+        if let Some(region) = req.constraints.fill {
+            if rule == OverlapRule::Feather {
+                return Err(SynthError::param("blend", "inpainting cannot feather: a blend would change known pixels; use cut = \"dp\""));
+            }
+            let allowed = allowed.expect("a fill region always restricts the positions");
+            let mut search = BlockSearch::within(cfg.search, sample, block, Some(allowed.clone()));
+            let how = inpaint::Fill { block, overlap, tolerance, rule, allowed: &allowed, label: "quilt" };
+            let mut synthesis = inpaint::fill(req, region, &how, &mut search)?;
+            if let Some(level) = search.coarse_level() {
+                synthesis.diagnostics["pyramid_level"] = serde_json::json!(level);
+            }
+            return Ok(synthesis);
+        }
         if req.tileable {
             return self.synthesize_torus(req, &cfg, allowed);
         }
@@ -254,6 +267,10 @@ impl Method for Quilting {
         true
     }
 
+    fn honours_inpaint(&self) -> bool {
+        true
+    }
+
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = QuiltingConfig::from_params(p).map_err(|e| e.to_string())?;
         torus_of(&cfg, sample, output).map(|_| ())
@@ -274,18 +291,17 @@ fn first_block(seed: u64, sample: &RgbImage, block: u32, allowed: Option<&[bool]
     (x, y)
 }
 
-/// The block positions the request's sample mask allows, or `None` without a mask; an error
-/// naming the block and the largest one that fits when it allows none.
+/// The block positions the request's sample mask (and, when inpainting, the pixels outside the
+/// hole) allow, or `None` when every one may be copied; an error naming the block and the
+/// largest one that fits when none is allowed.
 fn allowed_positions(req: &Request, block: u32) -> Result<Option<Vec<bool>>, SynthError> {
-    let Some(mask) = req.constraints.sample_mask else { return Ok(None) };
+    let Some(mask) = req.constraints.copyable() else { return Ok(None) };
     let allowed = mask.block_positions(block, block);
     if !allowed.contains(&true) {
+        let what = if req.constraints.fill.is_some() { "the image outside the inpaint mask" } else { "the sample mask" };
         return Err(SynthError::param(
             "block",
-            format!(
-                "the sample mask leaves no whole {block}x{block} block to copy; the largest block it allows is {}",
-                mask.largest_block()
-            ),
+            format!("{what} leaves no whole {block}x{block} block to copy; the largest block it allows is {}", mask.largest_block()),
         ));
     }
     Ok(Some(allowed))

@@ -7,6 +7,7 @@ pub mod color;
 pub mod correlation;
 pub mod edges;
 pub mod feather;
+pub mod graph_cut;
 pub mod overlap;
 pub mod overlap_search;
 pub mod pso;

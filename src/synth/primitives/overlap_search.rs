@@ -20,6 +20,9 @@ use rustfft::{Fft, FftPlanner};
 use std::borrow::Cow;
 use std::sync::Arc;
 
+/// How many ΣS² maps (one per distinct region set) a search keeps.
+const MAX_CACHED_MAPS: usize = 16;
+
 /// Candidates whose exact SSD is within `(1 + tolerance)` of the minimum, in row-major order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Candidates {
@@ -279,6 +282,12 @@ impl<'a> OverlapSearch<'a> {
         let total_area: u64 = regions.iter().map(|r| r.area()).sum();
         if total_area == 0 {
             return self.candidates_direct(target, origin, regions, tolerance);
+        }
+        // A grid method sees a handful of region sets; a hole fill sees a new one per block. Past
+        // a bound the cache starts again, so that its memory stays a few maps. (Only here, between
+        // searches: the batched searches hold indices into it while they run.)
+        if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
+            self.sum_sq_maps.clear();
         }
         let map_index = self.sum_sq_map(regions);
         let mut work = std::mem::take(&mut self.work);
@@ -563,6 +572,7 @@ impl<'a> OverlapSearch<'a> {
         if let Some(i) = self.sum_sq_maps.iter().position(|(r, _)| r == regions) {
             return i;
         }
+
         let (nx, ny) = self.positions();
         let map: Vec<f64> = (0..ny)
             .flat_map(|y| (0..nx).map(move |x| (x, y)))

@@ -1,0 +1,272 @@
+//! Filling a hole in an image with blocks of the image itself (`[inpaint]` in a job file), for
+//! the block methods: quilting's search and seam, constrained by the pixels around the hole.
+//!
+//! The output starts as the image, each pixel its own source, and only pixels of the fill
+//! region are ever written: everything outside it stays bit for bit (also in companions and at
+//! 16-bit or float, which are rendered from the same placement). Blocks are laid over the hole's
+//! bounding box at the method's stride, in raster order, and only blocks that still hold an
+//! empty pixel are made. For each, the search compares *every* pixel of the block that holds
+//! content — the known image around the hole and what earlier blocks filled — with each sample
+//! position that lies wholly outside the hole (the hole holds what must go) and inside the
+//! sample mask. The chosen block then meets what is there along a minimum-error seam
+//! (`primitives::graph_cut`): known pixels always stay, empty ones always take the block, and
+//! pixels filled earlier go to whichever side the cheapest seam leaves them. So the known pixels
+//! constrain both the search and the cut, rather than being pasted back over a synthesis.
+//!
+//! On a torus (`tileable = true`) blocks wrap around the image's edges, so the far side of the
+//! image is context for a hole at the border, and the repair wraps like the image does.
+
+use super::BlockSearch;
+use crate::image::RgbImage;
+use crate::synth::constraints::{FillRegion, nth_allowed};
+use crate::synth::error::SynthError;
+use crate::synth::method::{Request, Synthesis};
+use crate::synth::primitives::block_grid::OverlapRule;
+use crate::synth::primitives::canvas::Canvas;
+use crate::synth::primitives::graph_cut::{Side, min_cut};
+use crate::synth::primitives::overlap::{Rect, pixel_error};
+use crate::synth::rng::Stream;
+
+/// What a pixel of the image holds while the hole is filled.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum State {
+    /// Outside the fill region: never written.
+    Known,
+    /// In the fill region, not made yet.
+    Empty,
+    /// In the fill region, made by an earlier block (a later one may still replace it).
+    Filled,
+}
+
+/// How the hole is filled: the method's block, stride and pick rule.
+pub(crate) struct Fill<'a> {
+    pub block: u32,
+    pub overlap: u32,
+    pub tolerance: f64,
+    /// `Cut`: the minimum-error seam through pixels filled earlier; `Overwrite`: a block replaces
+    /// every fill pixel under it. (Feathering would blend into known pixels: refused earlier.)
+    pub rule: OverlapRule,
+    /// The positions a block may be copied from (row-major over the block positions).
+    pub allowed: &'a [bool],
+    /// The stream-label prefix of the method (`quilt`), so that its picks are its own.
+    pub label: &'static str,
+}
+
+/// Fills `region` of the request's sample (the image) and returns the whole image.
+pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, search: &mut BlockSearch) -> Result<Synthesis, SynthError> {
+    let image = req.sample;
+    let (w, h) = image.dimensions();
+    if region.dimensions() != (w, h) || (req.width, req.height) != (w, h) {
+        return Err(SynthError::Failed(format!(
+            "inpainting makes an output of the image's size ({w}x{h}); asked for {}x{} with a {}x{} mask",
+            req.width,
+            req.height,
+            region.dimensions().0,
+            region.dimensions().1
+        )));
+    }
+    let block = how.block;
+    if block > w || block > h {
+        return Err(SynthError::param("block", format!("block {block} does not fit in the {w}x{h} image")));
+    }
+    let mut canvas = Canvas::new(w, h, (w, h), req.placement);
+    for y in 0..h {
+        for x in 0..w {
+            canvas.copy(x, y, image, x, y);
+        }
+    }
+    let mut state: Vec<State> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| if region.fills(x, y) { State::Empty } else { State::Known })
+        .collect();
+    let Some((x0, y0, x1, y1)) = region.bounds() else {
+        let (image, placement) = canvas.finish();
+        let diagnostics = serde_json::json!({ "inpaint": { "filled_pixels": 0, "blocks": 0 } });
+        return Ok(Synthesis { image, seams: None, diagnostics, phases: Vec::new(), extras: Vec::new(), placement });
+    };
+    let stride = block - how.overlap;
+    let xs = origins(x0, x1, w, block, how.overlap, stride, req.tileable);
+    let ys = origins(y0, y1, h, block, how.overlap, stride, req.tileable);
+    let at = |ox: u32, i: u32, size: u32| (ox + i) % size;
+    let positions_x = w - block + 1;
+    let mut blocks = 0u32;
+    let mut candidate_counts = Vec::new();
+    for (bi, &oy) in ys.iter().enumerate() {
+        for (bj, &ox) in xs.iter().enumerate() {
+            let index = |i: u32, j: u32| (at(oy, j, h) * w + at(ox, i, w)) as usize;
+            let empty = (0..block).any(|j| (0..block).any(|i| state[index(i, j)] == State::Empty));
+            if !empty {
+                continue;
+            }
+            blocks += 1;
+            // The block's window of the canvas, and the runs of it that hold content.
+            let window = RgbImage::from_fn(block, block, |i, j| canvas.image.get(at(ox, i, w), at(oy, j, h)));
+            let near = near_empty(block, how.overlap, |i, j| state[index(i, j)] == State::Empty);
+            let regions = content_runs(block, |i, j| near[(j * block + i) as usize] && state[index(i, j)] != State::Empty);
+            let (sx, sy) = if regions.is_empty() {
+                // Nothing to match (a hole that swallows a whole block at the image's corner):
+                // any allowed position, as quilting's first block.
+                let count = how.allowed.iter().filter(|&&a| a).count() as u64;
+                let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
+                nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
+            } else {
+                let c = search.candidates(&window, (0, 0), &regions, how.tolerance);
+                candidate_counts.push(c.members.len());
+                let mut s = Stream::new(req.seed, &format!("{}/inpaint/pick/bi={bi}/bj={bj}", how.label));
+                let p = c.members[s.below_usize(c.members.len())];
+                (p.0, p.1)
+            };
+            let (bu, n) = (block as usize, (block * block) as usize);
+            let mut sides = Vec::with_capacity(n);
+            let mut error = Vec::with_capacity(n);
+            for j in 0..block {
+                for i in 0..block {
+                    let st = state[index(i, j)];
+                    sides.push(match (st, how.rule) {
+                        (State::Known, _) => Side::Keep,
+                        (State::Empty, _) | (State::Filled, OverlapRule::Overwrite) => Side::New,
+                        (State::Filled, _) => Side::Free,
+                    });
+                    error.push(if st == State::Empty { 0 } else { u64::from(pixel_error(window.get(i, j), image.get(sx + i, sy + j))) });
+                }
+            }
+            let take = min_cut(bu, bu, &sides, &error);
+            for j in 0..block {
+                for i in 0..block {
+                    if take[(j * block + i) as usize] {
+                        let (x, y) = (at(ox, i, w), at(oy, j, h));
+                        canvas.copy(x, y, image, sx + i, sy + j);
+                        state[(y * w + x) as usize] = State::Filled;
+                    }
+                }
+            }
+        }
+    }
+    if state.contains(&State::Empty) {
+        return Err(SynthError::Failed("inpainting left pixels of the hole empty (a bug: the blocks must cover the hole)".into()));
+    }
+    let (image, placement) = canvas.finish();
+    let diagnostics = serde_json::json!({
+        "inpaint": {
+            "filled_pixels": region.count(),
+            "bounds": [x0, y0, x1, y1],
+            "blocks": blocks,
+            "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+        }
+    });
+    Ok(Synthesis { image, seams: None, diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+}
+
+/// Block origins along one axis covering `[lo, hi)` with `overlap` of context on both sides, at
+/// most `stride` apart and spread evenly, so that the last block also reaches into the known
+/// pixels after the hole and is matched against them. Without wrapping each origin is kept
+/// inside the image (a block never leaves it); with wrapping, origins are taken modulo the side.
+fn origins(lo: u32, hi: u32, side: u32, block: u32, overlap: u32, stride: u32, wrap: bool) -> Vec<u32> {
+    let (block, side) = (i64::from(block), i64::from(side));
+    let span = i64::from(hi - lo) + 2 * i64::from(overlap);
+    let first = i64::from(lo) - i64::from(overlap);
+    let raw: Vec<i64> = if span <= block {
+        vec![first - (block - span) / 2]
+    } else {
+        let gaps = (span - block + i64::from(stride) - 1) / i64::from(stride);
+        (0..=gaps).map(|k| first + (k * (span - block) + gaps / 2) / gaps).collect()
+    };
+    let mut v: Vec<u32> = Vec::new();
+    for o in raw {
+        let placed = if wrap { o.rem_euclid(side) } else { o.clamp(0, side - block) } as u32;
+        if !v.contains(&placed) {
+            v.push(placed);
+        }
+    }
+    v
+}
+
+/// For a `block × block` window, row-major: whether a pixel lies within `reach` pixels (in both
+/// directions) of an empty one. Only content that close is compared in the search: it is where the
+/// new block must join what is there, as quilting compares only its overlap strips. Content
+/// farther off would weigh the choice towards blocks that resemble it, which the seam never sees.
+fn near_empty(block: u32, reach: u32, empty: impl Fn(u32, u32) -> bool) -> Vec<bool> {
+    let b = block as usize;
+    let r = reach as usize;
+    // A box dilation, rows then columns, through running counts.
+    let mut rows = vec![false; b * b];
+    for j in 0..b {
+        let line: Vec<bool> = (0..b).map(|i| empty(i as u32, j as u32)).collect();
+        let mut prefix = vec![0u32; b + 1];
+        for i in 0..b {
+            prefix[i + 1] = prefix[i] + u32::from(line[i]);
+        }
+        for i in 0..b {
+            rows[j * b + i] = prefix[(i + r + 1).min(b)] > prefix[i.saturating_sub(r)];
+        }
+    }
+    let mut out = vec![false; b * b];
+    for i in 0..b {
+        let mut prefix = vec![0u32; b + 1];
+        for j in 0..b {
+            prefix[j + 1] = prefix[j] + u32::from(rows[j * b + i]);
+        }
+        for j in 0..b {
+            out[j * b + i] = prefix[(j + r + 1).min(b)] > prefix[j.saturating_sub(r)];
+        }
+    }
+    out
+}
+
+/// The row runs of a `block × block` window where `has_content` holds, as rectangles.
+fn content_runs(block: u32, has_content: impl Fn(u32, u32) -> bool) -> Vec<Rect> {
+    let mut runs = Vec::new();
+    for j in 0..block {
+        let mut i = 0;
+        while i < block {
+            if !has_content(i, j) {
+                i += 1;
+                continue;
+            }
+            let start = i;
+            while i < block && has_content(i, j) {
+                i += 1;
+            }
+            runs.push(Rect::new(start, j, i - start, 1));
+        }
+    }
+    runs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn origins_cover_the_hole_with_context_and_stay_inside() {
+        // Hole [40, 90) in a 200-wide image, block 30, overlap 5: from 35 to 65 (the last block
+        // ends 5 pixels past the hole), at most 25 apart.
+        assert_eq!(origins(40, 90, 200, 30, 5, 25, false), vec![35, 50, 65]);
+        // At the image's start and end the origins are clamped, and the last one reaches the end.
+        assert_eq!(origins(0, 20, 100, 30, 5, 25, false), vec![0]);
+        assert_eq!(origins(80, 100, 100, 30, 5, 25, false), vec![70]);
+        // Wrapping: a hole at the start takes context from the far end.
+        assert_eq!(origins(0, 20, 100, 30, 5, 25, true), vec![95]);
+        for (lo, hi) in [(3, 97), (50, 51), (0, 100)] {
+            let o = origins(lo, hi, 100, 30, 5, 25, false);
+            assert!((lo..hi).all(|x| o.iter().any(|&s| s <= x && x < s + 30)), "{lo}..{hi}: {o:?}");
+        }
+    }
+
+    #[test]
+    fn only_content_near_the_empty_pixels_is_compared() {
+        let near = near_empty(7, 2, |i, j| i == 3 && j == 3);
+        for j in 0..7 {
+            for i in 0..7 {
+                assert_eq!(near[j * 7 + i], i.abs_diff(3) <= 2 && j.abs_diff(3) <= 2, "({i},{j})");
+            }
+        }
+    }
+
+    #[test]
+    fn content_runs_are_the_rows_pieces() {
+        let runs = content_runs(4, |i, j| (i + j) % 3 != 0);
+        assert_eq!(runs.iter().map(|r| r.area()).sum::<u64>(), (0..16).filter(|p| (p % 4 + p / 4) % 3 != 0).count() as u64);
+        assert!(runs.iter().all(|r| r.h == 1));
+    }
+}
