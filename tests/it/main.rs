@@ -9,6 +9,7 @@ mod compat;
 mod diff;
 mod guided;
 mod hardening;
+mod inpaint;
 mod lattice;
 mod materials;
 mod memory;

@@ -1,0 +1,276 @@
+//! Inpainting (`[inpaint]`, issue #28): every pixel outside the mask stays bit for bit (8-bit,
+//! 16-bit, companions, alpha), the hole is filled only from known pixels, runs are reproducible
+//! and verifiable, a changed mask reruns the job, and bad input is refused by key.
+
+use crate::common::*;
+use std::path::Path;
+use texsyn::batch::source_map;
+
+const IMAGE: &str = "jobs/samples/guided/cork_cable.png";
+const MASK: &str = "jobs/samples/guided/cork_cable_mask.png";
+const HOLES: &str = "jobs/samples/guided/pebbles_beige_holes.png";
+
+fn abs(p: &str) -> String {
+    repo().join(p).display().to_string()
+}
+
+/// A job file inpainting `image` with `mask_line` (`mask = "…"` or `channel = "…"`).
+fn job(dir: &Path, name: &str, image: &str, mask_line: &str, output_extra: &str, params: &str) {
+    std::fs::create_dir_all(dir).unwrap();
+    let stem = name.trim_end_matches(".toml");
+    std::fs::write(
+        dir.join(name),
+        format!(
+            "method = \"quilting\"\nseed = 3\n[inpaint]\nimage = \"{image}\"\n{mask_line}\n[output]\npath = \"{stem}.png\"\n{output_extra}\n[params]\nblock = 32\n{params}"
+        ),
+    )
+    .unwrap();
+}
+
+fn mask_flags() -> Vec<bool> {
+    let m = rgb(&repo().join(MASK));
+    m.as_raw().chunks_exact(3).map(|p| p[0] >= 128).collect()
+}
+
+/// Outside the mask the output is the image, and each of its pixels is its own source; inside,
+/// every pixel is copied from a known one (never from the cable or the sticker). Also on a torus,
+/// on one thread, and through `verify`.
+#[test]
+fn outside_the_mask_nothing_changes_and_the_hole_is_filled_from_known_pixels() {
+    let d = scratch("inpaint-kept");
+    let jobs = d.join("jobs");
+    let mask_line = format!("mask = \"{}\"", abs(MASK));
+    job(&jobs, "plain.toml", &abs(IMAGE), &mask_line, "source_map = \"plain.map.exr\"", "");
+    job(&jobs, "torus.toml", &abs(IMAGE), &mask_line, "source_map = \"torus.map.exr\"\ntileable = true", "");
+    job(&jobs, "nocut.toml", &abs(IMAGE), &mask_line, "source_map = \"nocut.map.exr\"", "cut = \"none\"\n");
+    run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
+    let image = rgb(&repo().join(IMAGE));
+    let fill = mask_flags();
+    let (w, h) = image.dimensions();
+    for name in ["plain", "torus", "nocut"] {
+        let out = rgb(&d.join(format!("out/{name}.png")));
+        assert_eq!(out.dimensions(), (w, h), "{name}: the image's size");
+        let map = source_map::decode(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
+        let mut changed = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let src = map.sources()[i];
+                if fill[i] {
+                    assert!(!fill[src as usize], "{name}: ({x},{y}) copies ({},{}), inside the hole", src % w, src / w);
+                    changed += usize::from(out.get(x, y) != image.get(x, y));
+                } else {
+                    assert_eq!(out.get(x, y), image.get(x, y), "{name}: known pixel ({x},{y}) changed");
+                    assert_eq!(src as usize, i, "{name}: known pixel ({x},{y}) is its own source");
+                }
+                assert!(map.blends_at(x, y).is_empty(), "{name}: nothing is blended");
+            }
+        }
+        assert!(changed > 5000, "{name}: the hole was filled ({changed} pixels changed)");
+    }
+    let m = json(&d.join("out/manifest.json"));
+    let plain = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "plain.toml").unwrap();
+    assert!(plain["inpaint_mask"]["path"].as_str().unwrap().ends_with("cork_cable_mask.png"), "{plain}");
+    assert!(plain["output_spec"]["inpaint"]["mask"]["pixels"].is_object(), "{plain}");
+    assert!(plain["sample"]["path"].as_str().unwrap().ends_with("cork_cable.png"), "{plain}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
+    let one = json(&d.join("one/manifest.json"));
+    for (a, b) in m["jobs"].as_array().unwrap().iter().zip(one["jobs"].as_array().unwrap()) {
+        assert_eq!(a["outputs"][0]["pixel_digest"], b["outputs"][0]["pixel_digest"], "{}: -j 1 = -j 2", a["id"]);
+    }
+}
+
+/// A 16-bit image with a companion map: outside the mask both outputs hold the inputs' exact
+/// 16-bit samples; an RGBA image whose holes are its transparent pixels keeps every other pixel,
+/// alpha included, and its holes become opaque.
+#[test]
+fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
+    let d = scratch("inpaint-16");
+    std::fs::create_dir_all(&d).unwrap();
+    let image = rgb(&repo().join(IMAGE));
+    let (w, h) = image.dimensions();
+    // Genuinely 16-bit: the low byte is not a copy of the high one.
+    let deep = |img: &texsyn::RgbImage, salt: u32| {
+        image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::from_fn(w, h, |x, y| {
+            let p = img.get(x, y);
+            image::Rgb([0, 1, 2].map(|c| u16::from(p[c]) * 256 + ((x * 7 + y * 13 + c as u32 * 5 + salt) % 256) as u16))
+        })
+    };
+    deep(&image, 0).save(d.join("deep.png")).unwrap();
+    let companion = texsyn::RgbImage::from_fn(w, h, |x, y| [(x % 256) as u8, (y % 256) as u8, ((x + y) % 256) as u8]);
+    deep(&companion, 99).save(d.join("deep_normal.png")).unwrap();
+    let jobs = d.join("jobs");
+    job(&jobs, "deep.toml", &d.join("deep.png").display().to_string(), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    let text = std::fs::read_to_string(jobs.join("deep.toml")).unwrap();
+    std::fs::write(
+        jobs.join("deep.toml"),
+        format!("{text}\n[[companion]]\nsample = \"{}\"\npath = \"deep_normal.png\"\n", d.join("deep_normal.png").display()),
+    )
+    .unwrap();
+    job(&jobs, "alpha.toml", &abs(HOLES), "channel = \"a\"", "", "");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
+    let fill = mask_flags();
+    let decode = |p: &Path| texsyn::image::io::decode_output(&std::fs::read(p).unwrap(), Default::default()).unwrap();
+    for (input, output) in [("deep.png", "out/deep.png"), ("deep_normal.png", "out/deep_normal.png")] {
+        let (a, b) = (decode(&d.join(input)), decode(&d.join(output)));
+        let (texsyn::image::io::Samples::U16(a), texsyn::image::io::Samples::U16(b)) = (&a.samples, &b.samples) else {
+            panic!("{output} is 16-bit like its input")
+        };
+        let (mut same, mut differ) = (0, 0);
+        for (i, (pa, pb)) in a.chunks_exact(3).zip(b.chunks_exact(3)).enumerate() {
+            if fill[i] {
+                differ += usize::from(pa != pb);
+            } else {
+                assert_eq!(pa, pb, "{output}: known pixel {i} changed");
+                same += 1;
+            }
+        }
+        assert!(same > 50_000 && differ > 5000, "{output}: {same} kept, {differ} filled");
+    }
+    let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join("out/alpha.png")));
+    assert_eq!((a.channels, b.channels), (4, 4));
+    let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else { panic!("8-bit RGBA") };
+    let mut holes = 0;
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        if pa[3] < 128 {
+            holes += 1;
+            assert_eq!(pb[3], 255, "a filled pixel is opaque");
+            assert_ne!(&pb[..3], &[255, 0, 255], "no hole colour is copied");
+        } else {
+            assert_eq!(pa, pb, "a known pixel keeps its colour and alpha");
+        }
+    }
+    assert!(holes > 3000, "{holes}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+}
+
+/// The filled hole looks like its surroundings: its gray level and contrast are those of the
+/// known image (a hole filled with the cable's black or a flat colour would fail), and the steps
+/// across the hole's border are within a small factor of the image's own neighbour steps.
+#[test]
+fn the_filled_hole_has_the_texture_of_its_surroundings() {
+    let d = scratch("inpaint-stats");
+    job(&d.join("jobs"), "h.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let out = rgb(&d.join("out/h.png"));
+    let fill = mask_flags();
+    let (w, h) = out.dimensions();
+    let gray = |x: u32, y: u32| out.get(x, y).iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
+    let stats = |inside: bool| {
+        let v: Vec<f64> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&(x, y)| fill[(y * w + x) as usize] == inside)
+            .map(|(x, y)| gray(x, y))
+            .collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        (mean, (v.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / v.len() as f64).sqrt())
+    };
+    let ((hole_mean, hole_sd), (known_mean, known_sd)) = (stats(true), stats(false));
+    assert!((hole_mean - known_mean).abs() < 0.05 * known_mean, "mean {hole_mean:.1} vs {known_mean:.1}");
+    assert!((hole_sd / known_sd - 1.0).abs() < 0.25, "contrast {hole_sd:.1} vs {known_sd:.1}");
+    // Neighbour steps across the border against those of the known image away from it.
+    let step = |a: (u32, u32), b: (u32, u32)| (gray(a.0, a.1) - gray(b.0, b.1)).abs();
+    let (mut border, mut known) = (Vec::new(), Vec::new());
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let i = (y * w + x) as usize;
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                let j = (ny * w + nx) as usize;
+                match (fill[i], fill[j]) {
+                    (true, false) | (false, true) => border.push(step((x, y), (nx, ny))),
+                    (false, false) => known.push(step((x, y), (nx, ny))),
+                    _ => {}
+                }
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (b, k) = (mean(&border), mean(&known));
+    assert!(b < 2.5 * k, "steps across the hole's border {b:.2} against {k:.2} in the known image");
+}
+
+/// A changed mask reruns the job and `diff` says the mask changed.
+#[test]
+fn a_changed_inpaint_mask_reruns_the_job_and_diff_says_so() {
+    let d = scratch("inpaint-changed");
+    std::fs::create_dir_all(&d).unwrap();
+    let mask = d.join("mask.png");
+    std::fs::copy(repo().join(MASK), &mask).unwrap();
+    job(&d.join("jobs"), "m.toml", &abs(IMAGE), &format!("mask = \"{}\"", mask.display()), "", "");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("a")).arg(d.join("jobs")));
+    let mut img = rgb(&mask);
+    for y in 200..230 {
+        for x in 150..200 {
+            img.put(x, y, [255, 255, 255]);
+        }
+    }
+    texsyn::save_image(&img, &mask).unwrap();
+    std::fs::copy(d.join("a/manifest.json"), d.join("a.json")).unwrap();
+    let again = text(&run_ok(texsyn().args(["run", "-o"]).arg(d.join("a")).arg(d.join("jobs"))));
+    assert!(again.contains("ran 1"), "{again}");
+    let said = text(&run(texsyn().arg("diff").arg(d.join("a.json")).arg(d.join("a/manifest.json"))));
+    assert!(said.contains("mask changed (inpaint.mask.pixels"), "{said}");
+}
+
+#[test]
+fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
+    let d = scratch("inpaint-bad");
+    std::fs::create_dir_all(&d).unwrap();
+    let jobs = d.join("jobs");
+    let save = |name: &str, w: u32, h: u32, f: &dyn Fn(u32, u32) -> bool| {
+        let p = d.join(name);
+        texsyn::save_image(&texsyn::RgbImage::from_fn(w, h, |x, y| if f(x, y) { [255; 3] } else { [0; 3] }), &p).unwrap();
+        format!("mask = \"{}\"", p.display())
+    };
+    job(&jobs, "size.toml", &abs(IMAGE), &save("small.png", 64, 48, &|_, _| true), "", "");
+    job(&jobs, "white.toml", &abs(IMAGE), &save("white.png", 256, 256, &|_, _| true), "", "");
+    job(&jobs, "empty.toml", &abs(IMAGE), &save("black.png", 256, 256, &|_, _| false), "", "");
+    // Only a 20-pixel band is known: no whole 32-pixel block outside the hole.
+    job(&jobs, "block.toml", &abs(IMAGE), &save("band.png", 256, 256, &|_, y| !(100..120).contains(&y)), "", "");
+    job(&jobs, "channel.toml", &abs(HOLES), "channel = \"aa\"", "", "");
+    job(&jobs, "noalpha.toml", &abs(IMAGE), "channel = \"a\"", "", "");
+    job(&jobs, "both.toml", &abs(IMAGE), &format!("mask = \"{}\"\nchannel = \"a\"", abs(MASK)), "", "");
+    job(&jobs, "missing.toml", &abs(IMAGE), "mask = \"nowhere/mask.png\"", "", "");
+    job(&jobs, "outsize.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "width = 300\nheight = 256", "");
+    let text_of = |p: &Path| std::fs::read_to_string(p).unwrap();
+    job(&jobs, "method.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    std::fs::write(
+        jobs.join("method.toml"),
+        text_of(&jobs.join("method.toml")).replace("quilting", "wang-tiles").replace("block = 32", ""),
+    )
+    .unwrap();
+    job(&jobs, "sample.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    std::fs::write(jobs.join("sample.toml"), format!("sample = \"{}\"\n{}", abs(IMAGE), text_of(&jobs.join("sample.toml")))).unwrap();
+    job(&jobs, "good.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    let started = std::time::Instant::now();
+    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(&jobs)));
+    assert!(started.elapsed().as_secs() < 30, "refusals are quick");
+    for expected in [
+        "size.toml:5:1: `inpaint.mask`: inpaint mask",
+        "is 64x48 but the image",
+        "is 256x256; the mask must have the image's size",
+        "white.toml:5:1: `inpaint.mask`: inpaint mask",
+        "is white everywhere: the whole image would be filled and nothing is left to copy from",
+        "block.toml:5:1: `inpaint.mask`: the image outside the inpaint mask leaves no whole 32x32 block (params.block) to copy from; \
+         the largest block it leaves is 20",
+        "channel.toml:5:11: `inpaint.channel`: unknown channel `aa` (did you mean `a`?)",
+        "noalpha.toml:5:1: `inpaint.channel`: image",
+        "has no alpha channel (8-bit RGB)",
+        "both.toml:3:1: `inpaint.channel`: give either `mask` (an image) or `channel`",
+        "missing.toml:5:8: `inpaint.mask`: mask",
+        "outsize.toml:8:1: `output.width`: an inpainting job's output has its image's size",
+        "is 256x256 but the output asks for 300x256",
+        "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting",
+        "sample.toml:1:10: `sample`: an [inpaint] job copies from its image",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
+    let m = json(&d.join("out/manifest.json"));
+    let find = |id: &str| m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == id).unwrap().clone();
+    assert_eq!(find("good.toml")["status"], "ok");
+    let empty = find("empty.toml");
+    assert_eq!(empty["status"], "ok", "{empty}");
+    assert!(empty["warnings"].to_string().contains("marks no pixel to fill"), "{empty}");
+    assert_eq!(empty["outputs"][0]["pixel_digest"]["sha256"], pixels(&repo().join(IMAGE)), "nothing to fill: the image itself");
+}
