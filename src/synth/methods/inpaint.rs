@@ -16,14 +16,14 @@
 //! On a torus (`tileable = true`) blocks wrap around the image's edges, so the far side of the
 //! image is context for a hole at the border, and the repair wraps like the image does.
 
-use super::BlockSearch;
+use super::{BlockSearch, Engine};
 use crate::image::RgbImage;
-use crate::synth::constraints::{FillRegion, nth_allowed};
+use crate::synth::constraints::{FillRegion, SampleMask, nth_allowed};
 use crate::synth::error::SynthError;
 use crate::synth::method::{Request, Synthesis};
 use crate::synth::primitives::block_grid::OverlapRule;
 use crate::synth::primitives::canvas::Canvas;
-use crate::synth::primitives::graph_cut::{Side, min_cut};
+use crate::synth::primitives::graph_cut::{Side, min_cut, min_cut_with_keep_costs};
 use crate::synth::primitives::overlap::{Rect, pixel_error};
 use crate::synth::rng::Stream;
 
@@ -48,6 +48,11 @@ pub(crate) struct Fill<'a> {
     pub rule: OverlapRule,
     /// The positions a block may be copied from (row-major over the block positions).
     pub allowed: &'a [bool],
+    /// The sample pixels that may be copied (outside the hole, inside any sample mask), for the
+    /// smaller patches that polish the hole's border.
+    pub copyable: &'a SampleMask,
+    /// The search engine, for the polishing patches' own search.
+    pub engine: Engine,
     /// The stream-label prefix of the method (`quilt`), so that its picks are its own.
     pub label: &'static str,
 }
@@ -75,6 +80,8 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, search: &mut 
             canvas.copy(x, y, image, x, y);
         }
     }
+    // Where each pixel comes from (the image itself until filled), for the border polish.
+    let mut source: Vec<(u32, u32)> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect();
     let mut state: Vec<State> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| if region.fills(x, y) { State::Empty } else { State::Known })
@@ -137,6 +144,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, search: &mut 
                         let (x, y) = (at(ox, i, w), at(oy, j, h));
                         canvas.copy(x, y, image, sx + i, sy + j);
                         state[(y * w + x) as usize] = State::Filled;
+                        source[(y * w + x) as usize] = (sx + i, sy + j);
                     }
                 }
             }
@@ -145,6 +153,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, search: &mut 
     if state.contains(&State::Empty) {
         return Err(SynthError::Failed("inpainting left pixels of the hole empty (a bug: the blocks must cover the hole)".into()));
     }
+    let polished = if how.rule == OverlapRule::Cut { polish(req, region, how, &mut canvas, &mut source) } else { (0, 0) };
     let (image, placement) = canvas.finish();
     let diagnostics = serde_json::json!({
         "inpaint": {
@@ -152,9 +161,124 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, search: &mut 
             "bounds": [x0, y0, x1, y1],
             "blocks": blocks,
             "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+            "border_patches": polished.0,
+            "border_pixels_replaced": polished.1,
         }
     });
     Ok(Synthesis { image, seams: None, diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+}
+
+/// The side of the patches that polish the hole's border: small enough that the known pixels
+/// in one are few and closely matched, large enough to hold a seam around them.
+fn polish_side(block: u32, overlap: u32) -> u32 {
+    (2 * overlap + 3).max(block / 2).min(block)
+}
+
+/// Polishes the join between the known image and the fill. A block matches the known pixels
+/// near the hole only on the whole; along the hole's border, where the known image is fixed and
+/// no cut can move, what remains of the mismatch shows as a faint line. So, around border pixels
+/// (spaced half a patch apart, raster order), a smaller patch is searched against everything in
+/// its window and cut in where it joins better: a filled pixel next to the known image pays for
+/// keeping its present joint (how far its source, continued one pixel on, is from the known
+/// pixel), so the cut replaces badly joined border pixels and keeps well joined ones; the
+/// window's rim and the known pixels always stay. Returns (patches, pixels replaced).
+fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, source: &mut [(u32, u32)]) -> (u32, u64) {
+    let image = req.sample;
+    let (w, h) = image.dimensions();
+    let q = polish_side(how.block, how.overlap);
+    let allowed = how.copyable.block_positions(q, q);
+    if !allowed.contains(&true) {
+        return (0, 0);
+    }
+    let mut search = BlockSearch::within(how.engine, image, q, Some(allowed));
+    let neighbours = |x: u32, y: u32| -> [Option<(u32, u32)>; 4] {
+        if req.tileable {
+            [((x + w - 1) % w, y), ((x + 1) % w, y), (x, (y + h - 1) % h), (x, (y + 1) % h)].map(Some)
+        } else {
+            [(x > 0).then(|| (x - 1, y)), (x + 1 < w).then(|| (x + 1, y)), (y > 0).then(|| (x, y - 1)), (y + 1 < h).then(|| (x, y + 1))]
+        }
+    };
+    // Border pixels as centres, at least half a patch apart (a coarse grid finds near ones).
+    let spacing = (q / 2).max(1);
+    let mut taken: std::collections::BTreeMap<(u32, u32), Vec<(u32, u32)>> = Default::default();
+    let mut centres = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            if !region.fills(x, y) || !neighbours(x, y).into_iter().flatten().any(|(nx, ny)| !region.fills(nx, ny)) {
+                continue;
+            }
+            let cell = (x / spacing, y / spacing);
+            let near = (cell.1.saturating_sub(1)..=cell.1 + 1)
+                .flat_map(|cy| (cell.0.saturating_sub(1)..=cell.0 + 1).map(move |cx| (cx, cy)))
+                .filter_map(|c| taken.get(&c))
+                .flatten()
+                .any(|&(px, py)| px.abs_diff(x) < spacing && py.abs_diff(y) < spacing);
+            if !near {
+                taken.entry(cell).or_default().push((x, y));
+                centres.push((x, y));
+            }
+        }
+    }
+    let at = |o: u32, i: u32, size: u32| (o + i) % size;
+    let origin = |c: u32, size: u32| {
+        if req.tileable { (i64::from(c) - i64::from(q / 2)).rem_euclid(i64::from(size)) as u32 } else { c.saturating_sub(q / 2).min(size - q) }
+    };
+    let (n, qu) = ((q * q) as usize, q as usize);
+    let mut replaced = 0u64;
+    for (k, &(cx, cy)) in centres.iter().enumerate() {
+        let (ox, oy) = (origin(cx, w), origin(cy, h));
+        let pos = |i: u32, j: u32| (at(ox, i, w), at(oy, j, h));
+        let window = RgbImage::from_fn(q, q, |i, j| {
+            let (x, y) = pos(i, j);
+            canvas.image.get(x, y)
+        });
+        let known = content_runs(q, |i, j| {
+            let (x, y) = pos(i, j);
+            !region.fills(x, y)
+        });
+        let c = search.candidates(&window, (0, 0), &known, how.tolerance);
+        let mut s = Stream::new(req.seed, &format!("{}/inpaint/polish/k={k}", how.label));
+        let (sx, sy, _) = c.members[s.below_usize(c.members.len())];
+        let mut sides = Vec::with_capacity(n);
+        let mut error = Vec::with_capacity(n);
+        let mut keep_cost = vec![0u64; n];
+        for j in 0..q {
+            for i in 0..q {
+                let (x, y) = pos(i, j);
+                let rim = i == 0 || j == 0 || i == q - 1 || j == q - 1;
+                sides.push(if rim || !region.fills(x, y) { Side::Keep } else { Side::Free });
+                error.push(u64::from(pixel_error(window.get(i, j), image.get(sx + i, sy + j))));
+                if rim || !region.fills(x, y) {
+                    continue;
+                }
+                // The present joint with each known neighbour: this pixel's source continued onto it.
+                let (fx, fy) = source[(y * w + x) as usize];
+                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (ni, nj) = ((i64::from(i) + di) as u32, (i64::from(j) + dj) as u32);
+                    let (nx, ny) = pos(ni, nj);
+                    if region.fills(nx, ny) {
+                        continue;
+                    }
+                    let (ax, ay) = (i64::from(fx) + di, i64::from(fy) + dj);
+                    if (0..i64::from(w)).contains(&ax) && (0..i64::from(h)).contains(&ay) {
+                        keep_cost[(j * q + i) as usize] += 2 * u64::from(pixel_error(image.get(nx, ny), image.get(ax as u32, ay as u32)));
+                    }
+                }
+            }
+        }
+        let take = min_cut_with_keep_costs(qu, qu, &sides, &error, &keep_cost);
+        for j in 0..q {
+            for i in 0..q {
+                if take[(j * q + i) as usize] {
+                    let (x, y) = pos(i, j);
+                    canvas.copy(x, y, image, sx + i, sy + j);
+                    source[(y * w + x) as usize] = (sx + i, sy + j);
+                    replaced += 1;
+                }
+            }
+        }
+    }
+    (centres.len() as u32, replaced)
 }
 
 /// Block origins along one axis covering `[lo, hi)` with `overlap` of context on both sides, at

@@ -27,7 +27,15 @@ pub enum Side {
 /// neighbours `p` and `q` costs `error[p] + error[q] + 1` (a `New` neighbour counts its partner's
 /// error twice); the `+ 1` makes the shortest of equally good seams win.
 pub fn min_cut(width: usize, height: usize, sides: &[Side], error: &[u64]) -> Vec<bool> {
+    min_cut_with_keep_costs(width, height, sides, error, &[])
+}
+
+/// [`min_cut`] where keeping a `Free` pixel may cost too: `keep_cost[p]` is paid when `p` keeps
+/// what it holds (empty: nothing). That is how a seam already in the region counts: a pixel next
+/// to a badly joined neighbour pays for keeping the bad joint, so the cut may replace it.
+pub fn min_cut_with_keep_costs(width: usize, height: usize, sides: &[Side], error: &[u64], keep_cost: &[u64]) -> Vec<bool> {
     assert_eq!(sides.len(), width * height, "one side per pixel");
+    assert!(keep_cost.is_empty() || keep_cost.len() == sides.len(), "no keep costs, or one per pixel");
     assert_eq!(error.len(), width * height, "one error per pixel");
     let free: Vec<usize> = (0..sides.len()).filter(|&p| sides[p] == Side::Free).collect();
     let mut label: Vec<bool> = sides.iter().map(|s| *s == Side::New).collect();
@@ -41,6 +49,9 @@ pub fn min_cut(width: usize, height: usize, sides: &[Side], error: &[u64]) -> Ve
     let (source, sink) = (free.len(), free.len() + 1);
     let mut flow = Flow::new(free.len() + 2);
     for (i, &p) in free.iter().enumerate() {
+        if let Some(&c) = keep_cost.get(p).filter(|&&c| c > 0) {
+            flow.add(i, sink, c);
+        }
         let (x, y) = (p % width, p / width);
         let neighbours =
             [(x > 0).then(|| p - 1), (x + 1 < width).then(|| p + 1), (y > 0).then(|| p - width), (y + 1 < height).then(|| p + width)];
@@ -208,6 +219,16 @@ mod tests {
         // Nothing free at all: the labels are the sides.
         let (w, h, sides) = parse(&["KN", "NK"]);
         assert_eq!(min_cut(w, h, &sides, &[0; 4]), vec![false, true, true, false]);
+    }
+
+    #[test]
+    fn a_costly_existing_joint_is_replaced_when_the_new_block_joins_better() {
+        // One free pixel between a known one and the rest: keeping it costs its bad joint (50),
+        // taking the new block costs the joint the new block makes (errors 1 + 1 + 1).
+        let (w, h, sides) = parse(&["K.K"]);
+        assert_eq!(min_cut_with_keep_costs(w, h, &sides, &[1, 1, 1], &[0, 50, 0]), vec![false, true, false]);
+        // Without a cost to keep it, it stays.
+        assert_eq!(min_cut(w, h, &sides, &[1, 1, 1]), vec![false, false, false]);
     }
 
     #[test]
