@@ -23,6 +23,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
+#[path = "peers/inpaint.rs"]
+mod inpaint;
+
 const SIZE: u32 = 512;
 /// Structured and stochastic samples of 256², plus a near-regular one for the lattice methods.
 const SAMPLES: [&str; 3] = ["pebbles_beige", "bricks_gray", "grass_gray"];
@@ -88,6 +91,12 @@ fn main() {
              cargo install --locked --version 0.8.3 texture-synthesis-cli --root <dir>\n\
              and set TEXSYN_EMBARK=<dir>/bin/texture-synthesis"
         ),
+    }
+    // `cargo bench --bench peers -- inpaint` runs only the inpainting part.
+    if std::env::args().any(|a| a == "inpaint") {
+        inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+        let _ = std::fs::remove_dir_all(&work);
+        return;
     }
     println!("{SIZE}² from 256², one thread, whole processes, median of {reps}; ratios = peer time / texsyn time\n");
     let methods: [(&str, &str); 7] = [
@@ -162,5 +171,6 @@ fn main() {
             _ => println!("block {block:>3}: a run failed"),
         }
     }
+    inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
     let _ = std::fs::remove_dir_all(&work);
 }

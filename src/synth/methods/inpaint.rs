@@ -221,7 +221,11 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
     }
     let at = |o: u32, i: u32, size: u32| (o + i) % size;
     let origin = |c: u32, size: u32| {
-        if req.tileable { (i64::from(c) - i64::from(q / 2)).rem_euclid(i64::from(size)) as u32 } else { c.saturating_sub(q / 2).min(size - q) }
+        if req.tileable {
+            (i64::from(c) - i64::from(q / 2)).rem_euclid(i64::from(size)) as u32
+        } else {
+            c.saturating_sub(q / 2).min(size - q)
+        }
     };
     let (n, qu) = ((q * q) as usize, q as usize);
     let mut replaced = 0u64;

@@ -203,7 +203,16 @@ impl Method for Quilting {
             let allowed = allowed.expect("a fill region always restricts the positions");
             let copyable = req.constraints.copyable().expect("a fill region always restricts the pixels");
             let mut search = BlockSearch::within(cfg.search, sample, block, Some(allowed.clone()));
-            let how = inpaint::Fill { block, overlap, tolerance, rule, allowed: &allowed, copyable: &copyable, engine: cfg.search, label: "quilt" };
+            let how = inpaint::Fill {
+                block,
+                overlap,
+                tolerance,
+                rule,
+                allowed: &allowed,
+                copyable: &copyable,
+                engine: cfg.search,
+                label: "quilt",
+            };
             let mut synthesis = inpaint::fill(req, region, &how, &mut search)?;
             if let Some(level) = search.coarse_level() {
                 synthesis.diagnostics["pyramid_level"] = serde_json::json!(level);

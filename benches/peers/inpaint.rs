@@ -1,0 +1,113 @@
+//! Inpainting against Embark's `--inpaint` (issue #28), part of the peers bench:
+//!
+//!     cargo bench --bench peers -- inpaint     # only this part
+//!
+//! Each bundled sample gets a round hole (radius 40 px, off centre) painted magenta, so that
+//! neither program can copy what was there. texsyn runs quilting with its defaults on an
+//! `[inpaint]` job (`-j 1`); Embark runs `--inpaint KEEP --sample-masks KEEP -t 1` (its masks are
+//! white = keep), both as whole processes. Quality is paper 003's four measures (lower is better)
+//! between the intact sample and the 48 × 48 square at the hole's centre, which both programs
+//! filled: how much the filled texture is the sample's. The table prints both and their ratios;
+//! the summary counts the samples on which texsyn's measures (summed, each scaled by Embark's)
+//! are as good or better.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use texsyn::RgbImage;
+
+const SAMPLES: [&str; 8] =
+    ["pebbles_beige", "cork", "grass_gray", "gravel_gray", "hedge_leaves", "roughcast_plaster", "wood_weathered", "bricks_gray"];
+const RADIUS: i64 = 40;
+const CROP: u32 = 48;
+
+fn quality(sample: &RgbImage, filled: &RgbImage, centre: (u32, u32)) -> [f64; 4] {
+    let crop = filled.crop(centre.0 - CROP / 2, centre.1 - CROP / 2, CROP, CROP);
+    let m = texsyn::metrics::kl_gray(sample, &crop).unwrap_or(f64::NAN);
+    let o = texsyn::metrics::kl_orientation(sample, &crop).unwrap_or(f64::NAN);
+    let ag = texsyn::metrics::acf_gray(sample, &crop).unwrap_or(f64::NAN);
+    let ao = texsyn::metrics::acf_orientation(sample, &crop).unwrap_or(f64::NAN);
+    [m, o, ag, ao]
+}
+
+pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>) {
+    println!("\ninpainting a round hole (radius {RADIUS}) in each 256² sample, one thread; quality: paper 003's measures of the hole's");
+    println!("central {CROP}² against the intact sample (lower is better); ratios texsyn / Embark (< 1: texsyn closer)\n");
+    println!(
+        "{:<20} {:>9} {:>9} {:>8}   {:>22} {:>22} {:>22} {:>22}",
+        "sample", "texsyn s", "Embark s", "speed", "kl_gray t/E", "kl_orient t/E", "acf_gray t/E", "acf_orient t/E"
+    );
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let (mut better, mut compared) = (0, 0);
+    for s in SAMPLES {
+        let dir = work.join(format!("inpaint-{s}"));
+        std::fs::create_dir_all(&dir).expect("bench dir");
+        let sample = texsyn::load_image(&repo.join(format!("jobs/samples/{s}.png"))).expect("bundled sample");
+        let (w, h) = sample.dimensions();
+        let centre = (w / 2 + 17, h / 2 - 11);
+        let inside =
+            |x: u32, y: u32| (i64::from(x) - i64::from(centre.0)).pow(2) + (i64::from(y) - i64::from(centre.1)).pow(2) <= RADIUS * RADIUS;
+        let damaged = RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255, 0, 255] } else { sample.get(x, y) });
+        texsyn::save_image(&damaged, &dir.join("damaged.png")).expect("write");
+        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255; 3] } else { [0; 3] }), &dir.join("fill.png"))
+            .expect("write");
+        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [0; 3] } else { [255; 3] }), &dir.join("keep.png"))
+            .expect("write");
+        let jobs = dir.join("jobs");
+        std::fs::create_dir_all(&jobs).expect("jobs dir");
+        std::fs::write(
+            jobs.join("h.toml"),
+            format!(
+                "method = \"quilting\"\nseed = 1\n[inpaint]\nimage = \"{}\"\nmask = \"{}\"\n[output]\npath = \"h.png\"\n",
+                dir.join("damaged.png").display(),
+                dir.join("fill.png").display()
+            ),
+        )
+        .expect("job file");
+        let texsyn_t = time(reps, &mut || {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_texsyn"));
+            c.arg("run").arg(&jobs).arg("-o").arg(dir.join("out")).args(["-j", "1", "-q", "--force"]);
+            c
+        });
+        let embark_out = dir.join("embark.png");
+        let embark_t = embark.and_then(|e| {
+            time(reps, &mut || {
+                let mut c = Command::new(e);
+                c.args(["--no-progress", "--threads", "1", "--seed", "1", "--out-size", &format!("{w}x{h}")])
+                    .arg("--inpaint")
+                    .arg(dir.join("keep.png"))
+                    .arg("--sample-masks")
+                    .arg(dir.join("keep.png"))
+                    .arg("-o")
+                    .arg(&embark_out)
+                    .arg("generate")
+                    .arg(dir.join("damaged.png"));
+                c
+            })
+        });
+        let Some(tt) = texsyn_t else {
+            println!("{s:<20} texsyn failed");
+            continue;
+        };
+        let ours = quality(&sample, &texsyn::load_image(&dir.join("out/h.png")).expect("texsyn output"), centre);
+        let theirs = embark_t.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|img| quality(&sample, &img, centre));
+        let cell = |i: usize| match theirs {
+            Some(t) => format!("{:.3}/{:.3} {:>5.2}", ours[i], t[i], ours[i] / t[i]),
+            None => format!("{:.3}/—", ours[i]),
+        };
+        let speed = embark_t.map(|e| format!("{:.1}×", e / tt)).unwrap_or_else(|| "—".into());
+        let et = embark_t.map(|e| format!("{e:.3}")).unwrap_or_else(|| "—".into());
+        println!("{s:<20} {tt:>9.3} {et:>9} {speed:>8}   {:>22} {:>22} {:>22} {:>22}", cell(0), cell(1), cell(2), cell(3));
+        if let Some(t) = theirs {
+            compared += 1;
+            let score: f64 = (0..4).map(|i| ours[i] / t[i]).sum();
+            if score <= 4.0 {
+                better += 1;
+            }
+        }
+    }
+    if compared > 0 {
+        println!(
+            "\ntexsyn's hole is as close to the sample as Embark's or closer (summed measure ratios ≤ 4) on {better} of {compared} samples"
+        );
+    }
+}
