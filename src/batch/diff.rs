@@ -252,6 +252,8 @@ mod tests {
             companions: Vec::new(),
             sample_mask: None,
             inpaint_mask: None,
+            guide_target: None,
+            guide_source: None,
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

@@ -11,7 +11,7 @@ use crate::error::Error;
 use crate::image::RgbImage;
 use crate::image::io::{self as imageio, DecodeLimits, ImageError, NativeImage, Samples};
 use crate::metrics::MetricError;
-use crate::synth::constraints::{Constraints, FillRegion, SampleMask};
+use crate::synth::constraints::{Constraints, FillRegion, Guide, SampleMask};
 use crate::synth::error::SynthError;
 use crate::synth::method::{ExtraContent, ExtraOutput, Method, Request, STRIP_ROWS, Synthesis};
 use crate::synth::params::Params;
@@ -129,6 +129,8 @@ pub struct JobInputs<'a> {
     pub sample_mask: Option<&'a SampleMask>,
     /// Inpainting: which pixels of the sample (the image) to fill (its size, checked by the plan).
     pub fill: Option<&'a FillRegion>,
+    /// Guided synthesis: the guides (the output's and the sample's sizes, checked by the plan).
+    pub guide: Option<&'a Guide>,
 }
 
 impl JobInputs<'_> {
@@ -147,7 +149,7 @@ impl JobInputs<'_> {
             seed: self.seed,
             placement: self.needs_placement(),
             tileable: self.output.tileable,
-            constraints: Constraints { sample_mask: self.sample_mask, fill: self.fill },
+            constraints: Constraints { sample_mask: self.sample_mask, fill: self.fill, guide: self.guide },
         }
     }
 }

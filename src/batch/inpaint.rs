@@ -73,7 +73,7 @@ pub fn fill_region(
     }
     if let Some(block) = block {
         let copyable =
-            crate::synth::constraints::Constraints { sample_mask, fill: Some(&region) }.copyable().expect("a fill region restricts");
+            crate::synth::constraints::Constraints { sample_mask, fill: Some(&region), guide: None }.copyable().expect("a fill region restricts");
         let largest = copyable.largest_block();
         if i64::from(largest) < block {
             return Err(format!(

@@ -144,6 +144,12 @@ pub struct JobRecord {
     /// `output_spec.inpaint.mask`; a channel of the image is named there instead).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inpaint_mask: Option<SampleRecord>,
+    /// A guided job's target guide (its pixels are in the content key through `output_spec.guide`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub guide_target: Option<SampleRecord>,
+    /// A guided job's source guide, when it has one (else the sample's luminance is its guide).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub guide_source: Option<SampleRecord>,
     /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_spec: Option<Value>,
@@ -529,6 +535,8 @@ mod tests {
             companions: Vec::new(),
             sample_mask: None,
             inpaint_mask: None,
+            guide_target: None,
+            guide_source: None,
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -228,6 +228,8 @@ mod tests {
             companions: Vec::new(),
             sample_mask: None,
             inpaint_mask: None,
+            guide_target: None,
+            guide_source: None,
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

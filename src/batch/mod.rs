@@ -14,6 +14,7 @@
 pub mod diff;
 pub mod execute;
 pub mod golden;
+pub mod guide;
 pub mod inpaint;
 pub mod job;
 pub mod manifest;

@@ -6,6 +6,7 @@
 //! very plan it would have printed.
 
 use crate::batch::execute::{LoadedSample, OutputsProblem, load_sample, outputs_intact};
+use crate::batch::guide::GuideImages;
 use crate::batch::inpaint::{MaskSource, fill_region};
 use crate::batch::job::{self, InpaintMask, InvalidJob, Job, JobError, JobSet};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
@@ -14,7 +15,7 @@ use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
-use crate::synth::constraints::{FillRegion, SampleMask};
+use crate::synth::constraints::{FillRegion, Guide, SampleMask};
 use crate::synth::wrap;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -79,6 +80,8 @@ pub struct Entry {
     pub sample_mask: Option<(Arc<LoadedSample>, SampleMask)>,
     /// `job.inpaint`: its mask image decoded (none for a channel of the image), and the region it fills.
     pub fill: Option<(Option<Arc<LoadedSample>>, FillRegion)>,
+    /// `job.guide`: its target and source images decoded, and the guide they make.
+    pub guide: Option<(Arc<LoadedSample>, Option<Arc<LoadedSample>>, Guide)>,
     pub content_key: Digest,
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
@@ -101,6 +104,7 @@ impl Entry {
             companions: job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
             sample_mask: self.sample_mask.as_ref().map(|(_, m)| m),
             fill: self.fill.as_ref().map(|(_, f)| f),
+            guide: self.guide.as_ref().map(|(_, _, g)| g),
         }
     }
 }
@@ -191,6 +195,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 .chain(j.companions.iter().map(|c| c.sample.clone()))
                 .chain(j.sample_mask.clone())
                 .chain(j.inpaint_mask_file())
+                .chain(j.guide_files())
         })
         .collect();
     sample_paths.sort();
@@ -251,6 +256,13 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        let guide = match guide_of(&job, &sample, &loaded) {
+            Ok(g) => g,
+            Err(errors) => {
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
         let needs_placement = crate::batch::execute::needs_placement(&sample, job.companions.len(), &job.output);
         let materials =
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
@@ -259,6 +271,11 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         let masks = Masks {
             sample_mask: sample_mask.as_ref().map(|(l, _)| &**l),
             inpaint: job.inpaint.as_ref().map(|i| inpaint_source(&i.mask, fill.as_ref().and_then(|(l, _)| l.as_deref()))),
+            guide: job.guide.as_ref().zip(guide.as_ref()).map(|(spec, (t, s, _))| GuideImages {
+                target: (spec.target.as_path(), &**t),
+                source: spec.source.as_deref().zip(s.as_deref()),
+                weight: spec.weight,
+            }),
         };
         let (content_key, record) = base_record(&job, &sample, &companions, &masks, &opts.out);
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
@@ -268,7 +285,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        entries.push(Entry { job, sample, companions, sample_mask, fill, content_key, record, action, memory: estimate });
+        entries.push(Entry { job, sample, companions, sample_mask, fill, guide, content_key, record, action, memory: estimate });
     }
     add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
@@ -360,6 +377,31 @@ fn fill_of(
     }
 }
 
+/// The job's guide when it is guided: its images decoded and checked ([`GuideImages::guide`]).
+fn guide_of(
+    job: &Job,
+    sample: &LoadedSample,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+) -> Result<Option<(Arc<LoadedSample>, Option<Arc<LoadedSample>>, Guide)>, Vec<JobError>> {
+    let Some(spec) = &job.guide else { return Ok(None) };
+    let target = match &loaded[&spec.target] {
+        Ok(l) => l.clone(),
+        Err(e) => return Err(vec![job.error(Some("guide.target"), format!("target guide {e}"))]),
+    };
+    let source = match &spec.source {
+        Some(p) => match &loaded[p] {
+            Ok(l) => Some(l.clone()),
+            Err(e) => return Err(vec![job.error(Some("guide.source"), format!("source guide {e}"))]),
+        },
+        None => None,
+    };
+    let images = GuideImages { target: (&spec.target, &target), source: spec.source.as_deref().zip(source.as_deref()), weight: spec.weight };
+    match images.guide(sample, &job.sample, (job.output.width, job.output.height)) {
+        Ok(g) => Ok(Some((target.clone(), source.clone(), g))),
+        Err((key, message)) => Err(vec![job.error(Some(key), message)]),
+    }
+}
+
 /// An inpaint mask as [`crate::batch::inpaint`] takes it (`loaded`: the mask file's image).
 fn inpaint_source<'a>(mask: &'a InpaintMask, loaded: Option<&'a LoadedSample>) -> MaskSource<'a> {
     match (mask, loaded) {
@@ -373,6 +415,7 @@ fn inpaint_source<'a>(mask: &'a InpaintMask, loaded: Option<&'a LoadedSample>) -
 struct Masks<'a> {
     sample_mask: Option<&'a LoadedSample>,
     inpaint: Option<MaskSource<'a>>,
+    guide: Option<GuideImages<'a>>,
 }
 
 /// Checks what a job renders besides its method's 8-bit image and decides what the job file left
@@ -571,6 +614,10 @@ fn base_record(
         // Which pixels are filled decides the output: part of the content key.
         output_json["inpaint"] = source.spec();
     }
+    if let Some(g) = &masks.guide {
+        // Where the output is to be dark or light, and how much that weighs: part of the content key.
+        output_json["guide"] = g.spec();
+    }
     let content_key = manifest::content_key(
         job.method.name(),
         job.method.algorithm_version(),
@@ -611,6 +658,8 @@ fn base_record(
             Some(MaskSource::File { path, loaded }) => Some(sample_record(path, loaded)),
             _ => None,
         },
+        guide_target: masks.guide.as_ref().map(|g| sample_record(g.target.0, g.target.1)),
+        guide_source: masks.guide.as_ref().and_then(|g| g.source).map(|(p, l)| sample_record(p, l)),
     };
     (content_key, record)
 }
@@ -665,5 +714,7 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         companions: Vec::new(),
         sample_mask: None,
         inpaint_mask: None,
+        guide_target: None,
+        guide_source: None,
     }
 }

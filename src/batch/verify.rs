@@ -264,6 +264,48 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         }
         (None, Some(_)) => return Outcome::Mismatch(vec!["the record's inpaint mask does not match its output spec".into()]),
     };
+    // Guided: both guides still have the recorded pixels and the recorded weight.
+    let guide = match (spec.get("guide"), &rec.guide_target) {
+        (None, None) => None,
+        (Some(wanted), Some(t)) => {
+            if !method.honours_guide() {
+                return Outcome::Mismatch(vec![format!("recorded `guide`: {method_name} cannot follow a guide")]);
+            }
+            let load = |r: &crate::batch::manifest::SampleRecord, what: &str| match load_sample(&dir.join(&r.path)) {
+                Ok(l) if l.pixel_digest == r.pixel_digest => Ok(l),
+                Ok(_) => Err(format!("{what} `{}` no longer has the recorded pixels", r.path)),
+                Err(e) => Err(format!("{what} {e}")),
+            };
+            let target = match load(t, "target guide") {
+                Ok(l) => l,
+                Err(e) => return Outcome::Mismatch(vec![e]),
+            };
+            let source = match &rec.guide_source {
+                Some(r) => match load(r, "source guide") {
+                    Ok(l) => Some(l),
+                    Err(e) => return Outcome::Mismatch(vec![e]),
+                },
+                None => None,
+            };
+            let Some(weight) = wanted.get("weight").and_then(|w| w.as_f64()).filter(|w| (0.0..=1.0).contains(w)) else {
+                return Outcome::Mismatch(vec!["recorded `output_spec.guide.weight` is missing or out of 0..=1".into()]);
+            };
+            let (target_path, source_path) = (dir.join(&t.path), rec.guide_source.as_ref().map(|r| dir.join(&r.path)));
+            let images = crate::batch::guide::GuideImages {
+                target: (&target_path, &target),
+                source: source_path.as_deref().zip(source.as_ref()),
+                weight,
+            };
+            if &images.spec() != wanted {
+                return Outcome::Mismatch(vec!["the record's guides do not match its output spec".into()]);
+            }
+            match images.guide(&loaded, &sample_path, (output.width, output.height)) {
+                Ok(g) => Some(g),
+                Err((key, e)) => return Outcome::Mismatch(vec![format!("recorded `{key}`: {e}")]),
+            }
+        }
+        _ => return Outcome::Mismatch(vec!["the record's guides do not match its output spec".into()]),
+    };
     if fill.is_some() && (output.width, output.height) != size {
         return Outcome::Mismatch(vec!["recorded `inpaint`: the output is not the image's size".into()]);
     }
@@ -276,6 +318,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         companions: companions.iter().map(|(c, l)| (c, l)).collect(),
         sample_mask: sample_mask.as_ref(),
         fill: fill.as_ref(),
+        guide: guide.as_ref(),
     };
     match synthesize_and_encode(&inputs) {
         Err(e) => problems.push(format!("re-run failed: {e}")),

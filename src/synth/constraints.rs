@@ -156,6 +156,42 @@ impl FillRegion {
     }
 }
 
+/// Guided synthesis (`[guide]`, texture transfer): a gray map of the output's size saying where
+/// it should be dark or light, the sample's own gray map, and how much the guide weighs against
+/// the texture's continuity (0 = not at all, 1 = only the guide). Both maps are kept as gray RGB
+/// images so that the block search that scores the texture scores them too.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Guide {
+    pub target: crate::image::RgbImage,
+    pub source: crate::image::RgbImage,
+    pub weight: f64,
+}
+
+impl Guide {
+    /// The luminance of `source` (the sample's guide, or the sample) and of `target`, the target's
+    /// levels moved to the source's mean and spread: a photo much darker or flatter than the
+    /// sample would otherwise match only its darkest or most uniform blocks.
+    pub fn from_images(target: &crate::image::RgbImage, source: &crate::image::RgbImage, weight: f64) -> Guide {
+        let luma = |img: &crate::image::RgbImage| -> Vec<f64> {
+            img.as_raw().chunks_exact(3).map(|p| (299.0 * f64::from(p[0]) + 587.0 * f64::from(p[1]) + 114.0 * f64::from(p[2])) / 1000.0).collect()
+        };
+        let stats = |v: &[f64]| {
+            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            (mean, (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt())
+        };
+        let (t, s) = (luma(target), luma(source));
+        let ((tm, ts), (sm, ss)) = (stats(&t), stats(&s));
+        let scale = if ts > 1e-9 { ss / ts } else { 0.0 };
+        let gray = |img: &crate::image::RgbImage, v: &[f64], map: &dyn Fn(f64) -> f64| {
+            crate::image::RgbImage::from_fn(img.width(), img.height(), |x, y| {
+                let g = map(v[(y * img.width() + x) as usize]).round().clamp(0.0, 255.0) as u8;
+                [g, g, g]
+            })
+        };
+        Guide { target: gray(target, &t, &|x| sm + (x - tm) * scale), source: gray(source, &s, &|x| x), weight }
+    }
+}
+
 /// The constraints of one request; the default is none.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Constraints<'a> {
@@ -164,6 +200,9 @@ pub struct Constraints<'a> {
     /// Inpainting: the sample is the image to repair, the output has its size, and only these
     /// pixels are made; every other output pixel is the image's own (its placement is itself).
     pub fill: Option<&'a FillRegion>,
+    /// Guided synthesis: blocks are chosen for how well they continue the texture and how well
+    /// the sample's guide under them matches the target guide under their place.
+    pub guide: Option<&'a Guide>,
 }
 
 impl Constraints<'_> {

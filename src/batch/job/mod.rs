@@ -26,7 +26,12 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] = &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask", "inpaint"];
+pub const TOP_KEYS: &[&str] =
+    &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask", "inpaint", "guide"];
+/// The keys of the `[guide]` table.
+pub const GUIDE_KEYS: &[&str] = &["target", "source", "weight"];
+/// `[guide] weight` when the file leaves it out: the guide's share of a block's error.
+pub const DEFAULT_GUIDE_WEIGHT: f64 = 0.7;
 /// The keys of the `[inpaint]` table.
 pub const INPAINT_KEYS: &[&str] = &["image", "mask", "channel"];
 /// The keys of the `[output]` table.
@@ -155,6 +160,17 @@ crate::choice! {
     }
 }
 
+/// `[guide]`: guided synthesis and texture transfer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GuideSpec {
+    /// The output's guide (the output's size); its luminance is followed.
+    pub target: PathBuf,
+    /// The sample's guide (the sample's size); `None`: the sample's own luminance.
+    pub source: Option<PathBuf>,
+    /// The guide's share of a block's error, 0..=1.
+    pub weight: f64,
+}
+
 /// One runnable job (a job file, or one point of its sweep).
 #[derive(Clone)]
 pub struct Job {
@@ -171,6 +187,8 @@ pub struct Job {
     pub sample_mask: Option<PathBuf>,
     /// `[inpaint]`: fill part of the sample (the image) and keep the rest.
     pub inpaint: Option<Inpaint>,
+    /// `[guide]`: follow a target guide.
+    pub guide: Option<GuideSpec>,
     pub method: &'static dyn Method,
     pub seed: u64,
     pub params: Params,
@@ -190,6 +208,11 @@ impl fmt::Debug for Job {
 }
 
 impl Job {
+    /// The guide images, when the job is guided (decoded with the samples).
+    pub fn guide_files(&self) -> Vec<PathBuf> {
+        self.guide.iter().flat_map(|g| std::iter::once(g.target.clone()).chain(g.source.clone())).collect()
+    }
+
     /// The inpaint mask image, when the job inpaints with one (decoded with the samples).
     pub fn inpaint_mask_file(&self) -> Option<PathBuf> {
         match &self.inpaint {

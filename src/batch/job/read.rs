@@ -1,10 +1,10 @@
 //! Reading one job file: TOML with positions, every top-level and `[output]` key checked, each
 //! problem recorded with its line, column and key; the values handed to `sweep`.
 
-use super::source::{Ctx, Raw, RawCompanion, RawInpaint, Ready, de_int, de_param, type_name};
+use super::source::{Ctx, Raw, RawCompanion, RawGuide, RawInpaint, Ready, de_int, de_param, type_name};
 use super::sweep;
 use super::{
-    COMPANION_KEYS, Companion, INPAINT_KEYS, Inpaint, InpaintMask, Job, JobError, JobFile, MAX_OUTPUT_SIDE, MaskChannel, OUTPUT_KEYS,
+    COMPANION_KEYS, Companion, DEFAULT_GUIDE_WEIGHT, GUIDE_KEYS, GuideSpec, INPAINT_KEYS, Inpaint, InpaintMask, Job, JobError, JobFile, MAX_OUTPUT_SIDE, MaskChannel, OUTPUT_KEYS,
     TOP_KEYS, normalise_output_path,
 };
 use crate::digest::Digest;
@@ -53,6 +53,7 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
         sample: None,
         sample_mask: None,
         inpaint: None,
+        guide: None,
         method: None,
         seed: None,
         output_path: None,
@@ -120,6 +121,14 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
             },
             "metrics" => read_metrics(ctx, v, &mut raw),
             "companion" => read_companions(ctx, v, &mut raw),
+            "guide" => match v.get_ref() {
+                DeValue::Table(t) => raw.guide = Some(read_guide(ctx, t, v.span())),
+                other => ctx.err(
+                    Some(v.span()),
+                    Some("guide"),
+                    format!("expected a table ([guide] with target, and optionally source and weight), found {}", type_name(other)),
+                ),
+            },
             "inpaint" => match v.get_ref() {
                 DeValue::Table(t) => raw.inpaint = Some(read_inpaint(ctx, t, v.span())),
                 other => ctx.err(
@@ -230,6 +239,10 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }),
         None => None,
     };
+    let guide = match raw.guide.take() {
+        Some(g) => check_guide(ctx, g, &raw, method),
+        None => None,
+    };
     let format_and_depth = check_output_format(ctx, &raw);
     let mut companions = Vec::new();
     for c in std::mem::take(&mut raw.companions) {
@@ -276,6 +289,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         sample,
         sample_mask,
         inpaint,
+        guide,
         path_template,
         path_span,
         width,
@@ -287,6 +301,83 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         companions,
     };
     sweep::expand(ctx, &raw, &ready)
+}
+
+/// `[guide]`: `target` and `source` (paths), `weight` (a number in 0..=1), each checked for type.
+fn read_guide(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawGuide {
+    let mut g = RawGuide { span, ..RawGuide::default() };
+    for (k, v) in t.iter() {
+        let key = format!("guide.{}", k.get_ref());
+        ctx.at(&key, k.span());
+        match k.get_ref().as_ref() {
+            which @ ("target" | "source") => match v.get_ref() {
+                DeValue::String(s) if !s.is_empty() => {
+                    let value = Some((s.to_string(), v.span()));
+                    if which == "target" { g.target = value } else { g.source = value }
+                }
+                other => {
+                    let what = if which == "target" { "the output's guide image" } else { "the sample's guide image" };
+                    ctx.err(Some(v.span()), Some(&key), format!("expected a non-empty string ({what}), found {}", type_name(other)))
+                }
+            },
+            "weight" => {
+                let value = match v.get_ref() {
+                    DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
+                    DeValue::Integer(_) => de_int(v.get_ref()).and_then(|r| r.ok()).map(|i| i as f64),
+                    _ => None,
+                };
+                match value {
+                    Some(w) if (0.0..=1.0).contains(&w) => g.weight = Some(w),
+                    Some(w) => ctx.err(Some(v.span()), Some(&key), format!("{w} is out of range: the guide's share is 0 (ignore it) ..= 1 (only the guide)")),
+                    None => ctx.err(Some(v.span()), Some(&key), format!("expected a number in 0..=1, found {}", type_name(v.get_ref()))),
+                }
+            }
+            other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, GUIDE_KEYS)),
+        }
+    }
+    g
+}
+
+/// `[guide]` checked against the rest of the file: a target that exists, a source that exists
+/// when given, a method that follows guides, and not together with inpainting or wrapping yet.
+fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dyn crate::synth::method::Method>) -> Option<GuideSpec> {
+    let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mut ok = true;
+    if let Some(m) = method.filter(|m| !m.honours_guide()) {
+        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_guide()).map(|m| m.name()).collect();
+        ctx.err(Some(g.span.clone()), Some("guide"), format!("{} cannot follow a guide; methods that can: {}", m.name(), can.join(", ")));
+        ok = false;
+    }
+    if raw.inpaint.is_some() {
+        ctx.err(Some(g.span.clone()), Some("guide"), "[guide] and [inpaint] do not combine yet: use one of them");
+        ok = false;
+    }
+    if raw.tileable {
+        ctx.err(Some(g.span.clone()), Some("guide"), "a guided output cannot wrap yet: leave output.tileable out");
+        ok = false;
+    }
+    let mut file = |key: &str, value: &Option<(String, std::ops::Range<usize>)>, what: &str| -> Option<std::path::PathBuf> {
+        let (s, span) = value.as_ref()?;
+        let p = base.join(s);
+        if p.is_file() {
+            Some(p)
+        } else {
+            let why = missing_file_reason(&p);
+            ctx.err(Some(span.clone()), Some(key), format!("{what} `{}` {why} (paths are relative to the job file)", p.display()));
+            ok = false;
+            None
+        }
+    };
+    let target = file("guide.target", &g.target, "target guide");
+    let source = file("guide.source", &g.source, "source guide");
+    if g.target.is_none() {
+        ctx.err(Some(g.span.clone()), Some("guide.target"), "missing required key `guide.target` (the output's guide image)");
+        return None;
+    }
+    if !ok {
+        return None;
+    }
+    Some(GuideSpec { target: target?, source, weight: g.weight.unwrap_or(DEFAULT_GUIDE_WEIGHT) })
 }
 
 /// `[inpaint]`: `image` (a path), and `mask` (a path) or `channel` (a word), each checked for type.

@@ -150,6 +150,8 @@ pub(super) struct Raw<'a> {
     pub(super) sample_mask: Option<(String, std::ops::Range<usize>)>,
     /// `[inpaint]`: the image (path, span) and the mask as read; checked in `read`.
     pub(super) inpaint: Option<RawInpaint>,
+    /// `[guide]` as read: target and source (path, span), weight; checked in `read`.
+    pub(super) guide: Option<RawGuide>,
     pub(super) method: Option<&'static dyn Method>,
     pub(super) seed: Option<u64>,
     pub(super) output_path: Option<(String, std::ops::Range<usize>)>,
@@ -163,6 +165,15 @@ pub(super) struct Raw<'a> {
     pub(super) metrics: Vec<String>,
     pub(super) sweep: Vec<(String, Vec<(ParamValue, std::ops::Range<usize>)>)>,
     pub(super) _src: std::marker::PhantomData<&'a ()>,
+}
+
+/// `[guide]` as read, each key checked for type.
+#[derive(Default)]
+pub(super) struct RawGuide {
+    pub(super) span: std::ops::Range<usize>,
+    pub(super) target: Option<(String, std::ops::Range<usize>)>,
+    pub(super) source: Option<(String, std::ops::Range<usize>)>,
+    pub(super) weight: Option<f64>,
 }
 
 /// `[inpaint]` as read, each key checked for type.
@@ -193,6 +204,7 @@ pub(super) struct Ready {
     /// `sample_mask`, resolved against the job file's directory.
     pub sample_mask: Option<PathBuf>,
     pub inpaint: Option<super::Inpaint>,
+    pub guide: Option<super::GuideSpec>,
     pub path_template: String,
     pub path_span: std::ops::Range<usize>,
     pub width: u32,

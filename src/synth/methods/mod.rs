@@ -6,6 +6,7 @@
 //! in [`registry`]; the job model, scheduler and manifest do not change.
 
 pub mod double_seam;
+pub(crate) mod guide;
 pub(crate) mod inpaint;
 pub mod near_regular;
 pub mod patch_sampling;

@@ -196,6 +196,12 @@ impl Method for Quilting {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
         let allowed = allowed_positions(req, block)?;
+        if let Some(guide) = req.constraints.guide {
+            if req.constraints.fill.is_some() || req.tileable {
+                return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
+            }
+            return self.synthesize_guided(req, &cfg, guide, allowed);
+        }
         if let Some(region) = req.constraints.fill {
             if rule == OverlapRule::Feather {
                 return Err(SynthError::param("blend", "inpainting cannot feather: a blend would change known pixels; use cut = \"dp\""));
@@ -281,6 +287,10 @@ impl Method for Quilting {
         true
     }
 
+    fn honours_guide(&self) -> bool {
+        true
+    }
+
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = QuiltingConfig::from_params(p).map_err(|e| e.to_string())?;
         torus_of(&cfg, sample, output).map(|_| ())
@@ -330,6 +340,50 @@ fn torus_of(cfg: &QuiltingConfig, sample: (u32, u32), output: (u32, u32)) -> Res
 }
 
 impl Quilting {
+    /// Guided quilting (texture transfer): the same raster of blocks and cuts, each block chosen
+    /// by its overlap error weighed against its guide error (`methods::guide`), one at a time.
+    fn synthesize_guided(
+        &self,
+        req: &Request,
+        cfg: &QuiltingConfig,
+        guide: &crate::synth::constraints::Guide,
+        allowed: Option<Vec<bool>>,
+    ) -> Result<Synthesis, SynthError> {
+        let sample = req.sample;
+        let (block, overlap, rule) = (cfg.block, cfg.overlap_or_derived(), cfg.overlap_rule());
+        if guide.target.dimensions() != (req.width, req.height) || guide.source.dimensions() != sample.dimensions() {
+            return Err(SynthError::Failed("the guides must have the output's and the sample's sizes".into()));
+        }
+        let layout = BlockGrid::new(block, overlap, req.width, req.height);
+        let (cw, ch) = layout.canvas();
+        // The last blocks reach past the output (they are cropped): the target guide goes on
+        // there as its own edge, so that those blocks are still guided where they show.
+        let target = RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1)));
+        let padded = crate::synth::constraints::Guide { target, source: guide.source.clone(), weight: guide.weight };
+        let mut search = super::guide::GuidedSearch::new(sample, &padded, block, allowed);
+        let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
+        let mut candidate_counts = Vec::new();
+        for bi in 0..layout.rows {
+            for bj in 0..layout.cols {
+                let origin = layout.origin(bi, bj);
+                let regions = layout.overlap_regions(bi, bj);
+                let members = search.candidates(&canvas.image, origin, &regions, origin, cfg.tolerance);
+                candidate_counts.push(members.len());
+                let mut s = Stream::new(req.seed, &format!("quilt/guided/bi={bi}/bj={bj}"));
+                let src = members[s.below_usize(members.len())];
+                let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
+                paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
+            }
+        }
+        let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
+        let diagnostics = serde_json::json!({
+            "blocks": { "cols": layout.cols, "rows": layout.rows },
+            "guided": { "weight": guide.weight },
+            "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+        });
+        Ok(Synthesis { image, seams: Some(layout.seam_grid(req.width, req.height)), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+    }
+
     /// Quilting on a torus (`primitives::torus`): the same raster order, search and streams, but
     /// a block's overlap is every side that already holds content, the wrapped right and bottom
     /// sides of the last column and row included, and it is cut (or feathered) on all of them.

@@ -297,6 +297,32 @@ impl<'a> OverlapSearch<'a> {
         found
     }
 
+    /// Every position's approximate SSD (row-major, by FFT correlation) and the bound on its
+    /// error, for a search that weighs this error with another before deciding among positions
+    /// on exact values ([`OverlapSearch::exact_ssd`]), as guided synthesis does. All zero with a
+    /// zero bound when `regions` are empty.
+    pub fn approximate_all(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> (Vec<f64>, f64) {
+        let (nx, ny) = self.positions();
+        if regions.iter().map(|r| r.area()).sum::<u64>() == 0 {
+            return (vec![0.0; nx as usize * ny as usize], 0.0);
+        }
+        if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
+            self.sum_sq_maps.clear();
+        }
+        let map_index = self.sum_sq_map(regions);
+        let mut work = std::mem::take(&mut self.work);
+        let parallel = rayon::current_num_threads() > 1;
+        let margin = self.approximate(&mut work, target, origin, regions, map_index, parallel);
+        let approx = work.approx.clone();
+        self.work = work;
+        (approx, margin)
+    }
+
+    /// Whether a candidate may come from `(x, y)` (a restriction set by [`OverlapSearch::restrict_to`]).
+    pub fn may_copy(&self, x: u32, y: u32) -> bool {
+        self.allows(x, y)
+    }
+
     /// The candidate sets of several blocks against the same `target`, each `(origin, regions)`
     /// as in [`OverlapSearch::candidates`], in the order given. Blocks are searched concurrently,
     /// one per task rather than one split across tasks: a single 256² search is too small to share
