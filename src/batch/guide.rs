@@ -10,6 +10,7 @@ pub struct GuideImages<'a> {
     pub target: (&'a Path, &'a LoadedSample),
     pub source: Option<(&'a Path, &'a LoadedSample)>,
     pub weight: f64,
+    pub passes: u32,
 }
 
 impl GuideImages<'_> {
@@ -23,6 +24,7 @@ impl GuideImages<'_> {
                 None => serde_json::json!("luminance"),
             },
             "weight": self.weight,
+            "passes": self.passes,
         })
     }
 
@@ -60,6 +62,6 @@ impl GuideImages<'_> {
             }
             None => &sample.image,
         };
-        Ok(Guide::from_images(&self.target.1.image, source, self.weight))
+        Ok(Guide::from_images(&self.target.1.image, source, self.weight, self.passes))
     }
 }

@@ -72,8 +72,9 @@ pub fn fill_region(
         return Err(format!("{what}: the whole image would be filled and nothing is left to copy from (white = fill)"));
     }
     if let Some(block) = block {
-        let copyable =
-            crate::synth::constraints::Constraints { sample_mask, fill: Some(&region), guide: None }.copyable().expect("a fill region restricts");
+        let copyable = crate::synth::constraints::Constraints { sample_mask, fill: Some(&region), guide: None }
+            .copyable()
+            .expect("a fill region restricts");
         let largest = copyable.largest_block();
         if i64::from(largest) < block {
             return Err(format!(

@@ -275,6 +275,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 target: (spec.target.as_path(), &**t),
                 source: spec.source.as_deref().zip(s.as_deref()),
                 weight: spec.weight,
+                passes: spec.passes,
             }),
         };
         let (content_key, record) = base_record(&job, &sample, &companions, &masks, &opts.out);
@@ -395,7 +396,12 @@ fn guide_of(
         },
         None => None,
     };
-    let images = GuideImages { target: (&spec.target, &target), source: spec.source.as_deref().zip(source.as_deref()), weight: spec.weight };
+    let images = GuideImages {
+        target: (&spec.target, &target),
+        source: spec.source.as_deref().zip(source.as_deref()),
+        weight: spec.weight,
+        passes: spec.passes,
+    };
     match images.guide(sample, &job.sample, (job.output.width, job.output.height)) {
         Ok(g) => Ok(Some((target.clone(), source.clone(), g))),
         Err((key, message)) => Err(vec![job.error(Some(key), message)]),

@@ -128,6 +128,8 @@ pub struct OneOff {
     pub sample: PathBuf,
     /// Inpaint `sample` instead of making a new image from it: which pixels to fill.
     pub inpaint: Option<OneOffMask>,
+    /// Texture transfer: the target guide (the output's size).
+    pub guide: Option<PathBuf>,
     /// The image to write (.png or .exr); its manifest goes beside it as `{stem}.manifest.json`.
     pub output: PathBuf,
     pub method: String,
@@ -205,6 +207,9 @@ impl OneOff {
         }
         if self.tileable {
             t += "tileable = true\n";
+        }
+        if let Some(target) = &self.guide {
+            t += &format!("\n[guide]\ntarget = {}\n", q(&target.to_string_lossy()));
         }
         if !self.params.is_empty() {
             t += "\n[params]\n";

@@ -290,11 +290,15 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             let Some(weight) = wanted.get("weight").and_then(|w| w.as_f64()).filter(|w| (0.0..=1.0).contains(w)) else {
                 return Outcome::Mismatch(vec!["recorded `output_spec.guide.weight` is missing or out of 0..=1".into()]);
             };
+            let Some(passes) = wanted.get("passes").and_then(|p| p.as_u64()).filter(|p| (1..=8).contains(p)) else {
+                return Outcome::Mismatch(vec!["recorded `output_spec.guide.passes` is missing or out of 1..=8".into()]);
+            };
             let (target_path, source_path) = (dir.join(&t.path), rec.guide_source.as_ref().map(|r| dir.join(&r.path)));
             let images = crate::batch::guide::GuideImages {
                 target: (&target_path, &target),
                 source: source_path.as_deref().zip(source.as_ref()),
                 weight,
+                passes: passes as u32,
             };
             if &images.spec() != wanted {
                 return Outcome::Mismatch(vec!["the record's guides do not match its output spec".into()]);

@@ -23,6 +23,11 @@ pub struct Args {
     /// With --inpaint: the mask image, white = fill.
     #[arg(long, value_name = "MASK", group = "inpaint_mask", requires = "inpaint")]
     mask: Option<PathBuf>,
+    /// Texture transfer: follow TARGET's light and dark (an image of the output's size; with no
+    /// --size, the output takes TARGET's size). `--set` cannot reach the guide's keys: edit the
+    /// job file `--print-job` gives for `weight` and `passes`.
+    #[arg(long, value_name = "TARGET", conflicts_with = "inpaint")]
+    guide: Option<PathBuf>,
     /// With --inpaint: fill where this channel of IMAGE is below half (`a`: the transparent pixels).
     #[arg(long, value_name = "CHANNEL", group = "inpaint_mask", requires = "inpaint")]
     mask_channel: Option<String>,
@@ -74,12 +79,19 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         return Err(Error::Usage("--inpaint makes an output of the image's size: leave --size out".into()));
     }
     let sample = args.inpaint.or(args.sample).expect("clap requires a sample or --inpaint");
+    let guide = args.guide.map(|t| std::path::absolute(&t).unwrap_or(t));
+    let size = match (&args.size, &guide) {
+        (Some(s), _) => Some(parse_size(s)?),
+        (None, Some(t)) => Some(texsyn::batch::execute::load_sample(t)?.image.dimensions()),
+        (None, None) => None,
+    };
     let one = OneOff {
         sample,
         inpaint,
+        guide,
         output: args.output,
         method: args.method,
-        size: args.size.as_deref().map(parse_size).transpose()?,
+        size,
         seed: args.seed,
         tileable: args.tileable,
         params,

@@ -165,15 +165,23 @@ pub struct Guide {
     pub target: crate::image::RgbImage,
     pub source: crate::image::RgbImage,
     pub weight: f64,
+    /// Passes of Efros and Freeman's iteration: each pass with blocks a third smaller, matched
+    /// against the previous pass's whole block as well as the new overlap, and with the guide's
+    /// weight falling (to a fifth of `weight` in the last), so that the texture is refined under
+    /// the guide's layout. 1: a single pass.
+    pub passes: u32,
 }
 
 impl Guide {
     /// The luminance of `source` (the sample's guide, or the sample) and of `target`, the target's
     /// levels moved to the source's mean and spread: a photo much darker or flatter than the
     /// sample would otherwise match only its darkest or most uniform blocks.
-    pub fn from_images(target: &crate::image::RgbImage, source: &crate::image::RgbImage, weight: f64) -> Guide {
+    pub fn from_images(target: &crate::image::RgbImage, source: &crate::image::RgbImage, weight: f64, passes: u32) -> Guide {
         let luma = |img: &crate::image::RgbImage| -> Vec<f64> {
-            img.as_raw().chunks_exact(3).map(|p| (299.0 * f64::from(p[0]) + 587.0 * f64::from(p[1]) + 114.0 * f64::from(p[2])) / 1000.0).collect()
+            img.as_raw()
+                .chunks_exact(3)
+                .map(|p| (299.0 * f64::from(p[0]) + 587.0 * f64::from(p[1]) + 114.0 * f64::from(p[2])) / 1000.0)
+                .collect()
         };
         let stats = |v: &[f64]| {
             let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
@@ -188,7 +196,7 @@ impl Guide {
                 [g, g, g]
             })
         };
-        Guide { target: gray(target, &t, &|x| sm + (x - tm) * scale), source: gray(source, &s, &|x| x), weight }
+        Guide { target: gray(target, &t, &|x| sm + (x - tm) * scale), source: gray(source, &s, &|x| x), weight, passes }
     }
 }
 

@@ -1,5 +1,6 @@
-//! Everyday jobs beyond "make more of this" (issue #28). So far: a sample mask (`sample_mask`),
-//! which keeps parts of a sample (a watermark, a caption bar) out of every output pixel.
+//! Everyday jobs beyond "make more of this" (issue #28): a sample mask (`sample_mask`), which keeps
+//! parts of a sample (a watermark, a caption bar) out of every output pixel; guided synthesis and
+//! texture transfer (`[guide]`). Inpainting has its own file, `inpaint.rs`.
 
 use crate::common::*;
 use std::path::Path;
@@ -149,6 +150,114 @@ fn bad_masks_are_refused_naming_the_file_and_the_reason() {
         "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting",
         "missing.toml:2:15: `sample_mask`: sample mask",
         "type.toml:2:15: `sample_mask`: expected a string (the mask image's path",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
+    let m = json(&d.join("out/manifest.json"));
+    let good = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "good.toml").unwrap();
+    assert_eq!(good["status"], "ok", "{good}");
+}
+
+/// Texture transfer: the output's light and dark follow the target (its luminance, averaged over
+/// 16-pixel cells, correlates strongly with the target's) while every pixel is still a sample
+/// pixel; with the guide's weight at 0 the correlation is gone (the test can tell). Reproducible
+/// across thread counts and through `verify`.
+#[test]
+fn texture_transfer_follows_the_target_with_the_samples_texture() {
+    let d = scratch("transfer");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let text = std::fs::read_to_string(repo().join("jobs/guided/transfer_rings.toml")).unwrap();
+    let text = text.replace("../samples/", &format!("{}/", repo().join("jobs/samples").display()));
+    std::fs::write(jobs.join("guided.toml"), &text).unwrap();
+    std::fs::write(jobs.join("unguided.toml"), text.replace("weight = 0.5", "weight = 0.0").replace("transfer_rings.png", "unguided.png"))
+        .unwrap();
+    run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
+    let target = rgb(&repo().join("jobs/samples/guided/target_rings.png"));
+    let cells = |img: &texsyn::RgbImage| -> Vec<f64> {
+        let (w, h) = img.dimensions();
+        let mut v = Vec::new();
+        for cy in 0..h / 16 {
+            for cx in 0..w / 16 {
+                let mut sum = 0.0;
+                for y in cy * 16..cy * 16 + 16 {
+                    for x in cx * 16..cx * 16 + 16 {
+                        let p = img.get(x, y);
+                        sum += 0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
+                    }
+                }
+                v.push(sum / 256.0);
+            }
+        }
+        v
+    };
+    let correlation = |a: &[f64], b: &[f64]| {
+        let n = a.len() as f64;
+        let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+        let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+        let (va, vb): (f64, f64) = (a.iter().map(|x| (x - ma).powi(2)).sum(), b.iter().map(|y| (y - mb).powi(2)).sum());
+        cov / (va * vb).sqrt()
+    };
+    let t = cells(&target);
+    let guided = rgb(&d.join("out/guided/transfer_rings.png"));
+    let unguided = rgb(&d.join("out/guided/unguided.png"));
+    let (cg, cu) = (correlation(&cells(&guided), &t), correlation(&cells(&unguided), &t));
+    assert!(cg > 0.6, "the guided output follows the target: correlation {cg:.2}");
+    assert!(cu.abs() < 0.3, "weight 0 ignores the target: correlation {cu:.2}");
+    let sample = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
+    let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+    assert!(guided.as_raw().chunks_exact(3).all(|p| colours.contains(&[p[0], p[1], p[2]])), "every pixel is a sample pixel");
+    let m = json(&d.join("out/manifest.json"));
+    let rec = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "guided.toml").unwrap();
+    assert!(rec["guide_target"]["path"].as_str().unwrap().ends_with("target_rings.png"), "{rec}");
+    assert_eq!(rec["output_spec"]["guide"]["source"], "luminance", "{rec}");
+    assert_eq!(rec["output_spec"]["guide"]["passes"], 3, "{rec}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
+    let one = json(&d.join("one/manifest.json"));
+    for (a, b) in m["jobs"].as_array().unwrap().iter().zip(one["jobs"].as_array().unwrap()) {
+        assert_eq!(a["outputs"][0]["pixel_digest"], b["outputs"][0]["pixel_digest"], "{}: -j 1 = -j 2", a["id"]);
+    }
+}
+
+#[test]
+fn bad_guides_are_refused_by_key() {
+    let d = scratch("guide-bad");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let target = repo().join("jobs/samples/guided/target_rings.png").display().to_string();
+    let sample = repo().join("jobs/samples/pebbles_beige.png").display().to_string();
+    let small = d.join("small.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(50, 40, |x, _| [x as u8; 3]), &small).unwrap();
+    let write = |name: &str, method: &str, guide: &str, output: &str| {
+        std::fs::write(
+            jobs.join(name),
+            format!(
+                "sample = \"{sample}\"\nmethod = \"{method}\"\nseed = 1\n[guide]\n{guide}\n[output]\npath = \"{name}.png\"\nwidth = 384\nheight = 256\n{output}"
+            ),
+        )
+        .unwrap();
+    };
+    write("size.toml", "quilting", &format!("target = \"{}\"", small.display()), "");
+    write("source.toml", "quilting", &format!("target = \"{target}\"\nsource = \"{}\"", small.display()), "");
+    write("method.toml", "wang-tiles", &format!("target = \"{target}\""), "");
+    write("weight.toml", "quilting", &format!("target = \"{target}\"\nweight = 1.5"), "");
+    write("passes.toml", "quilting", &format!("target = \"{target}\"\npasses = 0"), "");
+    write("wrap.toml", "quilting", &format!("target = \"{target}\""), "tileable = true");
+    write("missing.toml", "quilting", "weight = 0.5", "");
+    write("good.toml", "quilting", &format!("target = \"{target}\"\npasses = 1"), "");
+    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(&jobs)));
+    for expected in [
+        "size.toml:5:1: `guide.target`: target guide",
+        "is 50x40 but the output is 384x256; the target guide must have the output's size",
+        "source.toml:6:1: `guide.source`: source guide",
+        "is 50x40 but the sample",
+        "is 256x256; the source guide must have the sample's size",
+        "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting",
+        "weight.toml:6:10: `guide.weight`: 1.5 is out of range",
+        "passes.toml:6:10: `guide.passes`: 0 is out of range: allowed 1..=8",
+        "wrap.toml:4:1: `guide`: a guided output cannot wrap yet",
+        "missing.toml:4:1: `guide.target`: missing required key `guide.target`",
     ] {
         assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
     }

@@ -29,9 +29,11 @@ use std::path::{Path, PathBuf};
 pub const TOP_KEYS: &[&str] =
     &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask", "inpaint", "guide"];
 /// The keys of the `[guide]` table.
-pub const GUIDE_KEYS: &[&str] = &["target", "source", "weight"];
+pub const GUIDE_KEYS: &[&str] = &["target", "source", "weight", "passes"];
+/// `[guide] passes` when the file leaves it out: Efros and Freeman iterate three to five times.
+pub const DEFAULT_GUIDE_PASSES: u32 = 3;
 /// `[guide] weight` when the file leaves it out: the guide's share of a block's error.
-pub const DEFAULT_GUIDE_WEIGHT: f64 = 0.7;
+pub const DEFAULT_GUIDE_WEIGHT: f64 = 0.5;
 /// The keys of the `[inpaint]` table.
 pub const INPAINT_KEYS: &[&str] = &["image", "mask", "channel"];
 /// The keys of the `[output]` table.
@@ -169,6 +171,8 @@ pub struct GuideSpec {
     pub source: Option<PathBuf>,
     /// The guide's share of a block's error, 0..=1.
     pub weight: f64,
+    /// Passes of the iteration, 1..=8.
+    pub passes: u32,
 }
 
 /// One runnable job (a job file, or one point of its sweep).

@@ -4,8 +4,8 @@
 use super::source::{Ctx, Raw, RawCompanion, RawGuide, RawInpaint, Ready, de_int, de_param, type_name};
 use super::sweep;
 use super::{
-    COMPANION_KEYS, Companion, DEFAULT_GUIDE_WEIGHT, GUIDE_KEYS, GuideSpec, INPAINT_KEYS, Inpaint, InpaintMask, Job, JobError, JobFile, MAX_OUTPUT_SIDE, MaskChannel, OUTPUT_KEYS,
-    TOP_KEYS, normalise_output_path,
+    COMPANION_KEYS, Companion, DEFAULT_GUIDE_PASSES, DEFAULT_GUIDE_WEIGHT, GUIDE_KEYS, GuideSpec, INPAINT_KEYS, Inpaint, InpaintMask, Job,
+    JobError, JobFile, MAX_OUTPUT_SIDE, MaskChannel, OUTPUT_KEYS, TOP_KEYS, normalise_output_path,
 };
 use crate::digest::Digest;
 use crate::image::io::Format;
@@ -328,10 +328,22 @@ fn read_guide(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawGu
                 };
                 match value {
                     Some(w) if (0.0..=1.0).contains(&w) => g.weight = Some(w),
-                    Some(w) => ctx.err(Some(v.span()), Some(&key), format!("{w} is out of range: the guide's share is 0 (ignore it) ..= 1 (only the guide)")),
+                    Some(w) => ctx.err(
+                        Some(v.span()),
+                        Some(&key),
+                        format!("{w} is out of range: the guide's share is 0 (ignore it) ..= 1 (only the guide)"),
+                    ),
                     None => ctx.err(Some(v.span()), Some(&key), format!("expected a number in 0..=1, found {}", type_name(v.get_ref()))),
                 }
             }
+            "passes" => match de_int(v.get_ref()) {
+                Some(Ok(n)) if (1..=8).contains(&n) => g.passes = Some(n as u32),
+                Some(Ok(n)) => {
+                    ctx.err(Some(v.span()), Some(&key), format!("{n} is out of range: allowed 1..=8 (Efros and Freeman use 3 to 5)"))
+                }
+                Some(Err(e)) => ctx.err(Some(v.span()), Some(&key), e),
+                None => ctx.err(Some(v.span()), Some(&key), format!("expected an integer, found {}", type_name(v.get_ref()))),
+            },
             other => ctx.err(Some(k.span()), Some(&key), params::unknown_key_message(other, GUIDE_KEYS)),
         }
     }
@@ -377,7 +389,12 @@ fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dy
     if !ok {
         return None;
     }
-    Some(GuideSpec { target: target?, source, weight: g.weight.unwrap_or(DEFAULT_GUIDE_WEIGHT) })
+    Some(GuideSpec {
+        target: target?,
+        source,
+        weight: g.weight.unwrap_or(DEFAULT_GUIDE_WEIGHT),
+        passes: g.passes.unwrap_or(DEFAULT_GUIDE_PASSES),
+    })
 }
 
 /// `[inpaint]`: `image` (a path), and `mask` (a path) or `channel` (a word), each checked for type.

@@ -174,6 +174,7 @@ pub(super) struct RawGuide {
     pub(super) target: Option<(String, std::ops::Range<usize>)>,
     pub(super) source: Option<(String, std::ops::Range<usize>)>,
     pub(super) weight: Option<f64>,
+    pub(super) passes: Option<u32>,
 }
 
 /// `[inpaint]` as read, each key checked for type.

@@ -26,14 +26,14 @@ pub(crate) struct GuidedSearch<'a> {
 
 impl<'a> GuidedSearch<'a> {
     /// The search of `sample` under `guide`, copying only from `allowed` positions when given.
-    pub(crate) fn new(sample: &'a RgbImage, guide: &'a Guide, block: u32, allowed: Option<Vec<bool>>) -> GuidedSearch<'a> {
+    pub(crate) fn new(sample: &'a RgbImage, guide: &'a Guide, block: u32, weight: f64, allowed: Option<Vec<bool>>) -> GuidedSearch<'a> {
         let mut texture = OverlapSearch::new(sample, block, block);
         let mut by_guide = OverlapSearch::new(&guide.source, block, block);
         if let Some(a) = allowed {
             texture.restrict_to(a.clone());
             by_guide.restrict_to(a);
         }
-        GuidedSearch { texture, guide: by_guide, target: &guide.target, weight: guide.weight, block }
+        GuidedSearch { texture, guide: by_guide, target: &guide.target, weight, block }
     }
 
     /// The positions whose weighted error is within `(1 + tolerance)` of the best, row-major:
@@ -83,23 +83,22 @@ mod tests {
         // A sample dark on the left half and light on the right; the target asks for light.
         let sample = RgbImage::from_fn(40, 20, |x, y| if x < 20 { [20 + (y % 3) as u8, 20, 20] } else { [230, 230 - (y % 3) as u8, 230] });
         let target = RgbImage::from_fn(10, 10, |_, _| [255, 255, 255]);
-        let guide = Guide::from_images(&target, &sample, 1.0);
+        let guide = Guide::from_images(&target, &sample, 1.0, 1);
         // A flat target has no spread: it sits at the sample's mean level, between the halves.
         assert!(guide.target.get(0, 0)[0] > 100 && guide.target.get(0, 0)[0] < 150);
         let light = RgbImage::from_fn(10, 10, |x, _| if x < 5 { [0; 3] } else { [255; 3] });
-        let guide = Guide::from_images(&light, &sample, 1.0);
-        let mut search = GuidedSearch::new(&sample, &guide, 10, None);
+        let guide = Guide::from_images(&light, &sample, 1.0, 1);
+        let mut search = GuidedSearch::new(&sample, &guide, 10, 1.0, None);
         // The right half of the target is light: a block placed there comes from the light half.
         let picks = search.candidates(&RgbImage::new(10, 10), (0, 0), &[], (0, 0), 0.0);
         assert!(!picks.is_empty());
         let light_target = Guide { target: RgbImage::from_fn(10, 10, |_, _| [230; 3]), ..guide.clone() };
-        let mut search = GuidedSearch::new(&sample, &light_target, 10, None);
+        let mut search = GuidedSearch::new(&sample, &light_target, 10, 1.0, None);
         for (x, _) in search.candidates(&RgbImage::new(10, 10), (0, 0), &[], (0, 0), 0.0) {
             assert!(x >= 20, "a light target takes a light block, not x = {x}");
         }
         // Weight 0: the guide is ignored, and the texture overlap decides.
-        let ignore = Guide { weight: 0.0, ..light_target };
-        let mut search = GuidedSearch::new(&sample, &ignore, 10, None);
+        let mut search = GuidedSearch::new(&sample, &light_target, 10, 0.0, None);
         let canvas = RgbImage::from_fn(10, 10, |_, y| [20 + (y % 3) as u8, 20, 20]);
         for (x, _) in search.candidates(&canvas, (0, 0), &[Rect::new(0, 0, 3, 10)], (0, 0), 0.0) {
             assert!(x + 3 <= 20, "the dark overlap takes a dark block, not x = {x}");

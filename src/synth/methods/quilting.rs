@@ -341,7 +341,9 @@ fn torus_of(cfg: &QuiltingConfig, sample: (u32, u32), output: (u32, u32)) -> Res
 
 impl Quilting {
     /// Guided quilting (texture transfer): the same raster of blocks and cuts, each block chosen
-    /// by its overlap error weighed against its guide error (`methods::guide`), one at a time.
+    /// by its overlap error weighed against its guide error (`methods::guide`), one at a time;
+    /// with several passes (Efros and Freeman's iteration), each pass's blocks a third smaller and
+    /// matched over the whole block against the previous pass, under a guide weighing less.
     fn synthesize_guided(
         &self,
         req: &Request,
@@ -350,38 +352,77 @@ impl Quilting {
         allowed: Option<Vec<bool>>,
     ) -> Result<Synthesis, SynthError> {
         let sample = req.sample;
-        let (block, overlap, rule) = (cfg.block, cfg.overlap_or_derived(), cfg.overlap_rule());
         if guide.target.dimensions() != (req.width, req.height) || guide.source.dimensions() != sample.dimensions() {
             return Err(SynthError::Failed("the guides must have the output's and the sample's sizes".into()));
         }
-        let layout = BlockGrid::new(block, overlap, req.width, req.height);
-        let (cw, ch) = layout.canvas();
-        // The last blocks reach past the output (they are cropped): the target guide goes on
-        // there as its own edge, so that those blocks are still guided where they show.
-        let target = RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1)));
-        let padded = crate::synth::constraints::Guide { target, source: guide.source.clone(), weight: guide.weight };
-        let mut search = super::guide::GuidedSearch::new(sample, &padded, block, allowed);
-        let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
-        let mut candidate_counts = Vec::new();
-        for bi in 0..layout.rows {
-            for bj in 0..layout.cols {
-                let origin = layout.origin(bi, bj);
-                let regions = layout.overlap_regions(bi, bj);
-                let members = search.candidates(&canvas.image, origin, &regions, origin, cfg.tolerance);
-                candidate_counts.push(members.len());
-                let mut s = Stream::new(req.seed, &format!("quilt/guided/bi={bi}/bj={bj}"));
-                let src = members[s.below_usize(members.len())];
-                let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
-                paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
+        let rule = cfg.overlap_rule();
+        let passes = guide.passes.max(1);
+        let mut previous: Option<RgbImage> = None;
+        let mut finished = None;
+        let mut pass_diagnostics = Vec::new();
+        for pass in 0..passes {
+            // Blocks a third smaller each pass, the overlap in proportion; never below 6 px.
+            let shrink = (2.0f64 / 3.0).powi(pass as i32);
+            let block = ((f64::from(cfg.block) * shrink).round() as u32).max(6).min(cfg.block);
+            let overlap = ((f64::from(cfg.overlap_or_derived()) * shrink).round() as u32).clamp(1, block / 2);
+            let weight = guide.weight;
+            let allowed = match (&allowed, req.constraints.copyable()) {
+                (Some(_), Some(mask)) => Some(mask.block_positions(block, block)).filter(|a| a.contains(&true)),
+                _ => None,
+            };
+            let layout = BlockGrid::new(block, overlap, req.width, req.height);
+            let (cw, ch) = layout.canvas();
+            // The last blocks reach past the output (they are cropped): the target guide goes on
+            // there as its own edge, so that those blocks are still guided where they show.
+            let target = RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1)));
+            let padded = crate::synth::constraints::Guide { target, source: guide.source.clone(), weight, passes };
+            let mut search = super::guide::GuidedSearch::new(sample, &padded, block, weight, allowed);
+            let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
+            if let Some(prev) = &previous {
+                // Every pixel is written again by this pass's blocks: the previous pass is only
+                // what the blocks are matched against where this pass has not been yet.
+                canvas.image = RgbImage::from_fn(cw, ch, |x, y| prev.get(x.min(req.width - 1), y.min(req.height - 1)));
             }
+            let mut candidate_counts = Vec::new();
+            for bi in 0..layout.rows {
+                for bj in 0..layout.cols {
+                    let origin = layout.origin(bi, bj);
+                    let regions = if previous.is_some() { vec![Rect::new(0, 0, block, block)] } else { layout.overlap_regions(bi, bj) };
+                    let members = search.candidates(&canvas.image, origin, &regions, origin, cfg.tolerance);
+                    candidate_counts.push(members.len());
+                    let label = if pass == 0 {
+                        format!("quilt/guided/bi={bi}/bj={bj}")
+                    } else {
+                        format!("quilt/guided/pass={pass}/bi={bi}/bj={bj}")
+                    };
+                    let mut s = Stream::new(req.seed, &label);
+                    let src = members[s.below_usize(members.len())];
+                    let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
+                    paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
+                }
+            }
+            pass_diagnostics.push(serde_json::json!({
+                "block": block, "overlap": overlap, "weight": weight,
+                "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+            }));
+            let done = canvas.into_top_left(req.width, req.height);
+            previous = Some(done.image.clone());
+            finished = Some((done, layout));
         }
-        let (image, placement) = canvas.into_top_left(req.width, req.height).finish();
+        let (canvas, layout) = finished.expect("at least one pass");
+        let (image, placement) = canvas.finish();
         let diagnostics = serde_json::json!({
             "blocks": { "cols": layout.cols, "rows": layout.rows },
-            "guided": { "weight": guide.weight },
-            "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
+            "guided": { "weight": guide.weight, "passes": pass_diagnostics },
         });
-        Ok(Synthesis { image, seams: Some(layout.seam_grid(req.width, req.height)), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+        Ok(Synthesis {
+            image,
+            seams: Some(layout.seam_grid(req.width, req.height)),
+            diagnostics,
+            phases: Vec::new(),
+            extras: Vec::new(),
+            placement,
+        })
     }
 
     /// Quilting on a torus (`primitives::torus`): the same raster order, search and streams, but
