@@ -92,9 +92,10 @@ fn main() {
              and set TEXSYN_EMBARK=<dir>/bin/texture-synthesis"
         ),
     }
-    // `cargo bench --bench peers -- inpaint` runs only the inpainting part.
+    // `cargo bench --bench peers -- inpaint` runs only the inpainting and texture-transfer part.
     if std::env::args().any(|a| a == "inpaint") {
         inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+        inpaint::transfer(&work, embark.as_deref(), reps, &|r, c| time(r, c));
         let _ = std::fs::remove_dir_all(&work);
         return;
     }
@@ -172,5 +173,6 @@ fn main() {
         }
     }
     inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+    inpaint::transfer(&work, embark.as_deref(), reps, &|r, c| time(r, c));
     let _ = std::fs::remove_dir_all(&work);
 }

@@ -1,4 +1,5 @@
-//! Inpainting against Embark's `--inpaint` (issue #28), part of the peers bench:
+//! Inpainting and texture transfer against Embark's `--inpaint` and `transfer-style` (issue #28),
+//! part of the peers bench:
 //!
 //!     cargo bench --bench peers -- inpaint     # only this part
 //!
@@ -108,6 +109,110 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
     if compared > 0 {
         println!(
             "\ntexsyn's hole is as close to the sample as Embark's or closer (summed measure ratios ≤ 4) on {better} of {compared} samples"
+        );
+    }
+}
+
+/// Luminance averaged over 16-pixel cells.
+fn cells(img: &RgbImage) -> Vec<f64> {
+    let (w, h) = img.dimensions();
+    let mut v = Vec::new();
+    for cy in 0..h / 16 {
+        for cx in 0..w / 16 {
+            let mut sum = 0.0;
+            for y in cy * 16..cy * 16 + 16 {
+                for x in cx * 16..cx * 16 + 16 {
+                    let p = img.get(x, y);
+                    sum += 0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
+                }
+            }
+            v.push(sum / 256.0);
+        }
+    }
+    v
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
+    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
+    cov / (va * vb).sqrt()
+}
+
+/// Texture transfer against Embark's `transfer-style`: the bundled rings target with three
+/// samples, one thread; how closely the output's light and dark follow the target (correlation of
+/// 16-pixel cell means) and, as a texture check, paper 003's gray and orientation KL divergences
+/// of the output against the sample (lower: more of the sample's texture kept).
+pub fn transfer(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>) {
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let target_path = repo.join("jobs/samples/guided/target_rings.png");
+    let target = texsyn::load_image(&target_path).expect("bundled target");
+    let (w, h) = target.dimensions();
+    println!("\ntexture transfer onto jobs/samples/guided/target_rings.png ({w}x{h}), one thread; texsyn: quilting block 32 / overlap 6,");
+    println!(
+        "[guide] defaults (weight 0.5, 3 passes); Embark: transfer-style defaults. follow = correlation with the target (16-px cells)\n"
+    );
+    println!(
+        "{:<16} {:>9} {:>9} {:>8}   {:>16} {:>16} {:>16}",
+        "sample", "texsyn s", "Embark s", "speed", "follow t / E", "kl_gray t / E", "kl_orient t / E"
+    );
+    for s in ["pebbles_beige", "grass_gray", "cork"] {
+        let dir = work.join(format!("transfer-{s}"));
+        let jobs = dir.join("jobs");
+        std::fs::create_dir_all(&jobs).expect("bench dir");
+        let sample_path = repo.join(format!("jobs/samples/{s}.png"));
+        std::fs::write(
+            jobs.join("t.toml"),
+            format!(
+                "sample = \"{}\"\nmethod = \"quilting\"\nseed = 2\n[guide]\ntarget = \"{}\"\n[output]\npath = \"t.png\"\nwidth = {w}\nheight = {h}\n[params]\nblock = 32\noverlap = 6\n",
+                sample_path.display(),
+                target_path.display()
+            ),
+        )
+        .expect("job file");
+        let tt = time(reps, &mut || {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_texsyn"));
+            c.arg("run").arg(&jobs).arg("-o").arg(dir.join("out")).args(["-j", "1", "-q", "--force"]);
+            c
+        });
+        let embark_out = dir.join("embark.png");
+        let et = embark.and_then(|e| {
+            time(reps, &mut || {
+                let mut c = Command::new(e);
+                c.args(["--no-progress", "--threads", "1", "--seed", "2", "--out-size", &format!("{w}x{h}"), "-o"])
+                    .arg(&embark_out)
+                    .arg("transfer-style")
+                    .arg("--style")
+                    .arg(&sample_path)
+                    .arg("--guide")
+                    .arg(&target_path);
+                c
+            })
+        });
+        let Some(tt) = tt else {
+            println!("{s:<16} texsyn failed");
+            continue;
+        };
+        let sample = texsyn::load_image(&sample_path).expect("sample");
+        let score = |img: &RgbImage| {
+            (
+                correlation(&cells(img), &cells(&target)),
+                texsyn::metrics::kl_gray(&sample, img).unwrap_or(f64::NAN),
+                texsyn::metrics::kl_orientation(&sample, img).unwrap_or(f64::NAN),
+            )
+        };
+        let ours = score(&texsyn::load_image(dir.join("out/t.png")).expect("texsyn output"));
+        let theirs = et.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|i| score(&i));
+        let pair = |a: f64, b: Option<f64>| b.map(|b| format!("{a:.3} / {b:.3}")).unwrap_or_else(|| format!("{a:.3} / —"));
+        println!(
+            "{s:<16} {tt:>9.3} {:>9} {:>8}   {:>16} {:>16} {:>16}",
+            et.map(|e| format!("{e:.3}")).unwrap_or_else(|| "—".into()),
+            et.map(|e| format!("{:.1}×", e / tt)).unwrap_or_else(|| "—".into()),
+            pair(ours.0, theirs.map(|t| t.0)),
+            pair(ours.1, theirs.map(|t| t.1)),
+            pair(ours.2, theirs.map(|t| t.2)),
         );
     }
 }
