@@ -21,6 +21,9 @@ pub struct Shown {
     pub image: ImageRef,
     /// The job's companion maps (label, image), shown beside its output.
     pub companions: Vec<(String, ImageRef)>,
+    /// What the job followed besides the sample (what it is, its recorded path, image): masks
+    /// and guides, shown before its output.
+    pub inputs: Vec<(String, String, ImageRef)>,
 }
 
 /// Everything the page links to, already written or about to be.
@@ -222,6 +225,16 @@ fn images_html(model: &Model, assets: &Assets) -> String {
             let g = &model.groups[shown.group];
             let n = model.entries_of(s, shown.group).count();
             let size = e.output.as_ref().map(|o| format!("{}×{}", o.width, o.height)).unwrap_or_default();
+            for (what, path, image) in &shown.inputs {
+                out.push_str(&format!(
+                    "<figure data-role=\"input\" data-job=\"{}\">{}<figcaption><b>{}</b> of {}<br><code>{}</code></figcaption></figure>",
+                    h(&e.job_id),
+                    img(image, &format!("{what} of {}", e.job_id)),
+                    h(what),
+                    h(&g.label),
+                    h(path)
+                ));
+            }
             out.push_str(&format!(
                 "<figure data-group=\"{}\" data-job=\"{}\">{}<figcaption><b>{}</b><br>{}<br>{}{} · {}{}</figcaption></figure>",
                 h(&g.label),

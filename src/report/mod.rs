@@ -310,6 +310,25 @@ fn sample_images(m: &model::Model, s: usize, stem: &str, prefix: &str) -> Result
                 caption.push(group.params_label.clone());
             }
             caption.push(seed_line);
+            // Masks and guides first, then the output: input, mask or guide and result side by side.
+            let mut inputs = Vec::new();
+            for (k, (what, info)) in e.inputs.iter().enumerate() {
+                let picture = match load(&info.path, &info.pixel_digest, true) {
+                    Ok(img) => {
+                        let rel =
+                            format!("{prefix}images/outputs/{stem}/{:02}-{}-input-{}.png", g + 1, fmt::file_stem(&group.label), k + 1);
+                        files.push((rel.clone(), png(&img, &rel)?));
+                        inputs.push((what.clone(), info.recorded_path.clone(), Ok((rel, img.width(), img.height()))));
+                        Picture::Image(img)
+                    }
+                    Err(err) => {
+                        problems.push(err.clone());
+                        inputs.push((what.clone(), info.recorded_path.clone(), Err(err.clone())));
+                        Picture::Missing { width: info.width, height: info.height, why: err }
+                    }
+                };
+                cells.push(Cell { picture, caption: vec![format!("{what} of {}", group.label)] });
+            }
             cells.push(Cell { picture: pic, caption });
             // Companions (normal, gloss… maps) beside the output they share a placement with.
             let mut companions = Vec::new();
@@ -328,7 +347,7 @@ fn sample_images(m: &model::Model, s: usize, stem: &str, prefix: &str) -> Result
                 };
                 companions.push((label.clone(), shown_c));
             }
-            shown.push(Shown { group: g, entry: ei, image, companions });
+            shown.push(Shown { group: g, entry: ei, image, companions, inputs });
         }
     }
     let title = format!("{}: the sample, then one output per column, all at 1:1 pixels. Columns: {}", info.key, m.grouping);

@@ -191,6 +191,33 @@ pub struct Entry {
     pub warnings: Vec<String>,
     /// The job's companion maps (their recorded path, and the output), in the job file's order.
     pub companions: Vec<(String, OutputInfo)>,
+    /// What the job followed besides its sample (what it is, and the image): a sample mask, an
+    /// inpaint mask, guides. Shown beside the output, so that input, mask or guide and output
+    /// are read together.
+    pub inputs: Vec<(String, OutputInfo)>,
+}
+
+/// The images a job followed besides its sample, as the record names them.
+fn job_inputs(job: &JobRecord, base: &Path) -> Vec<(String, OutputInfo)> {
+    [
+        ("sample mask", &job.sample_mask),
+        ("inpaint mask", &job.inpaint_mask),
+        ("target guide", &job.guide_target),
+        ("source guide", &job.guide_source),
+    ]
+    .into_iter()
+    .filter_map(|(what, r)| r.as_ref().map(|r| (what, r)))
+    .map(|(what, r)| {
+        let info = OutputInfo {
+            recorded_path: r.path.clone(),
+            path: resolve(base, &r.path),
+            width: r.width,
+            height: r.height,
+            pixel_digest: r.pixel_digest.sha256.clone(),
+        };
+        (what.to_string(), info)
+    })
+    .collect()
 }
 
 /// The outputs of a job that are its `[[companion]]` maps.
@@ -406,6 +433,7 @@ pub fn build(manifest: &Manifest, base: &Path, group_by: &GroupBy) -> Model {
             output,
             warnings: job.warnings.clone(),
             companions: companion_outputs(job, base),
+            inputs: job_inputs(job, base),
         });
     }
 

@@ -274,3 +274,20 @@ fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
     assert!(empty["warnings"].to_string().contains("marks no pixel to fill"), "{empty}");
     assert_eq!(empty["outputs"][0]["pixel_digest"]["sha256"], pixels(&repo().join(IMAGE)), "nothing to fill: the image itself");
 }
+
+/// The report shows the mask beside the image and the repaired output: on the contact sheet and
+/// on the page, as a figure of its own.
+#[test]
+fn the_report_shows_the_mask_between_the_image_and_the_output() {
+    let d = scratch("inpaint-report");
+    job(&d.join("jobs"), "h.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    run_ok(texsyn().arg("report").arg(d.join("out/manifest.json")).arg("--out").arg(d.join("report")));
+    let html = std::fs::read_to_string(d.join("report/index.html")).unwrap();
+    let input = html.find("data-role=\"input\"").expect("a figure for the mask");
+    let figure = &html[input..input + html[input..].find("</figure>").unwrap()];
+    assert!(figure.contains("<b>inpaint mask</b>") && figure.contains("cork_cable_mask.png"), "{figure}");
+    let src = figure.split("src=\"").nth(1).unwrap().split('"').next().unwrap();
+    assert_eq!(rgb(&d.join("report").join(src)), rgb(&repo().join(MASK)), "the mask's own pixels");
+    assert!(input < html.find("data-group=").unwrap(), "the mask comes before the output");
+}
