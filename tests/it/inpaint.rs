@@ -289,5 +289,5 @@ fn the_report_shows_the_mask_between_the_image_and_the_output() {
     assert!(figure.contains("<b>inpaint mask</b>") && figure.contains("cork_cable_mask.png"), "{figure}");
     let src = figure.split("src=\"").nth(1).unwrap().split('"').next().unwrap();
     assert_eq!(rgb(&d.join("report").join(src)), rgb(&repo().join(MASK)), "the mask's own pixels");
-    assert!(input < html.find("data-group=").unwrap(), "the mask comes before the output");
+    assert!(input < html.find("<figure data-group=").unwrap(), "the mask comes before the output");
 }
