@@ -53,6 +53,9 @@ fn record(k: usize) -> JobRecord {
         warnings: Vec::new(),
         companions: Vec::new(),
         sample_mask: None,
+        inpaint_mask: None,
+        guide_target: None,
+        guide_source: None,
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
         timing: Some(Timing {

@@ -42,16 +42,16 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
     for s in SAMPLES {
         let dir = work.join(format!("inpaint-{s}"));
         std::fs::create_dir_all(&dir).expect("bench dir");
-        let sample = texsyn::load_image(&repo.join(format!("jobs/samples/{s}.png"))).expect("bundled sample");
+        let sample = texsyn::load_image(repo.join(format!("jobs/samples/{s}.png"))).expect("bundled sample");
         let (w, h) = sample.dimensions();
         let centre = (w / 2 + 17, h / 2 - 11);
         let inside =
             |x: u32, y: u32| (i64::from(x) - i64::from(centre.0)).pow(2) + (i64::from(y) - i64::from(centre.1)).pow(2) <= RADIUS * RADIUS;
         let damaged = RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255, 0, 255] } else { sample.get(x, y) });
-        texsyn::save_image(&damaged, &dir.join("damaged.png")).expect("write");
-        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255; 3] } else { [0; 3] }), &dir.join("fill.png"))
+        texsyn::save_image(&damaged, dir.join("damaged.png")).expect("write");
+        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255; 3] } else { [0; 3] }), dir.join("fill.png"))
             .expect("write");
-        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [0; 3] } else { [255; 3] }), &dir.join("keep.png"))
+        texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [0; 3] } else { [255; 3] }), dir.join("keep.png"))
             .expect("write");
         let jobs = dir.join("jobs");
         std::fs::create_dir_all(&jobs).expect("jobs dir");
@@ -89,7 +89,7 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
             println!("{s:<20} texsyn failed");
             continue;
         };
-        let ours = quality(&sample, &texsyn::load_image(&dir.join("out/h.png")).expect("texsyn output"), centre);
+        let ours = quality(&sample, &texsyn::load_image(dir.join("out/h.png")).expect("texsyn output"), centre);
         let theirs = embark_t.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|img| quality(&sample, &img, centre));
         let cell = |i: usize| match theirs {
             Some(t) => format!("{:.3}/{:.3} {:>5.2}", ours[i], t[i], ours[i] / t[i]),
