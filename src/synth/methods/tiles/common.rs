@@ -202,6 +202,58 @@ pub const COLORS_PARAM: ParamSpec = ParamSpec {
     doc: "K: colours per edge class; the tile set holds K³ (minimal) or K⁴ (complete) tiles built from 2K patches, so two tiles a tile apart repeat the same patch about once in K. 2: paper 001's sets (patches drawn anywhere, as the paper does); K ≥ 3: the 2K patches come from separate cells of the sample (each K needs 2K cells of the patch size). auto (default): 8 (4 for the complete set), at most what the sample has room for; the tile size (tile = \"auto\") then shrinks, down to 32, until the sample has room for them; the choice recorded as diagnostics.colors_choice",
 };
 
+/// The `interior` parameter of both tile methods.
+pub const INTERIOR_PARAM: ParamSpec = ParamSpec {
+    name: "interior",
+    kind: ParamKind::Choice(InteriorMode::NAMES),
+    default: Default::Str("auto"),
+    doc: "own: each tile keeps only a narrow band along its edges (depth 1 to overlap + 1 px, cut by a closed seam) from its edge-colour patches and takes everything inside the seam from a sample patch of its own, the best-matching of 8 random positions, so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, edges otherwise (two colours keep paper 001's pixels; random interiors would break a lattice's phase); the choice recorded as diagnostics.interior",
+};
+
+crate::choice! {
+    /// Where a tile's inside comes from (the `interior` parameter).
+    pub enum InteriorMode {
+        /// [`InteriorMode::Own`] for more than two colours without lattice alignment, else [`InteriorMode::Edges`].
+        Auto = "auto",
+        /// Every pixel from the edge-colour patches (paper 001).
+        Edges = "edges",
+        /// A patch of its own inside a closed seam ([`super::interior`]).
+        Own = "own",
+    }
+}
+
+impl InteriorMode {
+    /// Whether tiles of `colors` colours, aligned to a lattice or not, get interiors of their own.
+    pub fn own(self, colors: u32, aligned: bool) -> bool {
+        match self {
+            InteriorMode::Own => true,
+            InteriorMode::Edges => false,
+            InteriorMode::Auto => colors > 2 && !aligned,
+        }
+    }
+}
+
+/// The refusal of `interior = "own"` when a tile of `tile` pixels with `overlap` has no room for
+/// its ring or a `sample`-sized sample none for its patch.
+pub fn no_interior(tile: i32, overlap: i32, sample: (u32, u32)) -> String {
+    format!(
+        "interior = \"own\" needs a tile with room for a seam ring of overlap + 1 = {} px inside each side and a core inside it, and a sample as large as that core plus the ring (tile {tile}, overlap {overlap}, {}x{} sample); use a larger tile or a smaller overlap, or interior = \"edges\"",
+        overlap + 1,
+        sample.0,
+        sample.1
+    )
+}
+
+/// `diagnostics.interior` of a job whose tiles have interiors of their own.
+pub fn interior_record(mode: InteriorMode, overlap: i32, seam_cost: u64) -> serde_json::Value {
+    let (d0, d1) = super::interior::band(overlap);
+    let how = match mode {
+        InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
+        _ => "own, as set",
+    };
+    serde_json::json!({ "interior": "own", "ring_depths": [d0, d1], "candidates": super::interior::CANDIDATES, "seam_cost": seam_cost, "how": how })
+}
+
 /// `colors = "auto"`.
 pub const AUTO_COLORS_WORD: &str = "auto";
 /// The most colours `colors = "auto"` picks: with 8, two tiles a tile apart share a patch about

@@ -19,8 +19,9 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_rw;
+use super::interior;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
@@ -58,6 +59,7 @@ const PARAMS: &[ParamSpec] = &[
         doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the paper's 8-tile parity set); complete: all K⁴ edge colourings",
     },
     COLORS_PARAM,
+    INTERIOR_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -101,6 +103,8 @@ pub struct RwTilesConfig {
     pub tile_set: TileSet,
     /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
     pub colors: Option<u32>,
+    /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
+    pub interior: InteriorMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random patch choices are built to keep the cheapest (1..=4096).
@@ -122,6 +126,7 @@ impl std::default::Default for RwTilesConfig {
             overlap: 8,
             tile_set: TileSet::Minimal,
             colors: None,
+            interior: InteriorMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -141,6 +146,7 @@ impl MethodConfig for RwTilesConfig {
             int("overlap", self.overlap),
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
+            word("interior", self.interior),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -156,6 +162,7 @@ impl MethodConfig for RwTilesConfig {
             overlap: p.uint("overlap")?,
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
+            interior: p.choice("interior")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -407,6 +414,31 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
     let cuts = cuts?;
     finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+}
+
+/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]): a framework
+/// pixel's depth is its distance to the nearest side of the rhombus (sides at 45°: the smallest
+/// of `x + y` and `y − x` to their bounds, over √2, rounded), `-1` outside it; patch positions
+/// from stream `rwtiles/interiors`. `None` (tiles unchanged) when the tile or the sample has no
+/// room; else the seams' total cost.
+pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
+    let g = set.geometry;
+    let f = g.f as usize;
+    let depth: Vec<i32> = (0..f * f)
+        .map(|i| {
+            let (x, y) = ((i % f) as i32, (i / f) as i32);
+            if !g.in_r(x, y) {
+                return -1;
+            }
+            let (u, w) = (x + y, y - x);
+            let d = (u - g.u0).min(g.u0 + 2 * g.h - 1 - u).min(w - g.w0).min(g.w0 + 2 * g.h - 1 - w);
+            (d * 707 + 500) / 1000
+        })
+        .collect();
+    let band = interior::band(g.ov);
+    interior::give(&mut set.tiles, f, &depth, band, sample, err, seed, "rwtiles/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
@@ -671,7 +703,7 @@ fn finish_tile(
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
         }
     }
-    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs, sources: Vec::new() })
+    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, interior: None, strip_costs, pocket_costs, sources: Vec::new() })
 }
 
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
@@ -695,6 +727,10 @@ impl Method for RwTiles {
     fn fill_older_record(&self, given: &mut Vec<(String, ParamValue)>) {
         if !given.iter().any(|(k, _)| k == "colors") {
             given.push(("colors".to_string(), ParamValue::Int(2)));
+        }
+        // Likewise `interior`: tiles were made of their edge patches only.
+        if !given.iter().any(|(k, _)| k == "interior") {
+            given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
         }
     }
 
@@ -861,8 +897,13 @@ impl RwTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
-        let (tiles, chosen) =
+        let (mut tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
+        let own = cfg.interior.own(k, align.is_some());
+        let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
+        if own && interiors.is_none() {
+            return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
+        }
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -895,6 +936,9 @@ impl RwTiles {
         if let Some(c) = colors_choice {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
+        }
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, ov, cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1245,6 +1289,7 @@ mod tests {
             overlap: 6,
             tile_set: TileSet::Complete,
             colors: Some(3),
+            interior: InteriorMode::Own,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1258,6 +1303,7 @@ mod tests {
                 && cfg.overlap != d.overlap
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
+                && cfg.interior != d.interior
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align

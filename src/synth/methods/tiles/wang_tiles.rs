@@ -17,8 +17,9 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative};
 use super::export::export_wang;
+use super::interior;
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
@@ -62,6 +63,7 @@ const PARAMS: &[ParamSpec] = &[
         doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the 8-tile parity set); complete: all K⁴ edge colourings",
     },
     COLORS_PARAM,
+    INTERIOR_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -117,6 +119,8 @@ pub struct WangTilesConfig {
     pub tile_set: TileSet,
     /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
     pub colors: Option<u32>,
+    /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
+    pub interior: InteriorMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random diamond choices are built to keep the cheapest (1..=4096).
@@ -139,6 +143,7 @@ impl std::default::Default for WangTilesConfig {
             cut: Cut::Dp,
             tile_set: TileSet::Minimal,
             colors: None,
+            interior: InteriorMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -159,6 +164,7 @@ impl MethodConfig for WangTilesConfig {
             word("cut", self.cut),
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
+            word("interior", self.interior),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -175,6 +181,7 @@ impl MethodConfig for WangTilesConfig {
             cut: p.choice("cut")?,
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
+            interior: p.choice("interior")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -537,7 +544,24 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
         }
     }
-    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, sources: Vec::new() })
+    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
+}
+
+/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]): a pixel's depth is
+/// its distance to the nearest side of the square; patch positions from stream `wang/interiors`.
+/// `None` (tiles unchanged) when the tile or the sample has no room; else the seams' total cost.
+pub fn give_interiors(set: &mut WangTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
+    let t = set.geometry.t as usize;
+    let depth: Vec<i32> = (0..t * t)
+        .map(|i| {
+            let (x, y) = (i % t, i / t);
+            x.min(y).min(t - 1 - x).min(t - 1 - y) as i32
+        })
+        .collect();
+    let band = interior::band(set.geometry.ov);
+    interior::give(&mut set.tiles, t, &depth, band, sample, err, seed, "wang/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -562,6 +586,10 @@ impl Method for WangTiles {
     fn fill_older_record(&self, given: &mut Vec<(String, ParamValue)>) {
         if !given.iter().any(|(k, _)| k == "colors") {
             given.push(("colors".to_string(), ParamValue::Int(2)));
+        }
+        // Likewise `interior`: tiles were made of their edge patches only.
+        if !given.iter().any(|(k, _)| k == "interior") {
+            given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
         }
     }
 
@@ -726,7 +754,7 @@ impl WangTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let (tiles, chosen) = build_tile_set_aligned(
+        let (mut tiles, chosen) = build_tile_set_aligned(
             req.sample,
             t,
             ov,
@@ -737,6 +765,11 @@ impl WangTiles {
             cfg.patch_candidates as usize,
             align.as_ref(),
         )?;
+        let own = cfg.interior.own(k, align.is_some());
+        let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
+        if own && interiors.is_none() {
+            return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
+        }
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -768,6 +801,9 @@ impl WangTiles {
         if let Some(c) = colors_choice {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
+        }
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, ov, cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1120,6 +1156,7 @@ mod tests {
             cut: Cut::ShortestPath,
             tile_set: TileSet::Complete,
             colors: Some(3),
+            interior: InteriorMode::Own,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1134,6 +1171,7 @@ mod tests {
                 && cfg.cut != d.cut
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
+                && cfg.interior != d.interior
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
