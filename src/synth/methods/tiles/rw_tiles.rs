@@ -416,27 +416,21 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
 }
 
-/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]): a framework
-/// pixel's depth is its distance to the nearest side of the rhombus (sides at 45°: the smallest
-/// of `x + y` and `y − x` to their bounds, over √2, rounded), `-1` outside it; patch positions
+/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
+/// sides of the rhombus (depths in steps of `x + y` or `y − x`, √2/2 px each); patch positions
 /// from stream `rwtiles/interiors`. `None` (tiles unchanged) when the tile or the sample has no
 /// room; else the seams' total cost.
 pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
     let g = set.geometry;
-    let f = g.f as usize;
-    let depth: Vec<i32> = (0..f * f)
-        .map(|i| {
-            let (x, y) = ((i % f) as i32, (i / f) as i32);
-            if !g.in_r(x, y) {
-                return -1;
-            }
-            let (u, w) = (x + y, y - x);
-            let d = (u - g.u0).min(g.u0 + 2 * g.h - 1 - u).min(w - g.w0).min(g.w0 + 2 * g.h - 1 - w);
-            (d * 707 + 500) / 1000
-        })
-        .collect();
+    let last = 2 * g.h - 1;
+    // Sides NW, NE, SE, SW: position along the side (the other diagonal coordinate), depth in
+    // from it in steps of x + y or y − x.
+    let sides = move |x: i32, y: i32| {
+        let (u, w) = (x + y - g.u0, y - x - g.w0);
+        g.in_r(x, y).then_some([(w, u), (u, w), (w, last - u), (u, last - w)])
+    };
     let band = interior::band(g.ov);
-    interior::give(&mut set.tiles, f, &depth, band, sample, err, seed, "rwtiles/interiors", |tile| {
+    interior::give(&mut set.tiles, g.f as usize, sides, band, sample, err, seed, "rwtiles/interiors", |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
 }

@@ -547,19 +547,15 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
 }
 
-/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]): a pixel's depth is
-/// its distance to the nearest side of the square; patch positions from stream `wang/interiors`.
+/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
+/// sides of the square; patch positions from stream `wang/interiors`.
 /// `None` (tiles unchanged) when the tile or the sample has no room; else the seams' total cost.
 pub fn give_interiors(set: &mut WangTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
-    let t = set.geometry.t as usize;
-    let depth: Vec<i32> = (0..t * t)
-        .map(|i| {
-            let (x, y) = (i % t, i / t);
-            x.min(y).min(t - 1 - x).min(t - 1 - y) as i32
-        })
-        .collect();
+    let t = set.geometry.t;
+    // Sides N, E, S, W: position along the side, depth in from it.
+    let sides = move |x: i32, y: i32| Some([(x, y), (y, t - 1 - x), (x, t - 1 - y), (y, x)]);
     let band = interior::band(set.geometry.ov);
-    interior::give(&mut set.tiles, t, &depth, band, sample, err, seed, "wang/interiors", |tile| {
+    interior::give(&mut set.tiles, t as usize, sides, band, sample, err, seed, "wang/interiors", |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
 }
