@@ -207,7 +207,7 @@ pub const INTERIOR_PARAM: ParamSpec = ParamSpec {
     name: "interior",
     kind: ParamKind::Choice(InteriorMode::NAMES),
     default: Default::Str("auto"),
-    doc: "own: each tile keeps only a narrow band along its edges (depth 1 to overlap + 1 px, cut by a closed seam) from its edge-colour patches and takes everything inside the seam from a sample patch of its own, the best-matching of 8 random positions, so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, edges otherwise (two colours keep paper 001's pixels; random interiors would break a lattice's phase); the choice recorded as diagnostics.interior",
+    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions, so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, edges otherwise (two colours keep paper 001's pixels; random interiors would break a lattice's phase); the choice recorded as diagnostics.interior",
 };
 
 crate::choice! {
@@ -237,16 +237,15 @@ impl InteriorMode {
 /// its ring or a `sample`-sized sample none for its patch.
 pub fn no_interior(tile: i32, overlap: i32, sample: (u32, u32)) -> String {
     format!(
-        "interior = \"own\" needs a tile with room for a seam ring of overlap + 1 = {} px inside each side and a core inside it, and a sample as large as that core plus the ring (tile {tile}, overlap {overlap}, {}x{} sample); use a larger tile or a smaller overlap, or interior = \"edges\"",
-        overlap + 1,
+        "interior = \"own\" needs a tile with room for a seam ring of about overlap/2 + 1 = {} px inside each side and a core inside it, and a sample as large as that core plus the ring (tile {tile}, overlap {overlap}, {}x{} sample); use a larger tile, or interior = \"edges\"",
+        overlap / 2 + 1,
         sample.0,
         sample.1
     )
 }
 
 /// `diagnostics.interior` of a job whose tiles have interiors of their own.
-pub fn interior_record(mode: InteriorMode, overlap: i32, seam_cost: u64) -> serde_json::Value {
-    let (d0, d1) = super::interior::band(overlap);
+pub fn interior_record(mode: InteriorMode, (d0, d1): (i32, i32), seam_cost: u64) -> serde_json::Value {
     let how = match mode {
         InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
         _ => "own, as set",

@@ -419,8 +419,8 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
 /// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
 /// sides of the rhombus (depths in steps of `x + y` or `y − x`, √2/2 px each); patch positions
 /// from stream `rwtiles/interiors`. `None` (tiles unchanged) when the tile or the sample has no
-/// room; else the seams' total cost.
-pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
+/// room; else the ring's depths and the seams' total cost.
+pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<((i32, i32), u64)> {
     let g = set.geometry;
     let last = 2 * g.h - 1;
     // Sides NW, NE, SE, SW: position along the side (the other diagonal coordinate), depth in
@@ -429,7 +429,7 @@ pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, s
         let (u, w) = (x + y - g.u0, y - x - g.w0);
         g.in_r(x, y).then_some([(w, u), (u, w), (w, last - u), (u, last - w)])
     };
-    let band = interior::band(g.ov);
+    let band = interior::band(g.ov, std::f64::consts::FRAC_1_SQRT_2);
     interior::give(&mut set.tiles, g.f as usize, sides, band, sample, err, seed, "rwtiles/interiors", |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
@@ -895,7 +895,7 @@ impl RwTiles {
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
         let own = cfg.interior.own(k, align.is_some());
         let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
-        if own && interiors.is_none() {
+        if cfg.interior == InteriorMode::Own && interiors.is_none() {
             return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
         }
         let build = t0.elapsed().as_secs_f64();
@@ -931,8 +931,8 @@ impl RwTiles {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
         }
-        if let Some(cost) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, ov, cost);
+        if let Some((band, cost)) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, band, cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),

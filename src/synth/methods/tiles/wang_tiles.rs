@@ -549,12 +549,13 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
 
 /// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
 /// sides of the square; patch positions from stream `wang/interiors`.
-/// `None` (tiles unchanged) when the tile or the sample has no room; else the seams' total cost.
-pub fn give_interiors(set: &mut WangTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<u64> {
+/// `None` (tiles unchanged) when the tile or the sample has no room; else the ring's depths and
+/// the seams' total cost.
+pub fn give_interiors(set: &mut WangTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<((i32, i32), u64)> {
     let t = set.geometry.t;
     // Sides N, E, S, W: position along the side, depth in from it.
     let sides = move |x: i32, y: i32| Some([(x, y), (y, t - 1 - x), (x, t - 1 - y), (y, x)]);
-    let band = interior::band(set.geometry.ov);
+    let band = interior::band(set.geometry.ov, 1.0);
     interior::give(&mut set.tiles, t as usize, sides, band, sample, err, seed, "wang/interiors", |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
@@ -763,7 +764,7 @@ impl WangTiles {
         )?;
         let own = cfg.interior.own(k, align.is_some());
         let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
-        if own && interiors.is_none() {
+        if cfg.interior == InteriorMode::Own && interiors.is_none() {
             return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
         }
         let build = t0.elapsed().as_secs_f64();
@@ -798,8 +799,8 @@ impl WangTiles {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
         }
-        if let Some(cost) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, ov, cost);
+        if let Some((band, cost)) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, band, cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
