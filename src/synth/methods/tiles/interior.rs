@@ -110,6 +110,11 @@ impl Ring {
         Some(Ring { side, q0, q1, strips, inner, ring, core, origin: (x0, y0), extent: ((x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32) })
     }
 
+    /// The depth from which every pixel is interior: what a tile's own composition must reach.
+    pub fn reach(&self) -> i32 {
+        self.q1
+    }
+
     /// Whether a patch of this ring's tiles fits in a `sample`-sized sample.
     pub fn fits(&self, sample: (u32, u32)) -> bool {
         self.extent.0 <= sample.0 && self.extent.1 <= sample.1
@@ -204,28 +209,19 @@ pub fn band(ov: i32, step: f64) -> (i32, i32) {
     (1, ((f64::from(ov) / 2.0 / step).round() as i32 + 1).max(3))
 }
 
-/// Gives every tile its own interior ([`Ring::apply`]) in the ring `band` of a `side × side`
-/// raster whose tile pixels have side coordinates `sides` ([`Ring::new`]); `parts` lends a tile's raster, labels and interior offset.
-/// Each tile's [`CANDIDATES`] patch positions come from stream `label` (seeded by the job seed), in
-/// tile order, before any tile is cut, so the result does not depend on the thread count. `None`,
-/// tiles unchanged, when the tile has no room for the ring or the sample none for a patch; else
-/// the ring and the seams' total cost.
-#[allow(clippy::too_many_arguments)]
+/// Gives every tile its own interior in `ring` ([`Ring::apply`]); `parts` lends a tile's raster,
+/// labels and interior offset. Each tile's [`CANDIDATES`] patch positions come from stream `label`
+/// (seeded by the job seed), in tile order, before any tile is cut, so the result does not depend
+/// on the thread count. Returns the seams' total cost.
 pub fn give<T: Send>(
     tiles: &mut [T],
-    side: usize,
-    sides: impl Fn(i32, i32) -> Option<[(i32, i32); 4]>,
-    band: (i32, i32),
+    ring: &Ring,
     sample: &RgbImage,
     err: PixelError,
     seed: u64,
     label: &str,
     parts: impl Fn(&mut T) -> (&mut [u8], &mut [u8], &mut Option<(i32, i32)>) + Sync,
-) -> Option<((i32, i32), u64)> {
-    let ring = Ring::new(side, band.0, band.1, sides)?;
-    if !ring.fits(sample.dimensions()) {
-        return None;
-    }
+) -> u64 {
     let mut st = Stream::new(seed, label);
     let draws: Vec<Vec<(u32, u32)>> = tiles.iter().map(|_| ring.draw(&mut st, sample.dimensions())).collect();
     let costs: Vec<u64> = tiles
@@ -238,7 +234,7 @@ pub fn give<T: Send>(
             got.cost
         })
         .collect();
-    Some((band, costs.iter().sum()))
+    costs.iter().sum()
 }
 
 #[cfg(test)]

@@ -416,23 +416,27 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
 }
 
-/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
-/// sides of the rhombus (depths in steps of `x + y` or `y − x`, √2/2 px each); patch positions
-/// from stream `rwtiles/interiors`. `None` (tiles unchanged) when the tile or the sample has no
-/// room; else the ring's depths and the seams' total cost.
-pub fn give_interiors(set: &mut RwTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<((i32, i32), u64)> {
-    let g = set.geometry;
+/// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
+/// [`interior`]), cut along the four sides of the rhombus (depths in steps of `x + y` or `y − x`,
+/// √2/2 px each); `None` when the tile has no room for it or a `sample`-sized sample none for its
+/// patch.
+pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring> {
+    let g = *g;
     let last = 2 * g.h - 1;
     // Sides NW, NE, SE, SW: position along the side (the other diagonal coordinate), depth in
-    // from it in steps of x + y or y − x.
+    // from it.
     let sides = move |x: i32, y: i32| {
         let (u, w) = (x + y - g.u0, y - x - g.w0);
         g.in_r(x, y).then_some([(w, u), (u, w), (w, last - u), (u, last - w)])
     };
-    let band = interior::band(g.ov, std::f64::consts::FRAC_1_SQRT_2);
-    interior::give(&mut set.tiles, g.f as usize, sides, band, sample, err, seed, "rwtiles/interiors", |tile| {
-        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    })
+    let (q0, q1) = interior::band(g.ov, std::f64::consts::FRAC_1_SQRT_2);
+    interior::Ring::new(g.f as usize, q0, q1, sides).filter(|r| r.fits(sample))
+}
+
+/// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
+/// stream `rwtiles/interiors`. Returns the seams' total cost.
+pub fn give_interiors(set: &mut RwTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", |tile| (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior))
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
@@ -893,11 +897,11 @@ impl RwTiles {
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
         let (mut tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
-        let own = cfg.interior.own(k, align.is_some());
-        let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
-        if cfg.interior == InteriorMode::Own && interiors.is_none() {
+        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&tiles.geometry, dims) } else { None };
+        if cfg.interior == InteriorMode::Own && ring.is_none() {
             return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
         }
+        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -931,8 +935,8 @@ impl RwTiles {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
         }
-        if let Some((band, cost)) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, band, cost);
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, std::f64::consts::FRAC_1_SQRT_2), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),

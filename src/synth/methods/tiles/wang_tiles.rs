@@ -230,7 +230,7 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(WangTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, t, ov, set.into(), cut, err, seed, candidates, None)
+    build_tile_set_aligned(sample, t, ov, set.into(), cut, err, seed, candidates, None, None)
 }
 
 /// `align = "lattice"` for Wang tiles (phase analysis in [`super::align`]). Class A are the
@@ -319,6 +319,7 @@ impl WangAlign {
 /// each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
 /// is drawn again ([`align::first_fitting`]). Without `align`, a set of more than two colours draws
 /// its diamonds in separate cells of the sample ([`common::spread`]; `Err` when it has no room).
+/// `reach`: tiles that will take interiors of their own are built only that deep ([`build_tile_within`]).
 #[allow(clippy::too_many_arguments)]
 pub fn build_tile_set_aligned(
     sample: &RgbImage,
@@ -330,6 +331,7 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&WangAlign>,
+    reach: Option<i32>,
 ) -> Result<(WangTileSet, usize), SynthError> {
     let g = Geometry::new(t, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
@@ -366,7 +368,7 @@ pub fn build_tile_set_aligned(
         .collect();
     let choices = choices?;
     let built: Result<Vec<WangTileSet>, SynthError> =
-        choices.par_iter().map(|(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+        choices.par_iter().map(|(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de, reach)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let a = g.a as u32;
@@ -381,7 +383,9 @@ pub fn build_tile_set_aligned(
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
 
-/// Builds every tile of `set` from the given diamond centres.
+/// Builds every tile of `set` from the given diamond centres (only their bands, `reach` deep, when
+/// they will take interiors of their own: [`build_tile_within`]).
+#[allow(clippy::too_many_arguments)]
 pub fn build_from_diamonds(
     sample: &RgbImage,
     g: &Geometry,
@@ -390,12 +394,13 @@ pub fn build_from_diamonds(
     err: PixelError,
     dn: &[(u32, u32)],
     de: &[(u32, u32)],
+    reach: Option<i32>,
 ) -> Result<WangTileSet, SynthError> {
     let tiles: Result<Vec<WangTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
-            build_tile(sample, g, diamonds_of(c, dn, de), cut, err).map(|mut tile| {
+            build_tile_within(sample, g, diamonds_of(c, dn, de), cut, err, reach).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -449,8 +454,25 @@ fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error
 
 /// Builds one tile from the sample centres of its N, E, S, W diamonds.
 pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, SynthError> {
+    build_tile_within(sample, g, q, cut, err, None)
+}
+
+/// [`build_tile`], composing only the pixels closer than `reach` to the tile's nearest side when
+/// it is given: a tile that takes an interior of its own ([`give_interiors`]) replaces everything
+/// deeper, so its cuts run only from each corner to the point `reach − 1` pixels in along the
+/// diagonal (which still splits the corner of the band between its two diamonds), and the
+/// floods stay in the band. The deeper pixels are filled from their first covering diamond.
+fn build_tile_within(
+    sample: &RgbImage,
+    g: &Geometry,
+    q: [(u32, u32); 4],
+    cut: Cut,
+    err: PixelError,
+    reach: Option<i32>,
+) -> Result<WangTile, SynthError> {
     let t = g.t;
     let n = (t * t) as usize;
+    let near = |x: i32, y: i32| reach.is_none_or(|r| x.min(y).min(t - 1 - x).min(t - 1 - y) < r);
     let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
         let (sx, sy) = g.sample_pixel(d, q[d], x, y);
         sample.get(sx, sy)
@@ -474,7 +496,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         let mut error = vec![0u32; n];
         for y in 0..t {
             for x in 0..t {
-                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) {
+                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) && near(x, y) {
                     let i = (y * t + x) as usize;
                     domain[i] = true;
                     error[i] = err.eval(px(d1, x, y), px(d2, x, y));
@@ -485,9 +507,13 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         if !domain[ci] {
             return Err(SynthError::Failed(format!("tile corner {corner:?} is not in both diamonds")));
         }
-        let centre_i = (centre.1 * t + centre.0) as usize;
+        let end = match reach {
+            Some(r) => (corner.0 + (centre.0 - corner.0).signum() * (r - 1), corner.1 + (centre.1 - corner.1).signum() * (r - 1)),
+            None => centre,
+        };
+        let centre_i = (end.1 * t + end.0) as usize;
         let path = match cut {
-            Cut::Dp => dp_cut(t, corner, centre, &domain, &error),
+            Cut::Dp => dp_cut(t, corner, end, &domain, &error),
             Cut::ShortestPath => {
                 let mut target = vec![false; n];
                 target[centre_i] = true;
@@ -515,14 +541,14 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             for x in 0..t {
                 let i = (y * t + x) as usize;
                 let single = (0..4).all(|o| (o == d) == g.in_diamond(o, x, y));
-                if single && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
+                if single && near(x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
                     seeds.push(i);
                 }
             }
         }
         let reached = flood4(t as usize, t as usize, &seeds, |i| {
             let (x, y) = ((i % t as usize) as i32, (i / t as usize) as i32);
-            g.in_diamond(d, x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
+            g.in_diamond(d, x, y) && near(x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
         });
         for i in 0..n {
             if reached[i] && labels[i] == UNSET {
@@ -536,7 +562,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         for x in 0..t {
             let i = (y * t + x) as usize;
             if labels[i] == UNSET {
-                fallback_pixels += 1;
+                fallback_pixels += usize::from(near(x, y));
                 labels[i] = (0..4)
                     .find(|&d| g.in_diamond(d, x, y))
                     .ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
@@ -547,18 +573,20 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
 }
 
-/// Gives every tile an interior of its own (`interior = "own"`, [`interior`]), cut along the four
-/// sides of the square; patch positions from stream `wang/interiors`.
-/// `None` (tiles unchanged) when the tile or the sample has no room; else the ring's depths and
-/// the seams' total cost.
-pub fn give_interiors(set: &mut WangTileSet, sample: &RgbImage, err: PixelError, seed: u64) -> Option<((i32, i32), u64)> {
-    let t = set.geometry.t;
+/// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
+/// [`interior`]), cut along the four sides of the square; `None` when the tile has no room for
+/// it or a `sample`-sized sample none for its patch.
+pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring> {
+    let t = g.t;
     // Sides N, E, S, W: position along the side, depth in from it.
-    let sides = move |x: i32, y: i32| Some([(x, y), (y, t - 1 - x), (x, t - 1 - y), (y, x)]);
-    let band = interior::band(set.geometry.ov, 1.0);
-    interior::give(&mut set.tiles, t as usize, sides, band, sample, err, seed, "wang/interiors", |tile| {
-        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    })
+    let (q0, q1) = interior::band(g.ov, 1.0);
+    interior::Ring::new(t as usize, q0, q1, move |x, y| Some([(x, y), (y, t - 1 - x), (x, t - 1 - y), (y, x)])).filter(|r| r.fits(sample))
+}
+
+/// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
+/// stream `wang/interiors`. Returns the seams' total cost.
+pub fn give_interiors(set: &mut WangTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", |tile| (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior))
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -751,6 +779,10 @@ impl WangTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
+        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&Geometry::new(t, ov), dims) } else { None };
+        if cfg.interior == InteriorMode::Own && ring.is_none() {
+            return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
+        }
         let (mut tiles, chosen) = build_tile_set_aligned(
             req.sample,
             t,
@@ -761,12 +793,9 @@ impl WangTiles {
             req.seed,
             cfg.patch_candidates as usize,
             align.as_ref(),
+            ring.as_ref().map(|r| r.reach()),
         )?;
-        let own = cfg.interior.own(k, align.is_some());
-        let interiors = if own { give_interiors(&mut tiles, req.sample, cfg.pixel_error, req.seed) } else { None };
-        if cfg.interior == InteriorMode::Own && interiors.is_none() {
-            return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
-        }
+        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -799,8 +828,8 @@ impl WangTiles {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
         }
-        if let Some((band, cost)) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, band, cost);
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, 1.0), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
