@@ -30,7 +30,8 @@ use rayon::prelude::*;
 pub const INTERIOR: u8 = 4;
 
 /// How many random patch positions are tried per tile; the one that agrees best with the band over
-/// the ring (sum of pixel errors) is kept, as quilting keeps a block that matches its overlap.
+/// the ring (sum of pixel errors over every third ring pixel) is kept, as quilting keeps a block
+/// that matches its overlap.
 pub const CANDIDATES: usize = 16;
 
 /// One side's strip: positions `p_lo ..= p_hi` along it, depths `q0 .. q1`, and the raster pixel at
@@ -177,7 +178,10 @@ impl Ring {
         let offset_of = |c: (u32, u32)| (c.0 as i32 - self.origin.0, c.1 as i32 - self.origin.1);
         let patch = |off: (i32, i32), i: usize| sample.get(((i % side) as i32 + off.0) as u32, ((i / side) as i32 + off.1) as u32);
         let band = |raster: &[u8], i: usize| [raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]];
-        let ring_cost = |off: (i32, i32)| -> u64 { self.ring.iter().map(|&i| u64::from(err.eval(band(raster, i), patch(off, i)))).sum() };
+        // Every third ring pixel tells the candidates apart about as well as all of them, for a
+        // third of the cost (the choice is a large part of a 2048² fill's time).
+        let ring_cost =
+            |off: (i32, i32)| -> u64 { self.ring.iter().step_by(3).map(|&i| u64::from(err.eval(band(raster, i), patch(off, i)))).sum() };
         let best = candidates.iter().map(|&c| offset_of(c)).min_by_key(|&off| ring_cost(off)).expect("at least one candidate");
         let mut error = vec![0u32; side * side];
         for &i in &self.ring {

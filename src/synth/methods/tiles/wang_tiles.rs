@@ -494,8 +494,16 @@ fn build_tile_within(
         let corner = g.corner(k);
         let mut domain = vec![false; n];
         let mut error = vec![0u32; n];
-        for y in 0..t {
-            for x in 0..t {
+        // With a reach, the cut runs only in the corner's `reach × reach` square.
+        let (xs, ys) = match reach {
+            Some(r) => {
+                let span = |c: i32| if c == 0 { 0..r.min(t) } else { (t - r).max(0)..t };
+                (span(corner.0), span(corner.1))
+            }
+            None => (0..t, 0..t),
+        };
+        for y in ys {
+            for x in xs.clone() {
                 if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) && near(x, y) {
                     let i = (y * t + x) as usize;
                     domain[i] = true;
@@ -540,8 +548,11 @@ fn build_tile_within(
         for y in 0..t {
             for x in 0..t {
                 let i = (y * t + x) as usize;
+                if !near(x, y) {
+                    continue;
+                }
                 let single = (0..4).all(|o| (o == d) == g.in_diamond(o, x, y));
-                if single && near(x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
+                if single && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
                     seeds.push(i);
                 }
             }
@@ -561,8 +572,13 @@ fn build_tile_within(
     for y in 0..t {
         for x in 0..t {
             let i = (y * t + x) as usize;
+            if !near(x, y) {
+                // Replaced by the tile's own interior: no need to compose it.
+                labels[i] = N as u8;
+                continue;
+            }
             if labels[i] == UNSET {
-                fallback_pixels += usize::from(near(x, y));
+                fallback_pixels += 1;
                 labels[i] = (0..4)
                     .find(|&d| g.in_diamond(d, x, y))
                     .ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
