@@ -672,6 +672,77 @@ pub(crate) mod testing {
         assert!(e.starts_with("colors: colors 16 needs 32 separate") && e.contains("use colors at most"), "{e}");
     }
 
+    /// `interior`: on grass at 512², eight colours with insides of their own repeat less than with
+    /// the edge patches' tiles (whose tiling and edge patches are the same draws), the placement
+    /// renders the fill exactly, `auto` is `own` for eight colours and `edges` for two (no
+    /// `diagnostics.interior`), thread counts do not matter, and a sample with no room for a
+    /// tile's own patch is refused naming `interior`. Returns the fills (own, edges) and their
+    /// tile size for the method's own check of the tile edges.
+    pub fn own_interiors_repeat_less(m: &dyn Method, params: impl Fn(&[(&str, ParamValue)]) -> Params) -> (RgbImage, RgbImage, u32) {
+        use crate::metrics::repetition::max_autocorrelation;
+        let grass = sample("grass_gray.png");
+        let fill = |p: &Params, placement: bool| {
+            let req = Request {
+                sample: &grass,
+                width: 512,
+                height: 512,
+                params: p,
+                seed: 5,
+                placement,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            };
+            m.synthesize(&req).expect("synthesis")
+        };
+        let word = |v: &str| ParamValue::Str(v.into());
+        let own_p = params(&[("interior", word("own")), ("colors", ParamValue::Int(8))]);
+        let own = fill(&own_p, true);
+        let edges = fill(&params(&[("interior", word("edges")), ("colors", ParamValue::Int(8))]), false);
+        let [o, e] = [&own.image, &edges.image].map(|i| max_autocorrelation(i).unwrap());
+        assert!(o < 0.6 * e, "{}: own interiors {o:.3}, edge patches {e:.3}", m.name());
+        let placement = own.placement.as_ref().expect("the placement asked for");
+        assert_eq!(placement.render_rgb8(&grass), own.image, "{}: the placement renders the fill", m.name());
+        assert_eq!(own.diagnostics["interior"]["interior"], "own", "{}", own.diagnostics);
+        let auto = fill(&params(&[("colors", ParamValue::Int(8))]), false);
+        assert_eq!(auto.image, own.image, "{}: auto is own for eight colours", m.name());
+        let two = fill(&params(&[("colors", ParamValue::Int(2))]), false);
+        let two_edges = fill(&params(&[("colors", ParamValue::Int(2)), ("interior", word("edges"))]), false);
+        assert_eq!(two.image, two_edges.image, "{}: auto keeps two colours' pixels", m.name());
+        assert!(two.diagnostics.get("interior").is_none(), "{}", two.diagnostics);
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(one.install(|| fill(&own_p, true)).image, own.image, "{}: one thread", m.name());
+        // A 64-px tile from a sample 40 px wide: no room for its own 62-px patch.
+        let narrow = RgbImage::from_fn(40, 256, |x, y| grass.get(x, y));
+        let small = params(&[
+            ("interior", word("own")),
+            ("tile", ParamValue::Int(64)),
+            ("overlap", ParamValue::Int(2)),
+            ("colors", ParamValue::Int(2)),
+        ]);
+        let e = m
+            .synthesize(&Request {
+                sample: &narrow,
+                width: 128,
+                height: 128,
+                params: &small,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("interior") && e.contains("interior = \"edges\""), "{}: {e}", m.name());
+        if m.name() == "rw-tiles" {
+            // Refused before the run too.
+            let checked = m.check(&small, (40, 256), (128, 128));
+            assert!(checked.iter().any(|c| c.key == "interior"), "{checked:?}");
+        }
+        let tile = own.diagnostics["geometry"]["tile"].as_u64().expect("diagnostics.geometry.tile") as u32;
+        (own.image, edges.image, tile)
+    }
+
     /// [`repeat_is_one_tiling`] for sets built by `build` (from bricks_gray), at several periods,
     /// with two colours and with three.
     pub fn repeats_are_single_tilings<T: TileRenderer>(build: impl Fn(&RgbImage, EdgeSet) -> T) {

@@ -19,7 +19,9 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+};
 use super::export::export_rw;
 use super::interior;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
@@ -436,7 +438,9 @@ pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring>
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `rwtiles/interiors`. Returns the seams' total cost.
 pub fn give_interiors(set: &mut RwTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
-    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", |tile| (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior))
+    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
@@ -777,6 +781,15 @@ impl Method for RwTiles {
         errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
+        // A given size only: `auto` may choose another.
+        let valid = tile % 2 == 0 && ov % 2 == 0 && 2 * ov + 4 <= tile && s <= smaller;
+        if cfg.interior == InteriorMode::Own
+            && cfg.tile.is_some()
+            && valid
+            && interior_ring(&Geometry::new(tile as i32, ov as i32), sample).is_none()
+        {
+            errors.push(ParamError::new("interior", common::no_interior(tile as i32, ov as i32, sample)));
+        }
         if s > smaller {
             // Never advise an impossible value: the largest tile that fits must still be a valid
             // tile (even, at least 8, room for the overlap).
@@ -1381,6 +1394,27 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&RwTiles);
+    }
+
+    #[test]
+    fn own_interiors_repeat_less_and_leave_the_tile_edges_as_they_were() {
+        let (own, edges, t) = common::testing::own_interiors_repeat_less(&RwTiles, params);
+        // The locked edge pixels of every rhombus are its edge patches' (what its neighbours
+        // match); the insides differ.
+        let g = Geometry::new(t as i32, 8);
+        let mut inside_same = 0;
+        for y in 0..512i64 {
+            for x in 0..512i64 {
+                let (_, (fx, fy)) = locate(&g, x, y);
+                let (a, b) = (own.get(x as u32, y as u32), edges.get(x as u32, y as u32));
+                if g.lock(fx, fy).is_some() {
+                    assert_eq!(a, b, "({x},{y})");
+                } else {
+                    inside_same += usize::from(a == b);
+                }
+            }
+        }
+        assert!(inside_same < 512 * 512 / 4, "{inside_same} pixels off the edges unchanged");
     }
 
     #[test]

@@ -17,7 +17,9 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+};
 use super::export::export_wang;
 use super::interior;
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
@@ -602,7 +604,9 @@ pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring>
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `wang/interiors`. Returns the seams' total cost.
 pub fn give_interiors(set: &mut WangTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
-    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", |tile| (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior))
+    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -679,6 +683,15 @@ impl Method for WangTiles {
         errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
+        // A given size only: `auto` may choose another.
+        let valid = t % 2 == 0 && ov % 2 == 0 && ov * 2 <= t && need <= smaller;
+        if cfg.interior == InteriorMode::Own
+            && cfg.tile.is_some()
+            && valid
+            && interior_ring(&Geometry::new(t as i32, ov as i32), sample).is_none()
+        {
+            errors.push(ParamError::new("interior", common::no_interior(t as i32, ov as i32, sample)));
+        }
         if need > smaller {
             // Never advise an impossible value: the largest tile that fits must still be a valid
             // tile (even, at least 8, at least twice the overlap).
@@ -1293,6 +1306,25 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&WangTiles);
+    }
+
+    #[test]
+    fn own_interiors_repeat_less_and_leave_the_tile_edges_as_they_were() {
+        let (own, edges, t) = common::testing::own_interiors_repeat_less(&WangTiles, params);
+        // The outermost line of every tile is its edge patches' (what its neighbours match);
+        // the insides differ.
+        let edge = |v: u32| v % t == 0 || v % t == t - 1;
+        let mut inside_same = 0;
+        for y in 0..512 {
+            for x in 0..512 {
+                if edge(x) || edge(y) {
+                    assert_eq!(own.get(x, y), edges.get(x, y), "({x},{y})");
+                } else if (x % t).min(y % t).min(t - 1 - x % t).min(t - 1 - y % t) >= 8 {
+                    inside_same += usize::from(own.get(x, y) == edges.get(x, y));
+                }
+            }
+        }
+        assert!(inside_same < 512 * 512 / 20, "{inside_same} deep pixels unchanged");
     }
 
     #[test]
