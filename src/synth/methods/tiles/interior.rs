@@ -281,6 +281,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn each_cut_follows_the_cheapest_depths() {
         // The tile matches the patch exactly at depth 5 along every side and nowhere else: every
         // cut runs at depth 5 (where two sides meet, through pixels outside the other cut).

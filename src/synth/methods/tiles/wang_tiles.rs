@@ -1313,7 +1313,7 @@ mod tests {
         let (own, edges, t) = common::testing::own_interiors_repeat_less(&WangTiles, params);
         // The outermost line of every tile is its edge patches' (what its neighbours match);
         // the insides differ.
-        let edge = |v: u32| v % t == 0 || v % t == t - 1;
+        let edge = |v: u32| v.is_multiple_of(t) || v % t == t - 1;
         let mut inside_same = 0;
         for y in 0..512 {
             for x in 0..512 {
