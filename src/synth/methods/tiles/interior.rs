@@ -17,8 +17,8 @@
 //! `q0 .. q1`; a pixel takes the tile's own patch when it lies at or beyond all four cuts and joins
 //! the core. The cuts meet at the corners as quilting's left and top cuts do. Pixels shallower than `q0`, the
 //! tile's edges among them, never change, so every valid tiling stays valid and seamless at the
-//! tile edges. (A closed shortest path through the ring, B4, joins the sides more freely but cost
-//! three times the whole tile build of a 2048² fill.)
+//! tile edges. (A closed shortest path through the ring, B4, joins the sides more freely, but it
+//! made a 2048² fill about 1.5 times slower than these four cuts.)
 
 use super::common::PixelError;
 use crate::image::RgbImage;
