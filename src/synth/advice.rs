@@ -106,7 +106,9 @@ pub const GRID_REPEAT_MIN: f64 = 0.5;
 const LARGE_FEATURE_SIDES: [usize; 5] = [4, 8, 16, 32, 64];
 
 /// Tiles (Wang or RW, not aligned to a lattice) are cut from a few sample patches (two per edge
-/// colour: 4 with `colors = 2`, up to 16 with the default); where the sample's features are large
+/// colour: 4 with `colors = 2`, up to 16 with the default, and with the default `interior` one of
+/// its own inside each tile, whose seam with the edge band runs near the tile outline, which on
+/// a 512² fill of mossy rock (issue #30) still shows the tile grid); where the sample's features are large
 /// next to a tile, each patch carries a blotch of its own, every tile shows the blotches of its
 /// patches at the same places on the tile grid, and the output becomes a regular patchwork of
 /// them. More colours vary which blotches meet (the fill repeats less), not where they sit. The
@@ -981,8 +983,9 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                     Fit::NotFor {
                         because: format!(
                             "{:.0} % of the sample's colour variance is in features {} px and more across, and every {tile}-px \
-                             tile carries those of its few sample patches (two per edge colour) at the same places on the tile \
-                             grid, so the tiling shows them in a visible regular patchwork (more colors vary which meet, not where)",
+                             tile joins patches with different ones along the same lines of the tile grid (its edge patches, \
+                             two per edge colour, and its own interior), so the tiling shows them in a visible regular \
+                             patchwork (more colors vary which meet, not where)",
                             100.0 * share,
                             tile / 4
                         ),

@@ -25,13 +25,16 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
         // And since #30 their `colors` defaults to `auto` (more edge colours, so other tiles and
         // pixels, deliberately): the old manifest still verifies above (a record without
         // `colors` means two), while a fresh run of the old job file makes the new fill, which
-        // `diff` below explains. What stays the same is compared.
+        // `diff` below explains. What stays the same is compared. Likewise `interior` (`auto`:
+        // tiles of more than two colours take insides of their own; a record without it means
+        // `edges`).
         if o["method"] == "rw-tiles" || o["method"] == "wang-tiles" {
             for k in ["content_key", "params_digest", "outputs", "diagnostics"] {
                 o.remove(k);
             }
-            o["params"].as_object_mut().unwrap().remove("colors");
-            o["params"].as_object_mut().unwrap().remove("align");
+            for k in ["colors", "align", "interior"] {
+                o["params"].as_object_mut().unwrap().remove(k);
+            }
         }
         // 8-bit PNG has since been compressed in chunks as it is written: the same pixels in
         // other file bytes (`verify` above reads the stored files against their recorded bytes).

@@ -177,6 +177,38 @@ fn every_wrapping_method_tiles_the_sizes_artists_use_with_its_defaults() {
     assert!(even.diagnostics.get("tileable_grid").is_none(), "{}", even.diagnostics);
 }
 
+/// The same sizes for the tile methods with their defaults (`tile = "auto"` takes a size that
+/// divides the output: 64 for the powers of two and 384×320, 50 or 40 for 1000×600): every one
+/// wraps, the wrap line no more visible than 1.5 times the tile seams (the bar), and the
+/// tiles take their own interiors (more than two colours on these samples).
+#[test]
+fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
+    let chosen: Vec<(String, RgbImage)> = samples()
+        .into_iter()
+        .filter(|(n, _)| ["pebbles_beige.png", "rock_a_albedo.png", "cobblestone_a_albedo.png"].contains(&n.as_str()))
+        .collect();
+    for method in ["wang-tiles", "rw-tiles"] {
+        for size in [(512, 512), (1024, 1024), (384, 320), (1000, 600)] {
+            for (name, sample) in &chosen {
+                let out = synth(method, sample, size, &[], false);
+                let wrap = wrap_visibility(&out.image).unwrap();
+                let seams = seam_visibility(&out.image, out.seams.as_ref().unwrap()).unwrap();
+                let tile = &out.diagnostics["geometry"]["tile"];
+                println!("{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}");
+                assert_eq!(out.diagnostics["interior"]["interior"], "own", "{method} {name}: {}", out.diagnostics);
+                if std::env::var("TEXSYN_NO_ASSERT").is_err() {
+                    assert!(wrap <= 1.5 * seams, "{method} {size:?} on {name}: wrap {wrap} > 1.5 x tile seams {seams}");
+                }
+                if let Ok(dir) = std::env::var("TEXSYN_TILEABLE_PNG") {
+                    let path =
+                        std::path::Path::new(&dir).join(format!("{method}_{}x{}_{}", size.0, size.1, name.replace(".png", "_2x2.png")));
+                    texsyn::save_image(&tiled(&out.image), path).unwrap();
+                }
+            }
+        }
+    }
+}
+
 fn check_placement(method: &str, size: (u32, u32), given: &[(&str, ParamValue)]) {
     let s = rgb(&repo().join("jobs/samples/crops/pebbles_beige_128.png"));
     let without = synth(method, &s, size, given, false);

@@ -202,6 +202,57 @@ pub const COLORS_PARAM: ParamSpec = ParamSpec {
     doc: "K: colours per edge class; the tile set holds K³ (minimal) or K⁴ (complete) tiles built from 2K patches, so two tiles a tile apart repeat the same patch about once in K. 2: paper 001's sets (patches drawn anywhere, as the paper does); K ≥ 3: the 2K patches come from separate cells of the sample (each K needs 2K cells of the patch size). auto (default): 8 (4 for the complete set), at most what the sample has room for; the tile size (tile = \"auto\") then shrinks, down to 32, until the sample has room for them; the choice recorded as diagnostics.colors_choice",
 };
 
+/// The `interior` parameter of both tile methods.
+pub const INTERIOR_PARAM: ParamSpec = ParamSpec {
+    name: "interior",
+    kind: ParamKind::Choice(InteriorMode::NAMES),
+    default: Default::Str("auto"),
+    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions, so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, edges otherwise (two colours keep paper 001's pixels; random interiors would break a lattice's phase); the choice recorded as diagnostics.interior",
+};
+
+crate::choice! {
+    /// Where a tile's inside comes from (the `interior` parameter).
+    pub enum InteriorMode {
+        /// [`InteriorMode::Own`] for more than two colours without lattice alignment, else [`InteriorMode::Edges`].
+        Auto = "auto",
+        /// Every pixel from the edge-colour patches (paper 001).
+        Edges = "edges",
+        /// A patch of its own inside a closed seam ([`super::interior`]).
+        Own = "own",
+    }
+}
+
+impl InteriorMode {
+    /// Whether tiles of `colors` colours, aligned to a lattice or not, get interiors of their own.
+    pub fn own(self, colors: u32, aligned: bool) -> bool {
+        match self {
+            InteriorMode::Own => true,
+            InteriorMode::Edges => false,
+            InteriorMode::Auto => colors > 2 && !aligned,
+        }
+    }
+}
+
+/// The refusal of `interior = "own"` when a tile of `tile` pixels with `overlap` has no room for
+/// its ring or a `sample`-sized sample none for its patch.
+pub fn no_interior(tile: i32, overlap: i32, sample: (u32, u32)) -> String {
+    format!(
+        "interior = \"own\" needs a tile with room for a seam ring of about overlap/2 + 1 = {} px inside each side and a core inside it, and a sample as large as that core plus the ring (tile {tile}, overlap {overlap}, {}x{} sample); use a larger tile, or interior = \"edges\"",
+        overlap / 2 + 1,
+        sample.0,
+        sample.1
+    )
+}
+
+/// `diagnostics.interior` of a job whose tiles have interiors of their own.
+pub fn interior_record(mode: InteriorMode, (d0, d1): (i32, i32), seam_cost: u64) -> serde_json::Value {
+    let how = match mode {
+        InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
+        _ => "own, as set",
+    };
+    serde_json::json!({ "interior": "own", "ring_depths": [d0, d1], "candidates": super::interior::CANDIDATES, "seam_cost": seam_cost, "how": how })
+}
+
 /// `colors = "auto"`.
 pub const AUTO_COLORS_WORD: &str = "auto";
 /// The most colours `colors = "auto"` picks: with 8, two tiles a tile apart share a patch about
@@ -619,6 +670,77 @@ pub(crate) mod testing {
         assert!(e.contains("colors"), "{e}");
         let e = refused(&[("colors", ParamValue::Int(16)), ("tile", ParamValue::Int(128))]);
         assert!(e.starts_with("colors: colors 16 needs 32 separate") && e.contains("use colors at most"), "{e}");
+    }
+
+    /// `interior`: on grass at 512², eight colours with insides of their own repeat less than with
+    /// the edge patches' tiles (whose tiling and edge patches are the same draws), the placement
+    /// renders the fill exactly, `auto` is `own` for eight colours and `edges` for two (no
+    /// `diagnostics.interior`), thread counts do not matter, and a sample with no room for a
+    /// tile's own patch is refused naming `interior`. Returns the fills (own, edges) and their
+    /// tile size for the method's own check of the tile edges.
+    pub fn own_interiors_repeat_less(m: &dyn Method, params: impl Fn(&[(&str, ParamValue)]) -> Params) -> (RgbImage, RgbImage, u32) {
+        use crate::metrics::repetition::max_autocorrelation;
+        let grass = sample("grass_gray.png");
+        let fill = |p: &Params, placement: bool| {
+            let req = Request {
+                sample: &grass,
+                width: 512,
+                height: 512,
+                params: p,
+                seed: 5,
+                placement,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            };
+            m.synthesize(&req).expect("synthesis")
+        };
+        let word = |v: &str| ParamValue::Str(v.into());
+        let own_p = params(&[("interior", word("own")), ("colors", ParamValue::Int(8))]);
+        let own = fill(&own_p, true);
+        let edges = fill(&params(&[("interior", word("edges")), ("colors", ParamValue::Int(8))]), false);
+        let [o, e] = [&own.image, &edges.image].map(|i| max_autocorrelation(i).unwrap());
+        assert!(o < 0.6 * e, "{}: own interiors {o:.3}, edge patches {e:.3}", m.name());
+        let placement = own.placement.as_ref().expect("the placement asked for");
+        assert_eq!(placement.render_rgb8(&grass), own.image, "{}: the placement renders the fill", m.name());
+        assert_eq!(own.diagnostics["interior"]["interior"], "own", "{}", own.diagnostics);
+        let auto = fill(&params(&[("colors", ParamValue::Int(8))]), false);
+        assert_eq!(auto.image, own.image, "{}: auto is own for eight colours", m.name());
+        let two = fill(&params(&[("colors", ParamValue::Int(2))]), false);
+        let two_edges = fill(&params(&[("colors", ParamValue::Int(2)), ("interior", word("edges"))]), false);
+        assert_eq!(two.image, two_edges.image, "{}: auto keeps two colours' pixels", m.name());
+        assert!(two.diagnostics.get("interior").is_none(), "{}", two.diagnostics);
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(one.install(|| fill(&own_p, true)).image, own.image, "{}: one thread", m.name());
+        // A 64-px tile from a sample 40 px wide: no room for its own 62-px patch.
+        let narrow = RgbImage::from_fn(40, 256, |x, y| grass.get(x, y));
+        let small = params(&[
+            ("interior", word("own")),
+            ("tile", ParamValue::Int(64)),
+            ("overlap", ParamValue::Int(2)),
+            ("colors", ParamValue::Int(2)),
+        ]);
+        let e = m
+            .synthesize(&Request {
+                sample: &narrow,
+                width: 128,
+                height: 128,
+                params: &small,
+                seed: 1,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("interior") && e.contains("interior = \"edges\""), "{}: {e}", m.name());
+        if m.name() == "rw-tiles" {
+            // Refused before the run too.
+            let checked = m.check(&small, (40, 256), (128, 128));
+            assert!(checked.iter().any(|c| c.key == "interior"), "{checked:?}");
+        }
+        let tile = own.diagnostics["geometry"]["tile"].as_u64().expect("diagnostics.geometry.tile") as u32;
+        (own.image, edges.image, tile)
     }
 
     /// [`repeat_is_one_tiling`] for sets built by `build` (from bricks_gray), at several periods,

@@ -330,6 +330,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     labels: Vec::new(),
                     cut_costs: [0; 4],
                     fallback_pixels: 0,
+                    interior: None,
                     sources: Vec::new(),
                 });
             }
@@ -373,6 +374,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     raster,
                     labels: Vec::new(),
                     centre_block: 0,
+                    interior: None,
                     strip_costs: [0; 4],
                     pocket_costs: Vec::new(),
                     sources: Vec::new(),

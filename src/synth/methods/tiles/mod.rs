@@ -9,6 +9,7 @@
 //!   export                   tile-set files: write, load back, render
 //!     wang_set, rw_set       the built sets: geometry, tiles, placement and filling
 //!       wang                 Wang-tile edge colours and tilings
+//! interior                   tiles' own interiors inside a closed seam (imports only common)
 //! common, align              shared by both methods: pixel error, patch candidates, `export_tiles`;
 //!                            lattice alignment (import nothing from the family)
 //! ```
@@ -16,6 +17,7 @@
 pub mod align;
 pub mod common;
 pub mod export;
+pub mod interior;
 pub mod rw_set;
 pub mod rw_tiles;
 pub mod wang;

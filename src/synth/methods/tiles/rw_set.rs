@@ -6,6 +6,7 @@
 //! back; both render through [`RwTileSet::render`]. Keeping the set here, below both, is what lets
 //! the export render a loaded set without importing the method that imports the export.
 
+use super::interior::INTERIOR;
 use super::wang::{EdgeSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
 use crate::synth::placement::UNCOVERED;
@@ -114,10 +115,13 @@ pub struct RwTile {
     pub colours: [u8; 4],
     /// `f × f` RGB raster; only pixels of `R` are meaningful.
     pub raster: Vec<u8>,
-    /// `f × f` block labels (0..3), `UNSET` outside `R`.
+    /// `f × f` block labels (0..3; [`INTERIOR`] for the tile's own interior), `UNSET` outside `R`.
     pub labels: Vec<u8>,
     /// The centre block `k*` (0-based).
     pub centre_block: usize,
+    /// With an interior of its own ([`super::interior`]): the offset from framework pixels
+    /// labelled [`INTERIOR`] to the sample pixels they copy.
+    pub interior: Option<(i32, i32)>,
     /// Path costs of the four strip seams (N, E, S, W) and of the three centre pockets.
     pub strip_costs: [u64; 4],
     pub pocket_costs: Vec<u64>,
@@ -144,8 +148,8 @@ pub struct RwTileSet {
     pub tiles: Vec<RwTile>,
 }
 
-/// Colours for block labels in [`RwTileSet::label_image`] (B1..B4, outside `R`).
-const LABEL_COLOURS: [[u8; 3]; 5] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [0, 0, 0]];
+/// Colours for block labels in [`RwTileSet::label_image`] (B1..B4, own interior, outside `R`).
+const LABEL_COLOURS: [[u8; 3]; 6] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [128, 128, 128], [0, 0, 0]];
 
 impl RwTileSet {
     /// Tile `k` as an image: its `f × f` framework with the pixels outside the rhombus black
@@ -159,7 +163,7 @@ impl RwTileSet {
     pub fn label_image(&self, k: usize) -> RgbImage {
         let f = self.geometry.f as u32;
         let labels = &self.tiles[k].labels;
-        RgbImage::from_fn(f, f, |x, y| LABEL_COLOURS[(labels[(y * f + x) as usize] as usize).min(4)])
+        RgbImage::from_fn(f, f, |x, y| LABEL_COLOURS[(labels[(y * f + x) as usize] as usize).min(5)])
     }
 
     /// Places the tiles for a `width × height` output (B12 on the rhombus lattice, §3.6).
@@ -232,9 +236,10 @@ impl RwTileSet {
         for tile in &mut self.tiles {
             let p = patches_of(tile.colours, &self.pa, &self.pb);
             tile.sources = (0..g.f * g.f)
-                .map(|i| match tile.labels[i as usize] {
-                    UNSET => UNCOVERED,
-                    k => {
+                .map(|i| match (tile.labels[i as usize], tile.interior) {
+                    (UNSET, _) => UNCOVERED,
+                    (INTERIOR, Some(off)) => ((i / g.f + off.1) as u32) * sample_width + (i % g.f + off.0) as u32,
+                    (k, _) => {
                         let (sx, sy) = g.sample_pixel(k as usize, p[k as usize], i % g.f, i / g.f);
                         sy * sample_width + sx
                     }

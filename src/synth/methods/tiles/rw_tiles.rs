@@ -19,8 +19,11 @@
 //! set, its geometry and the filling live in [`super::rw_set`], shared with the tile-set export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+};
 use super::export::export_rw;
+use super::interior;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use crate::image::RgbImage;
@@ -58,6 +61,7 @@ const PARAMS: &[ParamSpec] = &[
         doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the paper's 8-tile parity set); complete: all K⁴ edge colourings",
     },
     COLORS_PARAM,
+    INTERIOR_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -101,6 +105,8 @@ pub struct RwTilesConfig {
     pub tile_set: TileSet,
     /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
     pub colors: Option<u32>,
+    /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
+    pub interior: InteriorMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random patch choices are built to keep the cheapest (1..=4096).
@@ -122,6 +128,7 @@ impl std::default::Default for RwTilesConfig {
             overlap: 8,
             tile_set: TileSet::Minimal,
             colors: None,
+            interior: InteriorMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -141,6 +148,7 @@ impl MethodConfig for RwTilesConfig {
             int("overlap", self.overlap),
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
+            word("interior", self.interior),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -156,6 +164,7 @@ impl MethodConfig for RwTilesConfig {
             overlap: p.uint("overlap")?,
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
+            interior: p.choice("interior")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -407,6 +416,31 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
         (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
     let cuts = cuts?;
     finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+}
+
+/// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
+/// [`interior`]), cut along the four sides of the rhombus (depths in steps of `x + y` or `y − x`,
+/// √2/2 px each); `None` when the tile has no room for it or a `sample`-sized sample none for its
+/// patch.
+pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring> {
+    let g = *g;
+    let last = 2 * g.h - 1;
+    // Sides NW, NE, SE, SW: position along the side (the other diagonal coordinate), depth in
+    // from it.
+    let sides = move |x: i32, y: i32| {
+        let (u, w) = (x + y - g.u0, y - x - g.w0);
+        g.in_r(x, y).then_some([(w, u), (u, w), (w, last - u), (u, last - w)])
+    };
+    let (q0, q1) = interior::band(g.ov, std::f64::consts::FRAC_1_SQRT_2);
+    interior::Ring::new(g.f as usize, q0, q1, sides).filter(|r| r.fits(sample))
+}
+
+/// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
+/// stream `rwtiles/interiors`. Returns the seams' total cost.
+pub fn give_interiors(set: &mut RwTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
@@ -671,7 +705,7 @@ fn finish_tile(
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
         }
     }
-    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, strip_costs, pocket_costs, sources: Vec::new() })
+    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, interior: None, strip_costs, pocket_costs, sources: Vec::new() })
 }
 
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
@@ -695,6 +729,10 @@ impl Method for RwTiles {
     fn fill_older_record(&self, given: &mut Vec<(String, ParamValue)>) {
         if !given.iter().any(|(k, _)| k == "colors") {
             given.push(("colors".to_string(), ParamValue::Int(2)));
+        }
+        // Likewise `interior`: tiles were made of their edge patches only.
+        if !given.iter().any(|(k, _)| k == "interior") {
+            given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
         }
     }
 
@@ -743,6 +781,15 @@ impl Method for RwTiles {
         errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let s = tile / 2 + ov;
         let smaller = sample.0.min(sample.1) as i64;
+        // A given size only: `auto` may choose another.
+        let valid = tile % 2 == 0 && ov % 2 == 0 && 2 * ov + 4 <= tile && s <= smaller;
+        if cfg.interior == InteriorMode::Own
+            && cfg.tile.is_some()
+            && valid
+            && interior_ring(&Geometry::new(tile as i32, ov as i32), sample).is_none()
+        {
+            errors.push(ParamError::new("interior", common::no_interior(tile as i32, ov as i32, sample)));
+        }
         if s > smaller {
             // Never advise an impossible value: the largest tile that fits must still be a valid
             // tile (even, at least 8, room for the overlap).
@@ -861,8 +908,13 @@ impl RwTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
-        let (tiles, chosen) =
+        let (mut tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
+        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&tiles.geometry, dims) } else { None };
+        if cfg.interior == InteriorMode::Own && ring.is_none() {
+            return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
+        }
+        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -895,6 +947,9 @@ impl RwTiles {
         if let Some(c) = colors_choice {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
+        }
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, std::f64::consts::FRAC_1_SQRT_2), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1245,6 +1300,7 @@ mod tests {
             overlap: 6,
             tile_set: TileSet::Complete,
             colors: Some(3),
+            interior: InteriorMode::Own,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1258,6 +1314,7 @@ mod tests {
                 && cfg.overlap != d.overlap
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
+                && cfg.interior != d.interior
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1337,6 +1394,27 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&RwTiles);
+    }
+
+    #[test]
+    fn own_interiors_repeat_less_and_leave_the_tile_edges_as_they_were() {
+        let (own, edges, t) = common::testing::own_interiors_repeat_less(&RwTiles, params);
+        // The locked edge pixels of every rhombus are its edge patches' (what its neighbours
+        // match); the insides differ.
+        let g = Geometry::new(t as i32, 8);
+        let mut inside_same = 0;
+        for y in 0..512i64 {
+            for x in 0..512i64 {
+                let (_, (fx, fy)) = locate(&g, x, y);
+                let (a, b) = (own.get(x as u32, y as u32), edges.get(x as u32, y as u32));
+                if g.lock(fx, fy).is_some() {
+                    assert_eq!(a, b, "({x},{y})");
+                } else {
+                    inside_same += usize::from(a == b);
+                }
+            }
+        }
+        assert!(inside_same < 512 * 512 / 4, "{inside_same} pixels off the edges unchanged");
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! it back; both render through [`WangTileSet::render`]. Keeping the set here, below both, is what
 //! lets the export render a loaded set without importing the method that imports the export.
 
+use super::interior::INTERIOR;
 use super::wang::{EdgeSet, Tiling, TilingOrder, Torus, tile_rect, tile_torus};
 use crate::image::RgbImage;
 use rayon::prelude::*;
@@ -78,12 +79,15 @@ pub struct WangTile {
     pub colours: [u8; 4],
     /// `t × t` RGB raster.
     pub raster: Vec<u8>,
-    /// `t × t` diamond labels (N, E, S, W = 0..3).
+    /// `t × t` diamond labels (N, E, S, W = 0..3; [`INTERIOR`] for the tile's own interior).
     pub labels: Vec<u8>,
     /// Sum of `E` over each cut's pixels (N|E, E|S, S|W, W|N).
     pub cut_costs: [u64; 4],
     /// Pixels no flood reached (labelled with the first covering diamond); 0 in practice.
     pub fallback_pixels: usize,
+    /// With an interior of its own ([`super::interior`]): the offset from tile pixels labelled
+    /// [`INTERIOR`] to the sample pixels they copy.
+    pub interior: Option<(i32, i32)>,
     /// `t × t` sample indices (`y · sample_width + x`) the raster's pixels are copies of: filled by
     /// [`WangTileSet::record_sources`] only when a job asks for its placement, empty otherwise.
     pub sources: Vec<u32>,
@@ -113,9 +117,10 @@ impl WangTileSet {
         RgbImage::from_raw(t, t, self.tiles[k].raster.clone()).expect("t × t raster")
     }
 
-    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow), for inspection.
+    /// Tile `k`'s diamond labels as colours (N red, E green, S blue, W yellow, own interior
+    /// grey), for inspection.
     pub fn label_image(&self, k: usize) -> RgbImage {
-        const COLOURS: [[u8; 3]; 4] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40]];
+        const COLOURS: [[u8; 3]; 5] = [[230, 60, 50], [60, 170, 70], [50, 90, 220], [240, 200, 40], [128, 128, 128]];
         let t = self.geometry.t as u32;
         RgbImage::from_fn(t, t, |x, y| COLOURS[self.tiles[k].labels[(y * t + x) as usize] as usize])
     }
@@ -186,7 +191,11 @@ impl WangTileSet {
             let q = diamonds_of(tile.colours, &self.dn, &self.de);
             tile.sources = (0..g.t * g.t)
                 .map(|i| {
-                    let (sx, sy) = g.sample_pixel(tile.labels[i as usize] as usize, q[tile.labels[i as usize] as usize], i % g.t, i / g.t);
+                    let (x, y) = (i % g.t, i / g.t);
+                    let (sx, sy) = match (tile.labels[i as usize], tile.interior) {
+                        (INTERIOR, Some(off)) => ((x + off.0) as u32, (y + off.1) as u32),
+                        (d, _) => g.sample_pixel(d as usize, q[d as usize], x, y),
+                    };
                     sy * sample_width + sx
                 })
                 .collect();

@@ -17,8 +17,11 @@
 //! export.
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
-use super::common::{self, COLORS_PARAM, EXPORT_TILES_PARAM, Patches, PixelError, TileRenderer, pick_candidate, representative};
+use super::common::{
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+};
 use super::export::export_wang;
+use super::interior;
 use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
@@ -62,6 +65,7 @@ const PARAMS: &[ParamSpec] = &[
         doc: "minimal: for each pair of incoming colours one tile per outgoing colour (K³ tiles; for K = 2 the 8-tile parity set); complete: all K⁴ edge colourings",
     },
     COLORS_PARAM,
+    INTERIOR_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -117,6 +121,8 @@ pub struct WangTilesConfig {
     pub tile_set: TileSet,
     /// `colors`: K, the colours per edge class (2..=16); `None` = "auto" ([`common::resolve_colors`]).
     pub colors: Option<u32>,
+    /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
+    pub interior: InteriorMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random diamond choices are built to keep the cheapest (1..=4096).
@@ -139,6 +145,7 @@ impl std::default::Default for WangTilesConfig {
             cut: Cut::Dp,
             tile_set: TileSet::Minimal,
             colors: None,
+            interior: InteriorMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -159,6 +166,7 @@ impl MethodConfig for WangTilesConfig {
             word("cut", self.cut),
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
+            word("interior", self.interior),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -175,6 +183,7 @@ impl MethodConfig for WangTilesConfig {
             cut: p.choice("cut")?,
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
+            interior: p.choice("interior")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -223,7 +232,7 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(WangTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, t, ov, set.into(), cut, err, seed, candidates, None)
+    build_tile_set_aligned(sample, t, ov, set.into(), cut, err, seed, candidates, None, None)
 }
 
 /// `align = "lattice"` for Wang tiles (phase analysis in [`super::align`]). Class A are the
@@ -312,6 +321,7 @@ impl WangAlign {
 /// each ([`WangAlign`]); a first diamond that leaves another no lattice translate in the sample
 /// is drawn again ([`align::first_fitting`]). Without `align`, a set of more than two colours draws
 /// its diamonds in separate cells of the sample ([`common::spread`]; `Err` when it has no room).
+/// `reach`: tiles that will take interiors of their own are built only that deep ([`build_tile_within`]).
 #[allow(clippy::too_many_arguments)]
 pub fn build_tile_set_aligned(
     sample: &RgbImage,
@@ -323,6 +333,7 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&WangAlign>,
+    reach: Option<i32>,
 ) -> Result<(WangTileSet, usize), SynthError> {
     let g = Geometry::new(t, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
@@ -359,7 +370,7 @@ pub fn build_tile_set_aligned(
         .collect();
     let choices = choices?;
     let built: Result<Vec<WangTileSet>, SynthError> =
-        choices.par_iter().map(|(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de)).collect();
+        choices.par_iter().map(|(dn, de)| build_from_diamonds(sample, &g, set, cut, err, dn, de, reach)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let a = g.a as u32;
@@ -374,7 +385,9 @@ pub fn build_tile_set_aligned(
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
 
-/// Builds every tile of `set` from the given diamond centres.
+/// Builds every tile of `set` from the given diamond centres (only their bands, `reach` deep, when
+/// they will take interiors of their own: [`build_tile_within`]).
+#[allow(clippy::too_many_arguments)]
 pub fn build_from_diamonds(
     sample: &RgbImage,
     g: &Geometry,
@@ -383,12 +396,13 @@ pub fn build_from_diamonds(
     err: PixelError,
     dn: &[(u32, u32)],
     de: &[(u32, u32)],
+    reach: Option<i32>,
 ) -> Result<WangTileSet, SynthError> {
     let tiles: Result<Vec<WangTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
-            build_tile(sample, g, diamonds_of(c, dn, de), cut, err).map(|mut tile| {
+            build_tile_within(sample, g, diamonds_of(c, dn, de), cut, err, reach).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -442,8 +456,25 @@ fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error
 
 /// Builds one tile from the sample centres of its N, E, S, W diamonds.
 pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, SynthError> {
+    build_tile_within(sample, g, q, cut, err, None)
+}
+
+/// [`build_tile`], composing only the pixels closer than `reach` to the tile's nearest side when
+/// it is given: a tile that takes an interior of its own ([`give_interiors`]) replaces everything
+/// deeper, so its cuts run only from each corner to the point `reach − 1` pixels in along the
+/// diagonal (which still splits the corner of the band between its two diamonds), and the
+/// floods stay in the band. The deeper pixels are filled from their first covering diamond.
+fn build_tile_within(
+    sample: &RgbImage,
+    g: &Geometry,
+    q: [(u32, u32); 4],
+    cut: Cut,
+    err: PixelError,
+    reach: Option<i32>,
+) -> Result<WangTile, SynthError> {
     let t = g.t;
     let n = (t * t) as usize;
+    let near = |x: i32, y: i32| reach.is_none_or(|r| x.min(y).min(t - 1 - x).min(t - 1 - y) < r);
     let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
         let (sx, sy) = g.sample_pixel(d, q[d], x, y);
         sample.get(sx, sy)
@@ -465,9 +496,17 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         let corner = g.corner(k);
         let mut domain = vec![false; n];
         let mut error = vec![0u32; n];
-        for y in 0..t {
-            for x in 0..t {
-                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) {
+        // With a reach, the cut runs only in the corner's `reach × reach` square.
+        let (xs, ys) = match reach {
+            Some(r) => {
+                let span = |c: i32| if c == 0 { 0..r.min(t) } else { (t - r).max(0)..t };
+                (span(corner.0), span(corner.1))
+            }
+            None => (0..t, 0..t),
+        };
+        for y in ys {
+            for x in xs.clone() {
+                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) && near(x, y) {
                     let i = (y * t + x) as usize;
                     domain[i] = true;
                     error[i] = err.eval(px(d1, x, y), px(d2, x, y));
@@ -478,9 +517,13 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         if !domain[ci] {
             return Err(SynthError::Failed(format!("tile corner {corner:?} is not in both diamonds")));
         }
-        let centre_i = (centre.1 * t + centre.0) as usize;
+        let end = match reach {
+            Some(r) => (corner.0 + (centre.0 - corner.0).signum() * (r - 1), corner.1 + (centre.1 - corner.1).signum() * (r - 1)),
+            None => centre,
+        };
+        let centre_i = (end.1 * t + end.0) as usize;
         let path = match cut {
-            Cut::Dp => dp_cut(t, corner, centre, &domain, &error),
+            Cut::Dp => dp_cut(t, corner, end, &domain, &error),
             Cut::ShortestPath => {
                 let mut target = vec![false; n];
                 target[centre_i] = true;
@@ -507,6 +550,9 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         for y in 0..t {
             for x in 0..t {
                 let i = (y * t + x) as usize;
+                if !near(x, y) {
+                    continue;
+                }
                 let single = (0..4).all(|o| (o == d) == g.in_diamond(o, x, y));
                 if single && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
                     seeds.push(i);
@@ -515,7 +561,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
         }
         let reached = flood4(t as usize, t as usize, &seeds, |i| {
             let (x, y) = ((i % t as usize) as i32, (i / t as usize) as i32);
-            g.in_diamond(d, x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
+            g.in_diamond(d, x, y) && near(x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
         });
         for i in 0..n {
             if reached[i] && labels[i] == UNSET {
@@ -528,6 +574,11 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
     for y in 0..t {
         for x in 0..t {
             let i = (y * t + x) as usize;
+            if !near(x, y) {
+                // Replaced by the tile's own interior: no need to compose it.
+                labels[i] = N as u8;
+                continue;
+            }
             if labels[i] == UNSET {
                 fallback_pixels += 1;
                 labels[i] = (0..4)
@@ -537,7 +588,25 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut,
             raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
         }
     }
-    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, sources: Vec::new() })
+    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
+}
+
+/// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
+/// [`interior`]), cut along the four sides of the square; `None` when the tile has no room for
+/// it or a `sample`-sized sample none for its patch.
+pub fn interior_ring(g: &Geometry, sample: (u32, u32)) -> Option<interior::Ring> {
+    let t = g.t;
+    // Sides N, E, S, W: position along the side, depth in from it.
+    let (q0, q1) = interior::band(g.ov, 1.0);
+    interior::Ring::new(t as usize, q0, q1, move |x, y| Some([(x, y), (y, t - 1 - x), (x, t - 1 - y), (y, x)])).filter(|r| r.fits(sample))
+}
+
+/// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
+/// stream `wang/interiors`. Returns the seams' total cost.
+pub fn give_interiors(set: &mut WangTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", |tile| {
+        (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
+    })
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -562,6 +631,10 @@ impl Method for WangTiles {
     fn fill_older_record(&self, given: &mut Vec<(String, ParamValue)>) {
         if !given.iter().any(|(k, _)| k == "colors") {
             given.push(("colors".to_string(), ParamValue::Int(2)));
+        }
+        // Likewise `interior`: tiles were made of their edge patches only.
+        if !given.iter().any(|(k, _)| k == "interior") {
+            given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
         }
     }
 
@@ -610,6 +683,15 @@ impl Method for WangTiles {
         errors.extend(common::check_colors(cfg.colors, sample, patch(cfg.overlap)(smallest) as u32, &words));
         let need = t + ov - ov % 2;
         let smaller = sample.0.min(sample.1) as i64;
+        // A given size only: `auto` may choose another.
+        let valid = t % 2 == 0 && ov % 2 == 0 && ov * 2 <= t && need <= smaller;
+        if cfg.interior == InteriorMode::Own
+            && cfg.tile.is_some()
+            && valid
+            && interior_ring(&Geometry::new(t as i32, ov as i32), sample).is_none()
+        {
+            errors.push(ParamError::new("interior", common::no_interior(t as i32, ov as i32, sample)));
+        }
         if need > smaller {
             // Never advise an impossible value: the largest tile that fits must still be a valid
             // tile (even, at least 8, at least twice the overlap).
@@ -726,7 +808,11 @@ impl WangTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let (tiles, chosen) = build_tile_set_aligned(
+        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&Geometry::new(t, ov), dims) } else { None };
+        if cfg.interior == InteriorMode::Own && ring.is_none() {
+            return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
+        }
+        let (mut tiles, chosen) = build_tile_set_aligned(
             req.sample,
             t,
             ov,
@@ -736,7 +822,9 @@ impl WangTiles {
             req.seed,
             cfg.patch_candidates as usize,
             align.as_ref(),
+            ring.as_ref().map(|r| r.reach()),
         )?;
+        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let tiling = tiles.tiling(order, req);
@@ -768,6 +856,9 @@ impl WangTiles {
         if let Some(c) = colors_choice {
             // Likewise only for `colors = "auto"`.
             diagnostics["colors_choice"] = c;
+        }
+        if let Some(cost) = interiors {
+            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, 1.0), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1120,6 +1211,7 @@ mod tests {
             cut: Cut::ShortestPath,
             tile_set: TileSet::Complete,
             colors: Some(3),
+            interior: InteriorMode::Own,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1134,6 +1226,7 @@ mod tests {
                 && cfg.cut != d.cut
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
+                && cfg.interior != d.interior
                 && cfg.pixel_error != d.pixel_error
                 && cfg.patch_candidates != d.patch_candidates
                 && cfg.align != d.align
@@ -1213,6 +1306,25 @@ mod tests {
     #[test]
     fn tileable_refuses_sizes_that_cannot_wrap_and_the_export() {
         common::testing::refuses_what_cannot_wrap(&WangTiles);
+    }
+
+    #[test]
+    fn own_interiors_repeat_less_and_leave_the_tile_edges_as_they_were() {
+        let (own, edges, t) = common::testing::own_interiors_repeat_less(&WangTiles, params);
+        // The outermost line of every tile is its edge patches' (what its neighbours match);
+        // the insides differ.
+        let edge = |v: u32| v.is_multiple_of(t) || v % t == t - 1;
+        let mut inside_same = 0;
+        for y in 0..512 {
+            for x in 0..512 {
+                if edge(x) || edge(y) {
+                    assert_eq!(own.get(x, y), edges.get(x, y), "({x},{y})");
+                } else if (x % t).min(y % t).min(t - 1 - x % t).min(t - 1 - y % t) >= 8 {
+                    inside_same += usize::from(own.get(x, y) == edges.get(x, y));
+                }
+            }
+        }
+        assert!(inside_same < 512 * 512 / 20, "{inside_same} deep pixels unchanged");
     }
 
     #[test]
