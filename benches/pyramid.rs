@@ -211,8 +211,8 @@ fn photos(dir: &Path, pool: &rayon::ThreadPool, all: bool, png: Option<&Path>) {
         .filter(|p| p.extension().is_some_and(|e| e == "png"))
         .collect();
     files.sort();
-    let sizes: Vec<u32> = std::env::var("TEXSYN_PYRAMID_PHOTO_SIZES")
-        .map_or(vec![1024], |v| v.split(',').map(|s| s.parse().expect("output size")).collect());
+    let sizes: Vec<u32> =
+        std::env::var("TEXSYN_PYRAMID_PHOTO_SIZES").map_or(vec![1024], |v| v.split(',').map(|s| s.parse().expect("output size")).collect());
     let seed = 1;
     println!("\nreal photos at their own scale, quilting defaults, seed {seed}: measures pyramid / exact");
     for whole in [true, false] {
@@ -242,7 +242,10 @@ fn photos(dir: &Path, pool: &rayon::ThreadPool, all: bool, png: Option<&Path>) {
                 }
                 let mp = measures(&sample, &p);
                 let Some((e, te)) = exact else {
-                    println!("{name:>22} {:>9} {size:>5}: exact -, pyramid {tp:>6.2} s (exact not run: TEXSYN_PYRAMID_ALL=1)", format!("{sw}x{sh}"));
+                    println!(
+                        "{name:>22} {:>9} {size:>5}: exact -, pyramid {tp:>6.2} s (exact not run: TEXSYN_PYRAMID_ALL=1)",
+                        format!("{sw}x{sh}")
+                    );
                     continue;
                 };
                 let me = measures(&sample, &e);

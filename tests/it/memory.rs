@@ -195,7 +195,17 @@ fn camera_sized_samples_are_estimated_honestly() {
     let big = d.join("photo_24mp.png");
     write_png(&big, &enlarged(&base, 24, 6000, 4000));
     quilt("auto", &big, 2048, "");
-    let dry = |extra: &[&str]| texsyn().arg("run").arg(&jobs).arg("-o").arg(d.join("dry")).args(["--dry-run", "--max-memory", "512M"]).args(extra).output().unwrap();
+    let dry = |extra: &[&str]| {
+        texsyn()
+            .arg("run")
+            .arg(&jobs)
+            .arg("-o")
+            .arg(d.join("dry"))
+            .args(["--dry-run", "--max-memory", "512M"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
     let r = dry(&[]);
     assert_eq!(r.status.code(), Some(0), "{}", text(&r));
     assert!(String::from_utf8_lossy(&r.stdout).contains("auto.toml: will run"), "{}", text(&r));
