@@ -157,9 +157,32 @@ impl<'a> BlockSearch<'a> {
             BlockSearch::Exact(s, _) => s.candidates(canvas, origin, regions, tolerance),
             BlockSearch::Pyramid(p, None) => p.candidates(canvas, origin, regions, tolerance),
             BlockSearch::Pyramid(p, Some(a)) => {
-                let pool = p.rescored(canvas, origin, regions);
+                let pool = p.rescored(canvas, origin, regions, &[]);
                 a.candidates(pool, canvas, origin, regions, tolerance)
             }
+        }
+    }
+
+    /// [`BlockSearch::candidates_many`] where the pyramid also re-scores `hints[i]` for block `i`
+    /// ([`PyramidSearch::candidates_many_hinted`]); the exact searches score every position anyway.
+    pub(crate) fn candidates_many_hinted(
+        &mut self,
+        canvas: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+        tolerance: f64,
+    ) -> Vec<Candidates> {
+        match self {
+            BlockSearch::Pyramid(p, None) => p.candidates_many_hinted(canvas, queries, hints, tolerance),
+            BlockSearch::Pyramid(p, Some(a)) => queries
+                .iter()
+                .zip(hints)
+                .map(|((o, r), h)| {
+                    let pool = p.rescored(canvas, *o, r, h);
+                    a.candidates(pool, canvas, *o, r, tolerance)
+                })
+                .collect(),
+            _ => self.candidates_many(canvas, queries, tolerance),
         }
     }
 

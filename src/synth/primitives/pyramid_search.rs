@@ -103,43 +103,69 @@ impl<'a> PyramidSearch<'a> {
         if self.top == 0 {
             return self.coarse.candidates(target, origin, regions, tolerance);
         }
-        within_tolerance(self.rescored(target, origin, regions), tolerance)
+        within_tolerance(self.rescored(target, origin, regions, &[]), tolerance)
     }
 
     /// [`PyramidSearch::candidates`] of several blocks against the same `target`, in the order
     /// given; blocks are searched concurrently.
     pub fn candidates_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
+        self.candidates_many_hinted(target, queries, &[], tolerance)
+    }
+
+    /// [`PyramidSearch::candidates_many`], each block's re-scored positions joined by its
+    /// `hints[i]` (when given): positions the method expects to match well, such as the natural
+    /// continuations of the blocks already placed beside it. Why: an exact search finds a
+    /// continuation whose overlap matches exactly (a photo's own next pixels, an enlarged
+    /// sample's smooth neighbourhood), but at a deep coarse level an overlap of a few pixels is
+    /// one cell wide, and the continuation need not be among the tracks: a 12 MP sample (level 3)
+    /// came out in broken pebbles where the exact search kept them whole.
+    pub fn candidates_many_hinted(
+        &mut self,
+        target: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+        tolerance: f64,
+    ) -> Vec<Candidates> {
         if self.top == 0 {
             return self.coarse.candidates_many(target, queries, tolerance);
         }
-        let pools = self.rescored_many(target, queries);
+        let pools = self.rescored_many(target, queries, hints);
         pools.into_iter().map(|p| within_tolerance(p, tolerance)).collect()
     }
 
     /// Every position re-scored at full resolution for one block, with its exact overlap error,
     /// row-major: what [`PyramidSearch::candidates`] picks among (for rules that are not relative
     /// to the best, such as Liang et al.'s).
-    pub fn rescored(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> Vec<(u32, u32, u64)> {
+    pub fn rescored(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], hints: &[(u32, u32)]) -> Vec<(u32, u32, u64)> {
         if self.top == 0 {
             let all = self.coarse.all_ssd_direct(target, origin, regions);
             let nx = self.sample.width() - self.block + 1;
             return all.into_iter().enumerate().map(|(i, s)| (i as u32 % nx, i as u32 / nx, s)).collect();
         }
-        self.rescored_many(target, &[(origin, regions.to_vec())]).pop().expect("one pool per block")
+        self.rescored_many(target, &[(origin, regions.to_vec())], &[hints.to_vec()]).pop().expect("one pool per block")
     }
 
-    fn rescored_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)]) -> Vec<Vec<(u32, u32, u64)>> {
+    fn rescored_many(
+        &mut self,
+        target: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+    ) -> Vec<Vec<(u32, u32, u64)>> {
         let top = self.top;
         let templates: Vec<Template> =
             queries.par_iter().map(|(origin, regions)| coarse_template(target, *origin, regions, self.block, top)).collect();
         let best = self.coarse.best_many(&templates, 4 * TRACKS);
         let this = &*self;
         let single = queries.len() == 1;
+        let none = Vec::new();
         queries
             .par_iter()
             .zip(best.into_par_iter())
+            .enumerate()
             .with_max_len(1)
-            .map(|((origin, regions), best)| this.refine(target, *origin, regions, &spread(&best), single))
+            .map(|(i, ((origin, regions), best))| {
+                this.refine(target, *origin, regions, &spread(&best), hints.get(i).unwrap_or(&none), single)
+            })
             .collect()
     }
 
@@ -159,6 +185,7 @@ impl<'a> PyramidSearch<'a> {
         origin: (u32, u32),
         regions: &[Rect],
         tracks: &[(u32, u32)],
+        hints: &[(u32, u32)],
         parallel: bool,
     ) -> Vec<(u32, u32, u64)> {
         let mut tracks = tracks.to_vec();
@@ -178,6 +205,8 @@ impl<'a> PyramidSearch<'a> {
             tracks.dedup();
         }
         let mut positions: Vec<(u32, u32)> = tracks.iter().flat_map(|&(x, y)| window(x, y, self.sample, self.block)).collect();
+        let (nx, ny) = (self.sample.width() - self.block + 1, self.sample.height() - self.block + 1);
+        positions.extend(hints.iter().filter(|&&(x, y)| x < nx && y < ny));
         positions.sort_by_key(|&(x, y)| (y, x));
         positions.dedup();
         let score = |&(x, y): &(u32, u32)| (x, y, ssd(self.sample, x, y, target, origin, regions));
