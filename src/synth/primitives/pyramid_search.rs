@@ -332,8 +332,8 @@ const CONTRAST_GAIN: f64 = 2.0;
 
 impl Cell {
     fn add(&mut self, p: &[u8]) {
-        for c in 0..3 {
-            self.rgb[c] += u32::from(p[c]);
+        for (sum, &v) in self.rgb.iter_mut().zip(p) {
+            *sum += u32::from(v);
         }
         let l = u32::from(p[0]) + 2 * u32::from(p[1]) + u32::from(p[2]);
         self.luma4 += l;
@@ -512,7 +512,7 @@ mod tests {
         // left half): every 4-px cell of either has mean 128, so a coarse level of means ties the
         // halves and, ties going to the first position, sends a striped overlap's tracks to the
         // flat half. The cells' spread keeps them on the stripes, where it is found exactly.
-        let stripes = |x: u32| if (x / 2) % 2 == 0 { 64 } else { 192 };
+        let stripes = |x: u32| if (x / 2).is_multiple_of(2) { 64 } else { 192 };
         let sample = RgbImage::from_fn(1100, 1000, |x, _| {
             let v = if x < 550 { 128 } else { stripes(x) };
             [v, v, v]
