@@ -527,6 +527,26 @@ mod tests {
     }
 
     #[test]
+    fn hints_join_the_rescored_positions_with_their_exact_error() {
+        let sample = texture(1100, 1000, 21);
+        let target = texture(120, 120, 22);
+        let regions = vec![Rect::new(0, 0, 8, 48), Rect::new(8, 0, 40, 8)];
+        let mut search = PyramidSearch::new(&sample, 48);
+        let hint = (1051, 3);
+        let plain = search.rescored(&target, (10, 20), &regions, &[]);
+        assert!(!plain.iter().any(|p| (p.0, p.1) == hint), "the hint is not a track's position here");
+        let hinted = search.rescored(&target, (10, 20), &regions, &[hint, (1053, 0)]);
+        let exact = OverlapSearch::new(&sample, 48, 48).exact_ssd(hint.0, hint.1, &target, (10, 20), &regions);
+        assert!(hinted.contains(&(hint.0, hint.1, exact)), "{:?}", hinted.len());
+        // A hint where the block does not fit is dropped; the rest of the pool is unchanged.
+        assert_eq!(hinted.len(), plain.len() + 1);
+        // candidates_many_hinted: a hint that matches exactly becomes the best candidate.
+        let copy = sample.crop(1051, 3, 48, 48);
+        let c = search.candidates_many_hinted(&copy, &[((0, 0), regions.clone())], &[vec![hint]], 0.0);
+        assert_eq!((c[0].min_ssd, c[0].members[0].0, c[0].members[0].1), (0, 1051, 3));
+    }
+
+    #[test]
     fn a_small_sample_is_searched_exactly() {
         let sample = texture(200, 180, 8);
         let target = texture(60, 60, 9);
