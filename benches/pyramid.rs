@@ -113,6 +113,9 @@ fn main() {
         }
     }
 
+    if let Some(dir) = std::env::var_os("TEXSYN_PYRAMID_PHOTOS").filter(|_| part.is_none() || part.as_deref() == Some("photos")) {
+        photos(Path::new(&dir), &pool, all, png.as_deref());
+    }
     if part.as_deref().is_some_and(|p| p != "quality") {
         return;
     }
@@ -191,5 +194,84 @@ fn main() {
             sums.map(|v| format!("{v:>6.3}")).join(" "),
             sums.iter().sum::<f64>() / 4.0
         );
+    }
+}
+
+/// Real photos at their own scale (`TEXSYN_PYRAMID_PHOTOS=DIR`, *.png; the repository holds none,
+/// and enlarged bundled samples have no detail finer than their 256² originals): each photo whole
+/// (cropped to at most 4000×3000) and its centre 1024² crop, exact and pyramid side by side.
+/// Outputs: 1024² (`TEXSYN_PYRAMID_PHOTO_SIZES=1024,2048` adds others; the exact search of a
+/// multi-megapixel sample to a 2048² output takes minutes, so there it runs only with
+/// `TEXSYN_PYRAMID_ALL=1`). Per row: seconds, their ratio, the four measures pyramid / exact; per
+/// group, the mean ratio of each measure and their mean (the goal: at most 1.10).
+fn photos(dir: &Path, pool: &rayon::ThreadPool, all: bool, png: Option<&Path>) {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("photos dir")
+        .map(|e| e.expect("dir entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    files.sort();
+    let sizes: Vec<u32> =
+        std::env::var("TEXSYN_PYRAMID_PHOTO_SIZES").map_or(vec![1024], |v| v.split(',').map(|s| s.parse().expect("output size")).collect());
+    let seed = 1;
+    println!("\nreal photos at their own scale, quilting defaults, seed {seed}: measures pyramid / exact");
+    for whole in [true, false] {
+        let (mut sum_r, mut runs, mut te_all, mut tp_all) = ([0.0f64; 4], 0.0, 0.0, 0.0);
+        for file in &files {
+            let name = file.file_stem().expect("file name").to_string_lossy().to_string();
+            let photo = texsyn::load_image(file).expect("photo");
+            let (w, h) = photo.dimensions();
+            let sample = if whole {
+                photo.crop(0, 0, w.min(4000), h.min(3000))
+            } else if w >= 1024 && h >= 1024 {
+                photo.crop((w - 1024) / 2, (h - 1024) / 2, 1024, 1024)
+            } else {
+                continue;
+            };
+            let (sw, sh) = sample.dimensions();
+            for &size in &sizes {
+                let (p, tp) = pool.install(|| quilt(&sample, Engine::Pyramid, size, seed));
+                let run_exact = all || size <= 1024;
+                let exact = run_exact.then(|| pool.install(|| quilt(&sample, Engine::Fft, size, seed)));
+                if let Some(dir) = png {
+                    std::fs::create_dir_all(dir).expect("png dir");
+                    texsyn::save_image(&p, dir.join(format!("{name}_{sw}x{sh}_{size}_pyramid.png"))).expect("png");
+                    if let Some((e, _)) = &exact {
+                        texsyn::save_image(e, dir.join(format!("{name}_{sw}x{sh}_{size}_exact.png"))).expect("png");
+                    }
+                }
+                let mp = measures(&sample, &p);
+                let Some((e, te)) = exact else {
+                    println!(
+                        "{name:>22} {:>9} {size:>5}: exact -, pyramid {tp:>6.2} s (exact not run: TEXSYN_PYRAMID_ALL=1)",
+                        format!("{sw}x{sh}")
+                    );
+                    continue;
+                };
+                let me = measures(&sample, &e);
+                let r: [f64; 4] = std::array::from_fn(|k| mp[k] / me[k]);
+                println!(
+                    "{name:>22} {:>9} {size:>5}: exact {te:>7.2} s, pyramid {tp:>6.2} s, {:>5.1}x | {} | exact {me:.4?} pyramid {mp:.4?}",
+                    format!("{sw}x{sh}"),
+                    te / tp,
+                    r.map(|v| format!("{v:>6.3}")).join(" ")
+                );
+                for k in 0..4 {
+                    sum_r[k] += r[k];
+                }
+                runs += 1.0;
+                te_all += te;
+                tp_all += tp;
+            }
+        }
+        if runs > 0.0 {
+            let means = sum_r.map(|s| s / runs);
+            println!(
+                "{:>38}: exact {te_all:>7.1} s, pyramid {tp_all:>6.1} s | {} | mean of the four {:.3}",
+                format!("{} mean over {runs} runs", if whole { "whole photos" } else { "1024² crops" }),
+                means.map(|v| format!("{v:>6.3}")).join(" "),
+                means.iter().sum::<f64>() / 4.0
+            );
+        }
     }
 }

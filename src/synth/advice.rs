@@ -68,6 +68,11 @@ pub struct Analysis {
     /// side: the share of the sample's colour variance left in the means of `side × side` windows,
     /// i.e. carried by features that large ([`LARGE_FEATURES_FROM`]).
     pub large_features: Vec<(i64, f64)>,
+    /// How far apart two pixels must be before their gray levels stop looking alike: the smallest
+    /// distance at which the gray autocorrelation, averaged over directions, falls under 1/2, in
+    /// the sample's pixels ([`FEATURE_PER_BLOCK`]). A quarter of the analysed shorter side when it
+    /// stays above 1/2 that far (a lower bound then); 0 for a flat sample.
+    pub correlation_length: i64,
     /// With a lattice: how the sample's [`BLOTCH_SIDE`]-pixel window means repeat along `t1` and
     /// `t2` (the larger normalised correlation): whether its large features follow the lattice
     /// ([`BLOTCH_REPEAT`]).
@@ -145,6 +150,51 @@ pub const BLOTCH_SIDE: usize = 16;
 /// or has smaller large features (a brick road 0.38 at repeat 0.09, which looks right).
 pub const BLOTCH_SHARE: f64 = 0.45;
 pub const BLOTCH_REPEAT: f64 = 0.2;
+
+/// A block methods' block is too small for the sample's features when the sample's
+/// [`Analysis::correlation_length`] is more than this fraction of it, and of the method's default
+/// block: an upscaled or close-up photo, whose joints, stones or veins are as large as a block, so
+/// each block holds a piece of one feature and the output strings pieces together instead of whole
+/// features. The bundled samples and material albedos (256², as photographed or reduced) measure
+/// 1–5 px (0.10 of the default 50-px block at most), the eighteen structured fixtures 1–14 px
+/// except a wall lit from one side (52 px, its light falling off across the sample); the same
+/// samples enlarged 4× measure 5–25 px, and the real photos at their own scale that issue 32
+/// measured (bench pyramid, photos part) 20–70 px. Patch sampling's 30-px default block on a
+/// brown rock of 8 px (0.27) looks right (tests/it/advice.rs), hence the bound just above.
+pub const FEATURE_PER_BLOCK: f64 = 0.3;
+/// The block that fits a sample's features: this many times its correlation length, the
+/// smallest ratio seen to look right (patch sampling's 30-px block on the 8-px brown rock, 3.75×;
+/// the default 50-px block is 10× or more on every bundled sample). Seen at 768² on weathered
+/// wood enlarged 4× (26 px): blocks of 104 keep its cracks longer and its blotches whole, where
+/// blocks of 50 mix them; 8× (208) looked no better. Not a rule for every photo: on a close-up of
+/// leaf veins (1920×1200, 70 px, its broad light and dark bands carry the length) blocks of 50
+/// already continue the veins, and blocks of 280 or 560 leave visible seams, so the warning says
+/// what it measured and the user judges.
+pub const BLOCK_PER_CORRELATION_LENGTH: i64 = 4;
+
+/// [`Analysis::correlation_length`] of a centred gray plane.
+fn correlation_length(gray: &[f64], w: usize, h: usize) -> i64 {
+    let r = w.min(h) / 4;
+    if r < 1 {
+        return 0;
+    }
+    let Ok(acf) = crate::metrics::acf::autocorrelation(gray, w, h, r, r, crate::metrics::acf::AcfForm::OverlapMean) else {
+        return 0;
+    };
+    // Ring sums by rounded distance, in a fixed order.
+    let mut sums = vec![(0.0f64, 0u32); r + 1];
+    let ri = r as i64;
+    for dy in -ri..=ri {
+        for dx in -ri..=ri {
+            let d = ((dx * dx + dy * dy) as f64).sqrt().round() as usize;
+            if d <= r {
+                sums[d].0 += acf.get(dx, dy);
+                sums[d].1 += 1;
+            }
+        }
+    }
+    sums.iter().enumerate().skip(1).find(|(_, (s, n))| *s < 0.5 * f64::from(*n)).map_or(ri, |(d, _)| d as i64)
+}
 
 /// [`Analysis::large_features`]: per box side, the variance of the window means over all windows
 /// inside the sample, summed over the channels, over the channels' summed variance.
@@ -580,6 +630,7 @@ fn scaled(a: Analysis, f: i64, (width, height): (u32, u32)) -> Analysis {
         along_vectors: a.along_vectors.into_iter().map(|r| VectorRepeat { vector: v(r.vector), ..r }).collect(),
         flat_bands: a.flat_bands.into_iter().map(|(b, s)| (b * f, s)).collect(),
         large_features: a.large_features.into_iter().map(|(b, s)| (b * f, s)).collect(),
+        correlation_length: a.correlation_length * f,
         ..a
     }
 }
@@ -599,6 +650,7 @@ fn analyse_as_is(img: &RgbImage) -> Analysis {
         tone_spread: 0.0,
         flat_bands: Vec::new(),
         large_features: Vec::new(),
+        correlation_length: 0,
         large_features_repeat: None,
     };
     if width < 8 || height < 8 {
@@ -636,6 +688,7 @@ fn analyse_as_is(img: &RgbImage) -> Analysis {
         tone_spread: contrast.tone_spread(),
         flat_bands: contrast.flat_bands(),
         large_features: large_feature_shares(img),
+        correlation_length: correlation_length(&gray, w, h),
         large_features_repeat: lattice.as_ref().and_then(|l| contrast.window_means_repeat(BLOTCH_SIDE, l)),
         lattice,
     }
@@ -721,6 +774,15 @@ pub enum Fit {
         because: String,
         instead: &'static str,
     },
+}
+
+/// The method's default `block`, if it has one.
+fn default_block(method: &str) -> Option<i64> {
+    let spec = crate::synth::methods::find(method)?.params().iter().find(|s| s.name == "block")?;
+    match spec.default {
+        crate::synth::params::Default::Int(v) => Some(v),
+        _ => None,
+    }
 }
 
 fn int(p: &Params, name: &str) -> Option<i64> {
@@ -843,6 +905,24 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                         100.0 * flat
                     ));
                 }
+            }
+            // Features as large as a block: each block holds a piece of one, and the output strings
+            // pieces together (FEATURE_PER_BLOCK). Said only where the sample holds the block that
+            // fits; a sample whose features are as large as itself has no block to offer.
+            if let Some(block) = int(p, "block")
+                && let Some(default) = default_block(method)
+                && a.correlation_length as f64 > FEATURE_PER_BLOCK * block.max(default) as f64
+                && let fits = BLOCK_PER_CORRELATION_LENGTH * a.correlation_length
+                && fits <= i64::from(a.width.min(a.height)) / 2
+            {
+                wanted_block = Some(wanted_block.unwrap_or(0).max(fits));
+                why.push(format!(
+                    "the sample's features are large for {block}-px blocks (an upscaled or close-up photo?): its gray levels stay \
+                     alike over {} px (autocorrelation above 1/2), so each block holds a piece of one feature and the output strings \
+                     pieces together instead of whole features; blocks of {fits} px ({BLOCK_PER_CORRELATION_LENGTH} × that) hold \
+                     them (or reduce the sample; smooth shading alone needs no larger block)",
+                    a.correlation_length
+                ));
             }
             if let Some(b) = wanted_block {
                 set.push(("block".to_string(), b.to_string()));

@@ -427,3 +427,51 @@ fn up_to_date_jobs_keep_their_warnings() {
 fn warnings_of(j: &Value) -> String {
     j["warnings"].as_array().map(|w| w.iter().filter_map(Value::as_str).collect::<Vec<_>>().join(" ")).unwrap_or_default()
 }
+
+#[test]
+fn features_large_for_the_block_are_said_with_the_block_that_fits() {
+    // Weathered wood as bundled (the default block suits it) and the same wood 4× closer
+    // (stochastic both: no lattice or flat-band advice asks for another block).
+    let d = scratch("advise-scale");
+    let original = repo().join("jobs/samples/wood_weathered.png");
+    let close = d.join("wood_x4.png");
+    let sample = rgb(&original);
+    write_png(&close, &enlarged(&sample, 4, sample.width() * 4, sample.height() * 4));
+    let length = |p: &Path| {
+        let v: Value = serde_json::from_slice(&run_ok(texsyn().arg("advise").arg(p).arg("--json")).stdout).unwrap();
+        let quilting = v["methods"].as_array().unwrap().iter().find(|m| m["method"] == "quilting").unwrap()["fit"].to_string();
+        (v["analysis"]["correlation_length"].as_i64().unwrap(), quilting)
+    };
+    let (small, small_fit) = length(&original);
+    let (large, large_fit) = length(&close);
+    assert!((1..=5).contains(&small), "bundled wood: correlation length {small}");
+    assert!(!small_fit.contains("features are large"), "{small_fit}");
+    // The measure follows the features: 4× closer, several times longer (a few whole pixels as
+    // bundled, so the ratio is coarse; bilinear enlargement smooths a little on top: 4 → 26 px).
+    assert!((3 * small..=7 * small).contains(&large), "{small} px, 4× closer {large} px");
+    let fits = 4 * large;
+    assert!(large_fit.contains("features are large") && large_fit.contains(&format!("[\"block\",\"{fits}\"]")), "{large_fit}");
+    // In text, the block that fits is named.
+    let t = text(&run_ok(texsyn().arg("advise").arg(&close)));
+    let line = line_of(&t, "quilting");
+    assert!(line.contains(&format!("block = {fits}")) && line.contains("features are large"), "{t}");
+    assert!(!line_of(&text(&run_ok(texsyn().arg("advise").arg(&original))), "quilting").contains("features are large"));
+    // A run's manifest entry warns the same; given that block, it does not warn again.
+    let jobs = d.join("jobs");
+    for (name, params) in [("defaults", String::new()), ("advised", format!("[params]\nblock = {fits}\n"))] {
+        write(
+            &jobs.join(format!("{name}.toml")),
+            &format!(
+                "sample = \"{}\"\nmethod = \"quilting\"\nseed = 1\n[output]\npath = \"{name}.png\"\nwidth = 300\nheight = 300\n{params}",
+                close.display()
+            ),
+        );
+    }
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).arg("-q"));
+    let m = manifest(&out);
+    let job = |id: &str| m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == id).unwrap().clone();
+    let w = warnings_of(&job("defaults.toml"));
+    assert!(w.contains("features are large") && w.contains(&format!("set block = {fits}")), "{w}");
+    assert!(!warnings_of(&job("advised.toml")).contains("features are large"), "{}", warnings_of(&job("advised.toml")));
+}

@@ -127,3 +127,31 @@ pub fn pixels(path: &Path) -> String {
 pub fn rgb(path: &Path) -> RgbImage {
     imageio::read_rgb8(path, DecodeLimits::default()).unwrap().0
 }
+
+/// `img` enlarged `f`× by bilinear interpolation (pixel centres aligned), its top-left `w × h`:
+/// a close-up of the same surface, every feature `f`× larger, without the detail a camera would add;
+/// and big samples made at test time from bundled ones (no photo of megabytes in the repository).
+pub fn enlarged(img: &RgbImage, f: u32, w: u32, h: u32) -> RgbImage {
+    let (iw, ih) = img.dimensions();
+    let at = |v: f64, n: u32| {
+        let c = v.clamp(0.0, f64::from(n - 1));
+        let i = c.floor() as u32;
+        (i, (i + 1).min(n - 1), c - f64::from(i))
+    };
+    RgbImage::from_fn(w, h, |x, y| {
+        let (x0, x1, fx) = at((f64::from(x) + 0.5) / f64::from(f) - 0.5, iw);
+        let (y0, y1, fy) = at((f64::from(y) + 0.5) / f64::from(f) - 0.5, ih);
+        std::array::from_fn(|c| {
+            let g = |x, y| f64::from(img.get(x, y)[c]);
+            let top = g(x0, y0) * (1.0 - fx) + g(x1, y0) * fx;
+            let bottom = g(x0, y1) * (1.0 - fx) + g(x1, y1) * fx;
+            (top * (1.0 - fy) + bottom * fy).round() as u8
+        })
+    })
+}
+
+/// Writes `img` as an 8-bit PNG.
+pub fn write_png(path: &Path, img: &RgbImage) {
+    let enc = imageio::encode(img, imageio::Encoding { format: imageio::Format::Png, bit_depth: 8 }).unwrap();
+    std::fs::write(path, enc.bytes).unwrap();
+}

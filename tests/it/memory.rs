@@ -157,3 +157,62 @@ fn large_tile_fills_are_written_in_strips_with_the_same_pixels() {
     assert!(measured <= estimate && estimate <= 1.5 * measured + 48.0 * MIB, "estimate {estimate}, measured {measured}");
     run_ok(texsyn().arg("verify").arg(out.join("manifest.json")));
 }
+
+#[test]
+fn camera_sized_samples_are_estimated_honestly() {
+    // A 12 MP "photo" (pebbles enlarged 16×, cropped to 4000×3000: made here, not stored) to a
+    // 1024² output with quilting's defaults: `search = "auto"` takes the pyramid, and the run's
+    // peak stays within the estimate's margin, as every method's does above.
+    let d = scratch("mem-camera");
+    let base = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
+    let photo = d.join("photo_12mp.png");
+    write_png(&photo, &enlarged(&base, 16, 4000, 3000));
+    let jobs = d.join("jobs");
+    let quilt = |name: &str, sample: &Path, side: u32, params: &str| {
+        write(
+            &jobs.join(format!("{name}.toml")),
+            &format!(
+                "sample = {:?}\nmethod = \"quilting\"\nseed = 7\n\n[output]\npath = \"{name}.png\"\nwidth = {side}\nheight = {side}\n\n[params]\n{params}\n",
+                sample.to_str().unwrap()
+            ),
+        );
+    };
+    quilt("camera", &photo, 1024, "");
+    let out = d.join("out");
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", "2"]));
+    let m = manifest(&out);
+    assert_eq!(m["jobs"][0]["params"]["search"], "pyramid", "{}", m["jobs"][0]["params"]);
+    let measured = m["run"]["peak_rss_bytes"].as_u64().unwrap() as f64;
+    let estimate = m["jobs"][0]["timing"]["estimated_peak_bytes"].as_u64().unwrap() as f64;
+    let line = format!("12 MP sample, 1024² output: estimate {:.1} MiB, measured {:.1} MiB", estimate / MIB, measured / MIB);
+    eprintln!("{line}");
+    assert!(measured <= estimate && estimate <= 1.5 * measured + 48.0 * MIB, "{line}");
+
+    // 24 MP (6000×4000), planned only: the pyramid's estimate stays bounded (the sample a few
+    // bytes a pixel, the search a coarse level of fixed size), so a 512 MiB limit lets it run,
+    // where the exact search's ~130 B per sample pixel (about 3 GiB) is refused by the same limit.
+    std::fs::remove_dir_all(&jobs).unwrap();
+    let big = d.join("photo_24mp.png");
+    write_png(&big, &enlarged(&base, 24, 6000, 4000));
+    quilt("auto", &big, 2048, "");
+    let dry = |extra: &[&str]| {
+        texsyn()
+            .arg("run")
+            .arg(&jobs)
+            .arg("-o")
+            .arg(d.join("dry"))
+            .args(["--dry-run", "--max-memory", "512M"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let r = dry(&[]);
+    assert_eq!(r.status.code(), Some(0), "{}", text(&r));
+    assert!(String::from_utf8_lossy(&r.stdout).contains("auto.toml: will run"), "{}", text(&r));
+    quilt("exact", &big, 2048, "search = \"fft\"");
+    let r = dry(&[]);
+    assert_eq!(r.status.code(), Some(1), "{}", text(&r));
+    let said = text(&r);
+    assert!(said.contains("exact.toml: invalid") && said.contains("needs about ") && said.contains(" GiB"), "{said}");
+    assert!(said.contains("auto.toml: will run"), "{said}");
+}

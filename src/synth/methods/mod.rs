@@ -68,7 +68,8 @@ pub(crate) fn resolve_engine(params: &mut Params, key: &str, sample: (u32, u32))
 /// sample pixel (bricks_gray 256²; 2048² output: 42 MB, 4096²: 116 MB in all); the pyramid its
 /// reduced levels (1 B per sample pixel) and the FFT search of a coarse level of at most
 /// `COARSE_PIXELS`, whatever the sample (4000×3000 to 2048², measured by hand: 131 MB peak RSS
-/// against an estimate of 207 MB; tests/it/memory.rs has no case that big yet).
+/// against an estimate of 207 MB). tests/it/memory.rs runs a 12 MP sample to 1024² within the
+/// estimate's margin and plans a 24 MP one under a 512 MiB limit that refuses the exact search.
 pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u32)) -> u64 {
     use crate::synth::method::linear_memory;
     match engine {
@@ -158,9 +159,32 @@ impl<'a> BlockSearch<'a> {
             BlockSearch::Exact(s, _) => s.candidates(canvas, origin, regions, tolerance),
             BlockSearch::Pyramid(p, None) => p.candidates(canvas, origin, regions, tolerance),
             BlockSearch::Pyramid(p, Some(a)) => {
-                let pool = p.rescored(canvas, origin, regions);
+                let pool = p.rescored(canvas, origin, regions, &[]);
                 a.candidates(pool, canvas, origin, regions, tolerance)
             }
+        }
+    }
+
+    /// [`BlockSearch::candidates_many`] where the pyramid also re-scores `hints[i]` for block `i`
+    /// ([`PyramidSearch::candidates_many_hinted`]); the exact searches score every position anyway.
+    pub(crate) fn candidates_many_hinted(
+        &mut self,
+        canvas: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+        tolerance: f64,
+    ) -> Vec<Candidates> {
+        match self {
+            BlockSearch::Pyramid(p, None) => p.candidates_many_hinted(canvas, queries, hints, tolerance),
+            BlockSearch::Pyramid(p, Some(a)) => queries
+                .iter()
+                .zip(hints)
+                .map(|((o, r), h)| {
+                    let pool = p.rescored(canvas, *o, r, h);
+                    a.candidates(pool, canvas, *o, r, tolerance)
+                })
+                .collect(),
+            _ => self.candidates_many(canvas, queries, tolerance),
         }
     }
 

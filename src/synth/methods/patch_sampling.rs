@@ -1059,7 +1059,7 @@ fn exhaustive_block(
             // every position the pyramid re-scored).
             match search {
                 BlockSearch::Pyramid(p, _) => {
-                    p.rescored(canvas, origin, &regions).into_iter().filter(|m| (m.2 as f64) < threshold).collect()
+                    p.rescored(canvas, origin, &regions, &[]).into_iter().filter(|m| (m.2 as f64) < threshold).collect()
                 }
                 BlockSearch::Exact(..) => members_below(sample, canvas, origin, &regions, zone.block, threshold),
             }

@@ -237,10 +237,23 @@ impl Method for Quilting {
 
         // Raster order, but the blocks of one front are searched together: what each one reads
         // was pasted by earlier fronts (`BlockGrid::fronts`), and each pick has its own stream.
+        // Each block's source, for the pyramid's hints: the natural continuations of its left and
+        // upper neighbours (the exact search scores them with every other position).
+        let mut sources: Vec<Option<(u32, u32)>> = vec![None; (layout.rows * layout.cols) as usize];
+        let stride = layout.stride();
         for front in layout.fronts() {
+            let searched: Vec<(u32, u32)> = front.iter().copied().filter(|&b| b != (0, 0)).collect();
             let queries: Vec<((u32, u32), Vec<Rect>)> =
-                front.iter().filter(|&&b| b != (0, 0)).map(|&(bi, bj)| (layout.origin(bi, bj), layout.overlap_regions(bi, bj))).collect();
-            let mut found = search.candidates_many(&canvas.image, &queries, tolerance).into_iter();
+                searched.iter().map(|&(bi, bj)| (layout.origin(bi, bj), layout.overlap_regions(bi, bj))).collect();
+            let hints: Vec<Vec<(u32, u32)>> = searched
+                .iter()
+                .map(|&(bi, bj)| {
+                    let left = (bj > 0).then(|| sources[(bi * layout.cols + bj - 1) as usize]).flatten().map(|(x, y)| (x + stride, y));
+                    let up = (bi > 0).then(|| sources[((bi - 1) * layout.cols + bj) as usize]).flatten().map(|(x, y)| (x, y + stride));
+                    left.into_iter().chain(up).collect()
+                })
+                .collect();
+            let mut found = search.candidates_many_hinted(&canvas.image, &queries, &hints, tolerance).into_iter();
             let placed: Vec<((u32, u32), (u32, u32))> = front
                 .iter()
                 .map(|&(bi, bj)| {
@@ -261,6 +274,9 @@ impl Method for Quilting {
                 .par_iter()
                 .map(|&((bi, bj), src)| block_cuts(image, sample, src, layout.origin(bi, bj), block, overlap, bj > 0, bi > 0, rule))
                 .collect();
+            for &((bi, bj), src) in &placed {
+                sources[(bi * layout.cols + bj) as usize] = Some(src);
+            }
             for (&((bi, bj), src), cut) in placed.iter().zip(&cuts) {
                 paste_with_cuts(&mut canvas, sample, src, layout.origin(bi, bj), block, overlap, bj > 0, bi > 0, rule, cut);
             }

@@ -6,10 +6,11 @@
 //! pixel. Here the sample is reduced by 2×2 means, level after level (a box pyramid: the crudest
 //! Gaussian pyramid, whose cells line up exactly with sample positions that are multiples of the
 //! level's factor), up to the first level of at most [`COARSE_PIXELS`] pixels, unless the block
-//! would shrink below [`MIN_COARSE_BLOCK`] pixels there. On that coarse level the exact FFT search
-//! finds each block's best positions against the block's overlap reduced the same way (a cell of
-//! the overlap is the mean of the known pixels in it, and counts when at least half of it is
-//! known); [`TRACKS`] of them, no two adjacent, are carried down level by level, each re-scored
+//! would shrink below [`MIN_COARSE_BLOCK`] pixels there. The coarse level itself describes each
+//! cell by its mean luma, a yellow–blue mean and its luma's spread ([`coarse_features`]: means
+//! alone confuse sharp and blurred regions). On it the exact FFT search finds each block's best
+//! positions against the block's overlap reduced the same way (a cell of the overlap is made of
+//! the known pixels in it, and counts when at least half of it is known); [`TRACKS`] of them, no two adjacent, are carried down level by level, each re-scored
 //! exactly within ±[`REFINE`] of its position doubled and moved to the best there. At full
 //! resolution every position of those last windows is scored exactly (the method's own integer
 //! overlap error), and the method picks among them with its own rule (tolerance), as it would
@@ -63,7 +64,8 @@ pub struct PyramidSearch<'a> {
     block: u32,
     /// The coarse level's index (0: no reduction, the search is the exact one).
     top: u32,
-    /// Levels `1..top`: `levels[l - 1]` is level `l`. The coarse level is `coarse`'s image.
+    /// Levels `1..top` (means): `levels[l - 1]` is level `l`. The coarse level is `coarse`'s image
+    /// ([`coarse_features`]).
     levels: Vec<RgbImage>,
     coarse: OverlapSearch<'a>,
 }
@@ -75,18 +77,16 @@ impl<'a> PyramidSearch<'a> {
     /// Builds the pyramid of `sample` for `block × block` blocks (the block must fit the sample).
     pub fn new(sample: &'a RgbImage, block: u32) -> PyramidSearch<'a> {
         let top = coarse_level(sample.dimensions(), block);
-        let mut levels = Vec::new();
+        let mut levels: Vec<RgbImage> = Vec::new();
         let coarse = if top == 0 {
             OverlapSearch::new(sample, block, block)
         } else {
-            let mut current = reduce(sample);
             for _ in 1..top {
-                let next = reduce(&current);
-                levels.push(current);
-                current = next;
+                let next = reduce(levels.last().unwrap_or(sample));
+                levels.push(next);
             }
             let b = block.div_ceil(1 << top);
-            OverlapSearch::owning(current, b, b)
+            OverlapSearch::owning(coarse_features(sample, top), b, b)
         };
         PyramidSearch { sample, block, top, levels, coarse }
     }
@@ -103,51 +103,76 @@ impl<'a> PyramidSearch<'a> {
         if self.top == 0 {
             return self.coarse.candidates(target, origin, regions, tolerance);
         }
-        within_tolerance(self.rescored(target, origin, regions), tolerance)
+        within_tolerance(self.rescored(target, origin, regions, &[]), tolerance)
     }
 
     /// [`PyramidSearch::candidates`] of several blocks against the same `target`, in the order
     /// given; blocks are searched concurrently.
     pub fn candidates_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
+        self.candidates_many_hinted(target, queries, &[], tolerance)
+    }
+
+    /// [`PyramidSearch::candidates_many`], each block's re-scored positions joined by its
+    /// `hints[i]` (when given): positions the method expects to match well, such as the natural
+    /// continuations of the blocks already placed beside it. Why: an exact search finds a
+    /// continuation whose overlap matches exactly (a photo's own next pixels, an enlarged
+    /// sample's smooth neighbourhood), but at a deep coarse level an overlap of a few pixels is
+    /// one cell wide, and the continuation need not be among the tracks: a 12 MP sample (level 3)
+    /// came out in broken pebbles where the exact search kept them whole.
+    pub fn candidates_many_hinted(
+        &mut self,
+        target: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+        tolerance: f64,
+    ) -> Vec<Candidates> {
         if self.top == 0 {
             return self.coarse.candidates_many(target, queries, tolerance);
         }
-        let pools = self.rescored_many(target, queries);
+        let pools = self.rescored_many(target, queries, hints);
         pools.into_iter().map(|p| within_tolerance(p, tolerance)).collect()
     }
 
     /// Every position re-scored at full resolution for one block, with its exact overlap error,
     /// row-major: what [`PyramidSearch::candidates`] picks among (for rules that are not relative
     /// to the best, such as Liang et al.'s).
-    pub fn rescored(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> Vec<(u32, u32, u64)> {
+    pub fn rescored(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect], hints: &[(u32, u32)]) -> Vec<(u32, u32, u64)> {
         if self.top == 0 {
             let all = self.coarse.all_ssd_direct(target, origin, regions);
             let nx = self.sample.width() - self.block + 1;
             return all.into_iter().enumerate().map(|(i, s)| (i as u32 % nx, i as u32 / nx, s)).collect();
         }
-        self.rescored_many(target, &[(origin, regions.to_vec())]).pop().expect("one pool per block")
+        self.rescored_many(target, &[(origin, regions.to_vec())], &[hints.to_vec()]).pop().expect("one pool per block")
     }
 
-    fn rescored_many(&mut self, target: &RgbImage, queries: &[((u32, u32), Vec<Rect>)]) -> Vec<Vec<(u32, u32, u64)>> {
+    fn rescored_many(
+        &mut self,
+        target: &RgbImage,
+        queries: &[((u32, u32), Vec<Rect>)],
+        hints: &[Vec<(u32, u32)>],
+    ) -> Vec<Vec<(u32, u32, u64)>> {
         let top = self.top;
         let templates: Vec<Template> =
-            queries.par_iter().map(|(origin, regions)| template(target, *origin, regions, self.block, top)).collect();
+            queries.par_iter().map(|(origin, regions)| coarse_template(target, *origin, regions, self.block, top)).collect();
         let best = self.coarse.best_many(&templates, 4 * TRACKS);
         let this = &*self;
         let single = queries.len() == 1;
+        let none = Vec::new();
         queries
             .par_iter()
             .zip(best.into_par_iter())
+            .enumerate()
             .with_max_len(1)
-            .map(|((origin, regions), best)| this.refine(target, *origin, regions, &spread(&best), single))
+            .map(|(i, ((origin, regions), best))| {
+                this.refine(target, *origin, regions, &spread(&best), hints.get(i).unwrap_or(&none), single)
+            })
             .collect()
     }
 
-    /// Level `l`'s image.
+    /// Level `l`'s image (`0 ≤ l < top`: the coarse level's image is [`coarse_features`]).
     fn level(&self, l: u32) -> &RgbImage {
         match l {
             0 => self.sample,
-            l if l == self.top => self.coarse.sample(),
             l => &self.levels[l as usize - 1],
         }
     }
@@ -160,6 +185,7 @@ impl<'a> PyramidSearch<'a> {
         origin: (u32, u32),
         regions: &[Rect],
         tracks: &[(u32, u32)],
+        hints: &[(u32, u32)],
         parallel: bool,
     ) -> Vec<(u32, u32, u64)> {
         let mut tracks = tracks.to_vec();
@@ -179,6 +205,8 @@ impl<'a> PyramidSearch<'a> {
             tracks.dedup();
         }
         let mut positions: Vec<(u32, u32)> = tracks.iter().flat_map(|&(x, y)| window(x, y, self.sample, self.block)).collect();
+        let (nx, ny) = (self.sample.width() - self.block + 1, self.sample.height() - self.block + 1);
+        positions.extend(hints.iter().filter(|&&(x, y)| x < nx && y < ny));
         positions.sort_by_key(|&(x, y)| (y, x));
         positions.dedup();
         let score = |&(x, y): &(u32, u32)| (x, y, ssd(self.sample, x, y, target, origin, regions));
@@ -249,36 +277,117 @@ pub(crate) fn reduce(image: &RgbImage) -> RgbImage {
 /// the mean of its known pixels, kept when at least half of the cell (inside the block) is known;
 /// when no cell is, every cell with a known pixel. Regions are the kept cells as rectangles.
 fn template(target: &RgbImage, origin: (u32, u32), regions: &[Rect], block: u32, level: u32) -> Template {
+    reduced_template(target, origin, regions, block, level, Cell::mean)
+}
+
+/// [`template`] in the coarse level's terms ([`coarse_features`]).
+fn coarse_template(target: &RgbImage, origin: (u32, u32), regions: &[Rect], block: u32, level: u32) -> Template {
+    reduced_template(target, origin, regions, block, level, Cell::features)
+}
+
+fn reduced_template(
+    target: &RgbImage,
+    origin: (u32, u32),
+    regions: &[Rect],
+    block: u32,
+    level: u32,
+    value: fn(&Cell) -> [u8; 3],
+) -> Template {
     let f = 1u32 << level;
     let b = block.div_ceil(f);
-    let mut sums = vec![[0u32; 4]; (b * b) as usize];
+    let mut cells = vec![Cell::default(); (b * b) as usize];
     for r in regions {
         for y in r.y..r.y + r.h {
             let row = target.row(origin.1 + y);
             for x in r.x..r.x + r.w {
                 let i = ((origin.0 + x) * 3) as usize;
-                let cell = &mut sums[((y / f) * b + x / f) as usize];
-                for c in 0..3 {
-                    cell[c] += u32::from(row[i + c]);
-                }
-                cell[3] += 1;
+                cells[((y / f) * b + x / f) as usize].add(&row[i..i + 3]);
             }
         }
     }
     let cell_area = |i: u32| f.min(block - i * f);
-    let mut keep: Vec<bool> = (0..b * b).map(|k| 2 * sums[k as usize][3] >= cell_area(k % b) * cell_area(k / b)).collect();
+    let mut keep: Vec<bool> = (0..b * b).map(|k| 2 * cells[k as usize].n >= cell_area(k % b) * cell_area(k / b)).collect();
     if !keep.contains(&true) {
-        keep = sums.iter().map(|s| s[3] > 0).collect();
+        keep = cells.iter().map(|c| c.n > 0).collect();
     }
     let image = RgbImage::from_fn(b, b, |x, y| {
-        let s = sums[(y * b + x) as usize];
-        if !keep[(y * b + x) as usize] || s[3] == 0 {
-            return [0; 3];
-        }
-        let mean = |c: usize| ((s[c] + s[3] / 2) / s[3]) as u8;
-        [mean(0), mean(1), mean(2)]
+        let c = &cells[(y * b + x) as usize];
+        if !keep[(y * b + x) as usize] || c.n == 0 { [0; 3] } else { value(c) }
     });
     (image, rectangles(&keep, b))
+}
+
+/// Sums over the known pixels of one cell of a reduced level.
+#[derive(Clone, Default)]
+struct Cell {
+    rgb: [u32; 3],
+    /// Σ of `r + 2g + b` (four times the luma) and of its square.
+    luma4: u32,
+    luma4_sq: u64,
+    n: u32,
+}
+
+/// Weight of a cell's luma standard deviation against its means in [`coarse_features`].
+const CONTRAST_GAIN: f64 = 2.0;
+
+impl Cell {
+    fn add(&mut self, p: &[u8]) {
+        for (sum, &v) in self.rgb.iter_mut().zip(p) {
+            *sum += u32::from(v);
+        }
+        let l = u32::from(p[0]) + 2 * u32::from(p[1]) + u32::from(p[2]);
+        self.luma4 += l;
+        self.luma4_sq += u64::from(l * l);
+        self.n += 1;
+    }
+
+    fn mean(&self) -> [u8; 3] {
+        let n = self.n;
+        self.rgb.map(|s| ((s + n / 2) / n) as u8)
+    }
+
+    /// Mean luma, mean yellow–blue opponent (`(r + g − 2b) / 4`, centred on 128) and the luma's
+    /// standard deviation times [`CONTRAST_GAIN`]: what [`coarse_features`] compares.
+    fn features(&self) -> [u8; 3] {
+        let n = f64::from(self.n);
+        let luma = f64::from(self.luma4) / (4.0 * n);
+        let [r, g, b] = self.rgb.map(|s| f64::from(s) / n);
+        let opponent = (r + g - 2.0 * b) / 4.0 + 128.0;
+        let mean4 = f64::from(self.luma4) / n;
+        let var = (self.luma4_sq as f64 / n - mean4 * mean4).max(0.0) / 16.0;
+        let contrast = CONTRAST_GAIN * var.sqrt();
+        [luma, opponent, contrast].map(|v| v.round().clamp(0.0, 255.0) as u8)
+    }
+}
+
+/// The coarse level the candidates are ranked on: per `2^level` cell of the sample (an odd last
+/// row or column dropped, as [`reduce`] does), its mean luma, its yellow–blue mean and its luma's
+/// standard deviation ([`Cell::features`]). Why not the cells' mean colour alone: a mean cannot
+/// tell a sharp region of a photo from a blurred one of the same tone (depth of field, a smooth
+/// stain), and on a camera photo of wood boards (2560×1920, 8× reduced) the 32 best tracks of a
+/// sharp grain overlap all fell in the larger blurred part, so the output lost the grain
+/// (benches/pyramid.rs, photos part). The spread of the cell keeps them apart; one chroma axis
+/// is given up for it.
+fn coarse_features(sample: &RgbImage, level: u32) -> RgbImage {
+    let f = 1u32 << level;
+    let (w, h) = (sample.width() >> level, sample.height() >> level);
+    let mut out = RgbImage::new(w, h);
+    out.as_raw_mut().par_chunks_exact_mut(3 * w as usize).enumerate().for_each(|(cy, row)| {
+        let mut cells = vec![Cell::default(); w as usize];
+        for y in cy as u32 * f..(cy as u32 + 1) * f {
+            let line = sample.row(y);
+            for (cx, cell) in cells.iter_mut().enumerate() {
+                let x0 = cx * f as usize * 3;
+                for p in line[x0..x0 + 3 * f as usize].chunks_exact(3) {
+                    cell.add(p);
+                }
+            }
+        }
+        for (p, cell) in row.chunks_exact_mut(3).zip(&cells) {
+            p.copy_from_slice(&cell.features());
+        }
+    });
+    out
 }
 
 /// The `true` cells of a `b × b` mask as disjoint rectangles: each row's runs, merged with the
@@ -395,6 +504,46 @@ mod tests {
             assert!(c.members.iter().all(|m| m.2 == exact.exact_ssd(m.0, m.1, &target, *o, r)));
             assert!(c.members.iter().all(|m| m.2 as f64 <= 1.2 * c.min_ssd as f64));
         }
+    }
+
+    #[test]
+    fn a_sharp_overlap_is_not_matched_to_a_blurred_region_of_its_tone() {
+        // Left half flat 128, right half 2-px stripes of 64 and 192 (a grain whose blur is the
+        // left half): every 4-px cell of either has mean 128, so a coarse level of means ties the
+        // halves and, ties going to the first position, sends a striped overlap's tracks to the
+        // flat half. The cells' spread keeps them on the stripes, where it is found exactly.
+        let stripes = |x: u32| if (x / 2).is_multiple_of(2) { 64 } else { 192 };
+        let sample = RgbImage::from_fn(1100, 1000, |x, _| {
+            let v = if x < 550 { 128 } else { stripes(x) };
+            [v, v, v]
+        });
+        let target = RgbImage::from_fn(32, 32, |x, _| [stripes(x); 3]);
+        let mut search = PyramidSearch::new(&sample, 32);
+        assert_eq!(search.coarse_level(), 2);
+        let regions = [Rect::new(0, 0, 6, 32), Rect::new(6, 0, 26, 6)];
+        let c = search.candidates(&target, (0, 0), &regions, 0.0);
+        let (x, y) = (c.members[0].0, c.members[0].1);
+        assert!(x >= 550 && c.min_ssd == 0, "picked ({x}, {y}), error {}", c.min_ssd);
+    }
+
+    #[test]
+    fn hints_join_the_rescored_positions_with_their_exact_error() {
+        let sample = texture(1100, 1000, 21);
+        let target = texture(120, 120, 22);
+        let regions = vec![Rect::new(0, 0, 8, 48), Rect::new(8, 0, 40, 8)];
+        let mut search = PyramidSearch::new(&sample, 48);
+        let hint = (1051, 3);
+        let plain = search.rescored(&target, (10, 20), &regions, &[]);
+        assert!(!plain.iter().any(|p| (p.0, p.1) == hint), "the hint is not a track's position here");
+        let hinted = search.rescored(&target, (10, 20), &regions, &[hint, (1053, 0)]);
+        let exact = OverlapSearch::new(&sample, 48, 48).exact_ssd(hint.0, hint.1, &target, (10, 20), &regions);
+        assert!(hinted.contains(&(hint.0, hint.1, exact)), "{:?}", hinted.len());
+        // A hint where the block does not fit is dropped; the rest of the pool is unchanged.
+        assert_eq!(hinted.len(), plain.len() + 1);
+        // candidates_many_hinted: a hint that matches exactly becomes the best candidate.
+        let copy = sample.crop(1051, 3, 48, 48);
+        let c = search.candidates_many_hinted(&copy, &[((0, 0), regions.clone())], &[vec![hint]], 0.0);
+        assert_eq!((c[0].min_ssd, c[0].members[0].0, c[0].members[0].1), (0, 1051, 3));
     }
 
     #[test]
