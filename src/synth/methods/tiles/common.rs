@@ -217,7 +217,7 @@ crate::choice! {
         Auto = "auto",
         /// Every pixel from the edge-colour patches (paper 001).
         Edges = "edges",
-        /// A patch of its own inside a closed seam ([`super::interior`]).
+        /// A patch of its own inside a closed seam (`tiles/interior.rs`).
         Own = "own",
     }
 }
@@ -242,15 +242,6 @@ pub fn no_interior(tile: i32, overlap: i32, sample: (u32, u32)) -> String {
         sample.0,
         sample.1
     )
-}
-
-/// `diagnostics.interior` of a job whose tiles have interiors of their own.
-pub fn interior_record(mode: InteriorMode, (d0, d1): (i32, i32), seam_cost: u64) -> serde_json::Value {
-    let how = match mode {
-        InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
-        _ => "own, as set",
-    };
-    serde_json::json!({ "interior": "own", "ring_depths": [d0, d1], "candidates": super::interior::CANDIDATES, "seam_cost": seam_cost, "how": how })
 }
 
 /// `colors = "auto"`.

@@ -20,7 +20,7 @@
 //! tile edges. (A closed shortest path through the ring, B4, joins the sides more freely, but it
 //! made a 2048² fill about 1.5 times slower than these four cuts.)
 
-use super::common::PixelError;
+use super::common::{InteriorMode, PixelError};
 use crate::image::RgbImage;
 use crate::synth::primitives::shortest_path::flood4;
 use crate::synth::rng::Stream;
@@ -239,6 +239,15 @@ pub fn give<T: Send>(
         })
         .collect();
     costs.iter().sum()
+}
+
+/// `diagnostics.interior` of a job whose tiles have interiors of their own.
+pub fn record(mode: InteriorMode, (d0, d1): (i32, i32), seam_cost: u64) -> serde_json::Value {
+    let how = match mode {
+        InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
+        _ => "own, as set",
+    };
+    serde_json::json!({ "interior": "own", "ring_depths": [d0, d1], "candidates": CANDIDATES, "seam_cost": seam_cost, "how": how })
 }
 
 #[cfg(test)]

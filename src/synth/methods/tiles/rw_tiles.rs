@@ -949,7 +949,7 @@ impl RwTiles {
             diagnostics["colors_choice"] = c;
         }
         if let Some(cost) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, std::f64::consts::FRAC_1_SQRT_2), cost);
+            diagnostics["interior"] = interior::record(cfg.interior, interior::band(ov, std::f64::consts::FRAC_1_SQRT_2), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),

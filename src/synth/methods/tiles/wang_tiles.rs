@@ -858,7 +858,7 @@ impl WangTiles {
             diagnostics["colors_choice"] = c;
         }
         if let Some(cost) = interiors {
-            diagnostics["interior"] = common::interior_record(cfg.interior, interior::band(ov, 1.0), cost);
+            diagnostics["interior"] = interior::record(cfg.interior, interior::band(ov, 1.0), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
