@@ -626,7 +626,7 @@ fn base_record(
     }
     let content_key = manifest::content_key(
         job.method.name(),
-        job.method.algorithm_version(),
+        job.method.algorithm_version_of(&job.params),
         &params_json,
         job.seed,
         &sample.pixel_digest,
@@ -645,7 +645,7 @@ fn base_record(
         status: Status::Ok,
         error: None,
         method: Some(job.method.name().to_string()),
-        algorithm_version: Some(job.method.algorithm_version()),
+        algorithm_version: Some(job.method.algorithm_version_of(&job.params)),
         params_digest: Some(Digest::of_json(&params_json)),
         params: Some(params_json),
         seed: Some(job.seed),

@@ -88,11 +88,17 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
     let analysis = advice::analyse(&sample.image);
     let wrap = analysis.lattice.as_ref().filter(|_| req.tileable).and_then(|l| crate::synth::wrap::warning(l, (width, height)));
     let warnings: Vec<String> = advice::warning(&analysis, method.name(), session.params()).into_iter().chain(wrap).collect();
-    let content_key =
-        manifest::content_key(method.name(), method.algorithm_version(), &params_json, req.seed, &sample.pixel_digest, &spec_json);
+    let content_key = manifest::content_key(
+        method.name(),
+        method.algorithm_version_of(session.params()),
+        &params_json,
+        req.seed,
+        &sample.pixel_digest,
+        &spec_json,
+    );
     let record = serde_json::json!({
         "method": method.name(),
-        "algorithm_version": method.algorithm_version(),
+        "algorithm_version": method.algorithm_version_of(session.params()),
         "params_digest": Digest::of_json(&params_json),
         "params": params_json,
         "seed": req.seed,

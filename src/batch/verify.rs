@@ -139,12 +139,6 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     let Some(method) = methods::find(method_name) else {
         return Outcome::Mismatch(vec![format!("method `{method_name}` is not known to this texsyn")]);
     };
-    if method.algorithm_version() != version {
-        return Outcome::Mismatch(vec![format!(
-            "recorded with {method_name} algorithm version {version}; this texsyn has version {}",
-            method.algorithm_version()
-        )]);
-    }
     // Parameters: they must resolve to exactly what was recorded.
     let mut given: Vec<(String, ParamValue)> =
         match serde_json::from_value::<std::collections::BTreeMap<String, ParamValue>>(params_json.clone()) {
@@ -158,6 +152,12 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             return Outcome::Mismatch(errs.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
         }
     };
+    if method.algorithm_version_of(&params) != version {
+        return Outcome::Mismatch(vec![format!(
+            "recorded with {method_name} algorithm version {version}; this texsyn makes these parameters' pixels with version {}",
+            method.algorithm_version_of(&params)
+        )]);
+    }
     if rec.params_digest.as_ref() != Some(&Digest::of_json(params_json)) {
         problems.push("params_digest does not match the recorded params".into());
     }

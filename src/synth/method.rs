@@ -105,6 +105,13 @@ pub trait Method: Send + Sync {
     /// Bumped whenever a change alters the pixels produced for the same inputs; part of the
     /// content key, so outputs made by an older algorithm are recomputed, not trusted.
     fn algorithm_version(&self) -> u32;
+    /// The algorithm version of the pixels these (resolved) parameters make: what the record and
+    /// the content key hold. [`Method::algorithm_version`], unless one of the method's searches
+    /// changed its pixels on its own (quilting's and patch sampling's pyramid), so that only the
+    /// jobs it made are re-made and reported by `verify`, not every job of the method.
+    fn algorithm_version_of(&self, _params: &Params) -> u32 {
+        self.algorithm_version()
+    }
     /// One line for `texsyn methods`.
     fn summary(&self) -> &'static str;
     /// The declared parameters.

@@ -39,6 +39,7 @@ fn auto_is_the_exact_search_for_a_small_sample() {
         })
         .collect();
     assert_eq!(records[0]["params"]["search"], "fft");
+    assert_eq!(records[0]["algorithm_version"], 1, "the exact search keeps quilting's version");
     for key in ["params", "params_digest", "content_key", "outputs"] {
         assert_eq!(records[0][key], records[1][key], "{key}");
     }
@@ -56,6 +57,7 @@ fn auto_is_the_pyramid_for_a_big_sample_recorded_and_the_same_on_any_thread_coun
         run_ok(texsyn().arg("run").arg(d.join("jobs")).arg("-o").arg(&out).args(["-q", "-j", threads]));
         let rec = manifest(&out)["jobs"][0].clone();
         assert_eq!(rec["params"]["search"], "pyramid", "{rec}");
+        assert_eq!(rec["algorithm_version"], 2, "the pyramid's pixels changed since version 1: {rec}");
         assert_eq!(rec["diagnostics"]["pyramid_level"], 1, "{rec}");
         digests.push(pixels(&out.join("j.png")));
     }
@@ -67,6 +69,7 @@ fn auto_is_the_pyramid_for_a_big_sample_recorded_and_the_same_on_any_thread_coun
     job(&p.join("jobs"), "patch-sampling", &sample, 120, "search = \"exhaustive\"\nblock = 40");
     run_ok(texsyn().arg("run").arg(p.join("jobs")).arg("-o").arg(p.join("out")).args(["-q"]));
     assert_eq!(manifest(&p.join("out"))["jobs"][0]["params"]["engine"], "pyramid");
+    assert_eq!(manifest(&p.join("out"))["jobs"][0]["algorithm_version"], 2);
 }
 
 #[test]

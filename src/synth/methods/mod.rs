@@ -62,6 +62,21 @@ pub(crate) fn resolve_engine(params: &mut Params, key: &str, sample: (u32, u32))
     }
 }
 
+/// The pyramid search's own version, added to a method's: 1 since its coarse level ranks cells by
+/// luma, a yellow-blue mean and the luma's spread and quilting re-scores its neighbours'
+/// continuations (#32; it was 0 when the pyramid came). Jobs of the exact search keep the
+/// method's version, their pixels unchanged.
+pub(crate) const PYRAMID_VERSION: u32 = 1;
+
+/// A method's algorithm version for the [`Engine`] parameter `key` (resolved): its own, plus
+/// [`PYRAMID_VERSION`] when the pyramid makes the pixels.
+pub(crate) fn engine_version(params: &Params, key: &str, base: u32) -> u32 {
+    match params.choice::<Engine>(key) {
+        Ok(Engine::Pyramid) => base + PYRAMID_VERSION,
+        _ => base,
+    }
+}
+
 /// The peak memory of a square-block method searching with `engine` (resolved): the canvas (3 B
 /// per output pixel, a block wider than the output at most), trimmed in place, and the search.
 /// Measured (VmHWM of `texsyn run`, quilting, block 50): the exact FFT search holds about 130 B per

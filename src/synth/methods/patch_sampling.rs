@@ -637,6 +637,9 @@ impl Method for PatchSampling {
     fn algorithm_version(&self) -> u32 {
         1
     }
+    fn algorithm_version_of(&self, params: &Params) -> u32 {
+        super::engine_version(params, "engine", self.algorithm_version())
+    }
     fn summary(&self) -> &'static str {
         "Patch sampling with feathered overlaps; best match by chaos PSO (paper 002), PSO or exhaustive / Liang et al."
     }

@@ -159,6 +159,9 @@ impl Method for Quilting {
     fn algorithm_version(&self) -> u32 {
         1
     }
+    fn algorithm_version_of(&self, params: &Params) -> u32 {
+        super::engine_version(params, "search", self.algorithm_version())
+    }
     fn summary(&self) -> &'static str {
         "Efros-Freeman image quilting: exact exhaustive block search, minimum-error boundary cut"
     }
