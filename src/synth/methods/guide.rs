@@ -11,7 +11,6 @@
 //! guide's over the whole block. `weight` is the guide's share: 0 ignores it, 1 follows only it.
 
 use crate::image::RgbImage;
-use crate::synth::constraints::Guide;
 use crate::synth::primitives::overlap::Rect;
 use crate::synth::primitives::overlap_search::OverlapSearch;
 
@@ -25,15 +24,23 @@ pub(crate) struct GuidedSearch<'a> {
 }
 
 impl<'a> GuidedSearch<'a> {
-    /// The search of `sample` under `guide`, copying only from `allowed` positions when given.
-    pub(crate) fn new(sample: &'a RgbImage, guide: &'a Guide, block: u32, weight: f64, allowed: Option<Vec<bool>>) -> GuidedSearch<'a> {
+    /// The search of `sample`, whose guide is `source`, towards the target guide `target` (at
+    /// least as large as the canvas), copying only from `allowed` positions when given.
+    pub(crate) fn new(
+        sample: &'a RgbImage,
+        source: &'a RgbImage,
+        target: &'a RgbImage,
+        block: u32,
+        weight: f64,
+        allowed: Option<Vec<bool>>,
+    ) -> GuidedSearch<'a> {
         let mut texture = OverlapSearch::new(sample, block, block);
-        let mut by_guide = OverlapSearch::new(&guide.source, block, block);
+        let mut by_guide = OverlapSearch::new(source, block, block);
         if let Some(a) = allowed {
             texture.restrict_to(a.clone());
             by_guide.restrict_to(a);
         }
-        GuidedSearch { texture, guide: by_guide, target: &guide.target, weight, block }
+        GuidedSearch { texture, guide: by_guide, target, weight, block }
     }
 
     /// The positions whose weighted error is within `(1 + tolerance)` of the best, row-major:
@@ -77,6 +84,7 @@ impl<'a> GuidedSearch<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::synth::constraints::Guide;
 
     #[test]
     fn the_guide_alone_picks_the_block_whose_guide_matches_and_the_texture_alone_ignores_it() {
@@ -88,17 +96,17 @@ mod tests {
         assert!(guide.target.get(0, 0)[0] > 100 && guide.target.get(0, 0)[0] < 150);
         let light = RgbImage::from_fn(10, 10, |x, _| if x < 5 { [0; 3] } else { [255; 3] });
         let guide = Guide::from_images(&light, &sample, 1.0, 1);
-        let mut search = GuidedSearch::new(&sample, &guide, 10, 1.0, None);
+        let mut search = GuidedSearch::new(&sample, &guide.source, &guide.target, 10, 1.0, None);
         // The right half of the target is light: a block placed there comes from the light half.
         let picks = search.candidates(&RgbImage::new(10, 10), (0, 0), &[], (0, 0), 0.0);
         assert!(!picks.is_empty());
         let light_target = Guide { target: RgbImage::from_fn(10, 10, |_, _| [230; 3]), ..guide.clone() };
-        let mut search = GuidedSearch::new(&sample, &light_target, 10, 1.0, None);
+        let mut search = GuidedSearch::new(&sample, &light_target.source, &light_target.target, 10, 1.0, None);
         for (x, _) in search.candidates(&RgbImage::new(10, 10), (0, 0), &[], (0, 0), 0.0) {
             assert!(x >= 20, "a light target takes a light block, not x = {x}");
         }
         // Weight 0: the guide is ignored, and the texture overlap decides.
-        let mut search = GuidedSearch::new(&sample, &light_target, 10, 0.0, None);
+        let mut search = GuidedSearch::new(&sample, &light_target.source, &light_target.target, 10, 0.0, None);
         let canvas = RgbImage::from_fn(10, 10, |_, y| [20 + (y % 3) as u8, 20, 20]);
         for (x, _) in search.candidates(&canvas, (0, 0), &[Rect::new(0, 0, 3, 10)], (0, 0), 0.0) {
             assert!(x + 3 <= 20, "the dark overlap takes a dark block, not x = {x}");

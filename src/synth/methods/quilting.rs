@@ -203,7 +203,7 @@ impl Method for Quilting {
             if req.constraints.fill.is_some() || req.tileable {
                 return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
             }
-            return self.synthesize_guided(req, &cfg, guide, allowed);
+            return self.synthesize_guided(req, &cfg, guide);
         }
         if let Some(region) = req.constraints.fill {
             if rule == OverlapRule::Feather {
@@ -368,7 +368,6 @@ impl Quilting {
         req: &Request,
         cfg: &QuiltingConfig,
         guide: &crate::synth::constraints::Guide,
-        allowed: Option<Vec<bool>>,
     ) -> Result<Synthesis, SynthError> {
         let sample = req.sample;
         if guide.target.dimensions() != (req.width, req.height) || guide.source.dimensions() != sample.dimensions() {
@@ -379,23 +378,21 @@ impl Quilting {
         let mut previous: Option<RgbImage> = None;
         let mut finished = None;
         let mut pass_diagnostics = Vec::new();
+        let copyable = req.constraints.copyable();
         for pass in 0..passes {
             // Blocks a third smaller each pass, the overlap in proportion; never below 6 px.
             let shrink = (2.0f64 / 3.0).powi(pass as i32);
             let block = ((f64::from(cfg.block) * shrink).round() as u32).max(6).min(cfg.block);
             let overlap = ((f64::from(cfg.overlap_or_derived()) * shrink).round() as u32).clamp(1, block / 2);
             let weight = guide.weight;
-            let allowed = match (&allowed, req.constraints.copyable()) {
-                (Some(_), Some(mask)) => Some(mask.block_positions(block, block)).filter(|a| a.contains(&true)),
-                _ => None,
-            };
+            // Blocks only shrink, so a mask that left room for the first pass's leaves room here.
+            let allowed = copyable.as_ref().map(|mask| mask.block_positions(block, block));
             let layout = BlockGrid::new(block, overlap, req.width, req.height);
             let (cw, ch) = layout.canvas();
             // The last blocks reach past the output (they are cropped): the target guide goes on
             // there as its own edge, so that those blocks are still guided where they show.
             let target = RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1)));
-            let padded = crate::synth::constraints::Guide { target, source: guide.source.clone(), weight, passes };
-            let mut search = super::guide::GuidedSearch::new(sample, &padded, block, weight, allowed);
+            let mut search = super::guide::GuidedSearch::new(sample, &guide.source, &target, block, weight, allowed);
             let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
             if let Some(prev) = &previous {
                 // Every pixel is written again by this pass's blocks: the previous pass is only
