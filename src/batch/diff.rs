@@ -254,6 +254,8 @@ mod tests {
             inpaint_mask: None,
             guide_target: None,
             guide_source: None,
+            samples: Vec::new(),
+            sample_masks: Vec::new(),
             diagnostics: Value::Null,
             metrics: Some([("kl_gray".to_string(), Some(0.1))].into()),
             timing: Some(Timing {

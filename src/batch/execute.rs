@@ -131,6 +131,16 @@ pub struct JobInputs<'a> {
     pub fill: Option<&'a FillRegion>,
     /// Guided synthesis: the guides (the output's and the sample's sizes, checked by the plan).
     pub guide: Option<&'a Guide>,
+    /// Several samples or `augment`: `sample` is their atlas; the source map records which
+    /// sample and transform each pixel came from, and the metrics compare with the first sample.
+    pub atlas: Option<AtlasInputs<'a>>,
+}
+
+/// The atlas a job searches, and its first sample.
+#[derive(Clone, Copy)]
+pub struct AtlasInputs<'a> {
+    pub atlas: &'a crate::synth::atlas::Atlas,
+    pub first: &'a LoadedSample,
 }
 
 impl JobInputs<'_> {
@@ -304,7 +314,8 @@ fn material_outputs(synthesis: &Synthesis, inputs: &JobInputs) -> Result<Vec<(Ou
         files.push((record, encoded.bytes));
     }
     if let Some(path) = &inputs.output.source_map {
-        let bytes = crate::batch::source_map::encode(placement).map_err(|e| JobFailure::Encode(ImageError::Encode(e)))?;
+        let bytes = crate::batch::source_map::encode(placement, inputs.atlas.map(|a| a.atlas))
+            .map_err(|e| JobFailure::Encode(ImageError::Encode(e)))?;
         let digest = Digest::of_bytes(&bytes);
         let record = OutputRecord {
             path: path.clone(),
@@ -381,7 +392,7 @@ pub fn execute(inputs: &JobInputs, metric_names: &[String], out: &OutDir) -> Res
         None
     } else {
         let names: Vec<&str> = metric_names.iter().map(String::as_str).collect();
-        let sample = inputs.sample;
+        let sample = inputs.atlas.map_or(inputs.sample, |a| a.first);
         let scored = crate::metrics::evaluate_against(&names, &sample.image, &sample.metrics, &synthesis.image, synthesis.seams.as_ref());
         Some(scored.map_err(JobFailure::Metrics)?)
     };

@@ -150,6 +150,13 @@ pub struct JobRecord {
     /// A guided job's source guide, when it has one (else the sample's luminance is its guide).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub guide_source: Option<SampleRecord>,
+    /// Several samples or `augment`: every sample, the first one (also `sample`) first (their
+    /// pixels are in the content key through `output_spec.samples`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub samples: Vec<SampleRecord>,
+    /// With `samples`, each sample's mask image (`null` for one without), when any has one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sample_masks: Vec<Option<SampleRecord>>,
     /// What the job asked for (`path`, `width`, `height`, `format`, `bit_depth`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_spec: Option<Value>,
@@ -537,6 +544,8 @@ mod tests {
             inpaint_mask: None,
             guide_target: None,
             guide_source: None,
+            samples: Vec::new(),
+            sample_masks: Vec::new(),
             diagnostics: Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -230,6 +230,8 @@ mod tests {
             inpaint_mask: None,
             guide_target: None,
             guide_source: None,
+            samples: Vec::new(),
+            sample_masks: Vec::new(),
             diagnostics: serde_json::Value::Null,
             metrics: None,
             timing: Some(Timing {

@@ -24,6 +24,7 @@ pub mod observer;
 pub mod outdir;
 pub mod plan;
 pub mod run;
+pub mod samples;
 pub mod shard;
 pub mod single;
 pub mod source_map;

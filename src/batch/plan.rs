@@ -11,11 +11,15 @@ use crate::batch::inpaint::{MaskSource, fill_region};
 use crate::batch::job::{self, InpaintMask, InvalidJob, Job, JobError, JobSet};
 use crate::batch::manifest::{self, FileRef, JobRecord, Manifest, SampleRecord, Status};
 use crate::batch::memory;
+use crate::batch::samples::{AtlasSamples, assemble, pack_map};
 use crate::batch::shard::{self, Shard};
 use crate::digest::Digest;
 use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
+use crate::synth::atlas::{Atlas, Augment};
 use crate::synth::constraints::{FillRegion, Guide, SampleMask};
+use crate::synth::params::Choice;
+use crate::synth::placement::MapKind;
 use crate::synth::wrap;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -82,6 +86,8 @@ pub struct Entry {
     pub fill: Option<(Option<Arc<LoadedSample>>, FillRegion)>,
     /// `job.guide`: its target and source images decoded, and the guide they make.
     pub guide: Option<(Arc<LoadedSample>, Option<Arc<LoadedSample>>, Guide)>,
+    /// Several samples or `augment`: the atlas `sample` is, and what it was made from.
+    pub atlas: Option<AtlasSamples>,
     pub content_key: Digest,
     /// The record's inputs (outputs, timing and status are filled in by execution).
     pub record: JobRecord,
@@ -95,14 +101,19 @@ impl Entry {
     /// seed and output.
     pub fn inputs(&self) -> crate::batch::execute::JobInputs<'_> {
         let job = &self.job;
+        let companions = match &self.atlas {
+            Some(a) => job.companions.iter().zip(a.companions.iter()).collect(),
+            None => job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
+        };
         crate::batch::execute::JobInputs {
             method: job.method,
             sample: &self.sample,
             params: &job.params,
             seed: job.seed,
             output: &job.output,
-            companions: job.companions.iter().zip(self.companions.iter().map(|c| &**c)).collect(),
-            sample_mask: self.sample_mask.as_ref().map(|(_, m)| m),
+            companions,
+            sample_mask: self.atlas.as_ref().map(|a| &a.mask).or(self.sample_mask.as_ref().map(|(_, m)| m)),
+            atlas: self.atlas.as_ref().map(|a| crate::batch::execute::AtlasInputs { atlas: &a.atlas, first: &a.first }),
             fill: self.fill.as_ref().map(|(_, f)| f),
             guide: self.guide.as_ref().map(|(_, _, g)| g),
         }
@@ -191,9 +202,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         .jobs
         .iter()
         .flat_map(|j| {
-            std::iter::once(j.sample.clone())
+            j.sample_paths()
+                .into_iter()
                 .chain(j.companions.iter().map(|c| c.sample.clone()))
-                .chain(j.sample_mask.clone())
+                .chain(j.sample_mask_paths().into_iter().flatten())
                 .chain(j.inpaint_mask_file())
                 .chain(j.guide_files())
         })
@@ -213,7 +225,21 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        let atlas = match atlas_of(&job, &sample, &loaded) {
+            Ok(a) => a,
+            Err(errors) => {
+                invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                continue;
+            }
+        };
+        // The method searches the atlas when there is one: its parameters and checks see its size.
+        let first = sample;
+        let sample = atlas.as_ref().map_or_else(|| first.clone(), |a| a.search.clone());
         job.method.resolve_for_sample(&mut job.params, sample.image.dimensions());
+        if let Some(Err((key, message))) = atlas.as_ref().map(|a| a.check_block(job.params.int("block").ok())) {
+            invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors: vec![job.error(Some(key), message)] });
+            continue;
+        }
         if job.inpaint.is_some() && (job.output.width, job.output.height) != sample.image.dimensions() {
             let (w, h) = sample.image.dimensions();
             let errors = vec![job.error(
@@ -235,14 +261,18 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        let companions = match materials(&mut job, &sample, &loaded) {
+        let companions = match materials(&mut job, &first, sample.image.dimensions(), &loaded) {
             Ok(c) => c,
             Err(errors) => {
                 invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
                 continue;
             }
         };
-        let sample_mask = match sample_mask_of(&job, &sample, &loaded) {
+        let mut atlas = atlas;
+        if let Some(a) = &mut atlas {
+            a.companions = job.companions.iter().zip(&companions).map(|(c, l)| pack_map(&a.atlas, &[&**l], c.kind)).collect();
+        }
+        let sample_mask = match if atlas.is_some() { Ok(None) } else { sample_mask_of(&job, &sample, &loaded) } {
             Ok(m) => m,
             Err(errors) => {
                 invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
@@ -256,7 +286,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
-        let guide = match guide_of(&job, &sample, &loaded) {
+        let guide = match guide_of(&job, &sample, atlas.as_ref().map(|a| &a.atlas), &loaded) {
             Ok(g) => g,
             Err(errors) => {
                 invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
@@ -269,6 +299,8 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
         let masks = Masks {
+            samples: atlas.as_ref().map(|_| samples_of(&job, &loaded)),
+            augment: &job.augment,
             sample_mask: sample_mask.as_ref().map(|(l, _)| &**l),
             inpaint: job.inpaint.as_ref().map(|i| inpaint_source(&i.mask, fill.as_ref().and_then(|(l, _)| l.as_deref()))),
             guide: job.guide.as_ref().zip(guide.as_ref()).map(|(spec, (t, s, _))| GuideImages {
@@ -278,7 +310,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 passes: spec.passes,
             }),
         };
-        let (content_key, record) = base_record(&job, &sample, &companions, &masks, &opts.out);
+        let (content_key, record) = base_record(&job, &first, &companions, &masks, &opts.out);
         let action = decide(&job, &content_key, previous.get(&job.id), opts);
         // A job that would run but cannot fit under the limit is refused (one up to date needs nothing).
         if let Some(limit) = opts.max_memory.filter(|&l| estimate > l && action != Action::UpToDate) {
@@ -286,7 +318,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
             continue;
         }
-        entries.push(Entry { job, sample, companions, sample_mask, fill, guide, content_key, record, action, memory: estimate });
+        entries.push(Entry { job, sample, companions, sample_mask, fill, guide, atlas, content_key, record, action, memory: estimate });
     }
     add_warnings(&mut entries, &previous, &same_tool);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
@@ -355,6 +387,56 @@ fn sample_mask_of(
     Ok(Some((l, mask)))
 }
 
+/// Every sample of the job with its mask, decoded (the plan has decoded them all by now).
+fn samples_of(
+    job: &Job,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+) -> Vec<(PathBuf, Arc<LoadedSample>, Option<(PathBuf, Arc<LoadedSample>)>)> {
+    job.sample_paths()
+        .into_iter()
+        .zip(job.sample_mask_paths())
+        .filter_map(|(p, m)| {
+            let s = loaded[&p].as_ref().ok()?.clone();
+            let mask = match m {
+                Some(mp) => Some((mp.clone(), loaded[&mp].as_ref().ok()?.clone())),
+                None => None,
+            };
+            Some((p, s, mask))
+        })
+        .collect()
+}
+
+/// The atlas a job with several samples or `augment` searches, checked; `None` for a job with
+/// one sample as it is.
+fn atlas_of(
+    job: &Job,
+    first: &Arc<LoadedSample>,
+    loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+) -> Result<Option<AtlasSamples>, Vec<JobError>> {
+    if !job.uses_atlas() {
+        return Ok(None);
+    }
+    let mut errors = Vec::new();
+    for p in job.sample_paths().iter().skip(1) {
+        if let Err(e) = &loaded[p] {
+            errors.push(job.error(Some("samples"), format!("sample {e}")));
+        }
+    }
+    for p in job.sample_mask_paths().iter().flatten() {
+        if let Err(e) = &loaded[p] {
+            errors.push(job.error(Some("sample_mask"), format!("sample mask {e}")));
+        }
+    }
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    let all = samples_of(job, loaded);
+    let samples: Vec<(&Path, Arc<LoadedSample>)> =
+        all.iter().enumerate().map(|(i, (p, s, _))| (p.as_path(), if i == 0 { first.clone() } else { s.clone() })).collect();
+    let masks: Vec<Option<(&Path, &LoadedSample)>> = all.iter().map(|(_, _, m)| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
+    assemble(&samples, &masks, &job.augment).map(Some).map_err(|(key, message)| vec![job.error(Some(key), message)])
+}
+
 /// The job's fill region when it inpaints, from its mask image or one of its image's channels,
 /// checked ([`crate::batch::inpaint::fill_region`]).
 fn fill_of(
@@ -382,6 +464,7 @@ fn fill_of(
 fn guide_of(
     job: &Job,
     sample: &LoadedSample,
+    atlas: Option<&Atlas>,
     loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
 ) -> Result<Option<(Arc<LoadedSample>, Option<Arc<LoadedSample>>, Guide)>, Vec<JobError>> {
     let Some(spec) = &job.guide else { return Ok(None) };
@@ -396,9 +479,11 @@ fn guide_of(
         },
         None => None,
     };
+    // With transformed copies, the source guide is packed like the sample.
+    let packed = atlas.zip(source.as_deref()).map(|(a, s)| pack_map(a, &[s], MapKind::Color));
     let images = GuideImages {
         target: (&spec.target, &target),
-        source: spec.source.as_deref().zip(source.as_deref()),
+        source: spec.source.as_deref().zip(packed.as_ref().or(source.as_deref())),
         weight: spec.weight,
         passes: spec.passes,
     };
@@ -419,6 +504,9 @@ fn inpaint_source<'a>(mask: &'a InpaintMask, loaded: Option<&'a LoadedSample>) -
 
 /// The masks a job's record and content key hold besides its sample.
 struct Masks<'a> {
+    /// Several samples or `augment`: every sample and its mask, decoded (the atlas is made of them).
+    samples: Option<Vec<(PathBuf, Arc<LoadedSample>, Option<(PathBuf, Arc<LoadedSample>)>)>>,
+    augment: &'a [Augment],
     sample_mask: Option<&'a LoadedSample>,
     inpaint: Option<MaskSource<'a>>,
     guide: Option<GuideImages<'a>>,
@@ -430,6 +518,7 @@ struct Masks<'a> {
 fn materials(
     job: &mut Job,
     sample: &Arc<LoadedSample>,
+    searched: (u32, u32),
     loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
 ) -> Result<Vec<Arc<LoadedSample>>, Vec<JobError>> {
     let mut errors = Vec::new();
@@ -455,13 +544,13 @@ fn materials(
         }
     }
     if job.output.tileable
-        && let Err(why) = job.method.tileable(&job.params, size, (job.output.width, job.output.height))
+        && let Err(why) = job.method.tileable(&job.params, searched, (job.output.width, job.output.height))
     {
         let can: Vec<&str> = crate::synth::methods::registry()
             .iter()
             .filter(|m| {
                 let defaults = crate::synth::params::resolve(m.params(), &[]);
-                defaults.is_ok_and(|p| m.tileable(&p, size, (job.output.width, job.output.height)).is_ok())
+                defaults.is_ok_and(|p| m.tileable(&p, searched, (job.output.width, job.output.height)).is_ok())
             })
             .map(|m| m.name())
             .collect();
@@ -510,9 +599,10 @@ fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
 /// re-run with nothing to do does not analyse every sample again.
 fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, same_tool: &BTreeSet<String>) {
     let reuse = |e: &Entry| e.action == Action::UpToDate && same_tool.contains(&e.job.id);
-    let mut wanted: Vec<(&str, &Arc<LoadedSample>)> =
-        entries.iter().filter(|e| !reuse(e)).map(|e| (e.sample.pixel_digest.sha256.as_str(), &e.sample)).collect();
-    wanted.sort_by(|a, b| a.0.cmp(b.0));
+    let analysed = |e: &Entry| e.atlas.as_ref().map_or(&e.sample, |a| &a.first).clone();
+    let mut wanted: Vec<(String, Arc<LoadedSample>)> =
+        entries.iter().filter(|e| !reuse(e)).map(|e| (analysed(e).pixel_digest.sha256.clone(), analysed(e))).collect();
+    wanted.sort_by(|a, b| a.0.cmp(&b.0));
     wanted.dedup_by(|a, b| a.0 == b.0);
     let analyses: BTreeMap<String, Analysis> =
         wanted.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
@@ -520,7 +610,7 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
         e.record.warnings = if reuse(e) {
             previous[&e.job.id].warnings.clone()
         } else {
-            let a = &analyses[&e.sample.pixel_digest.sha256];
+            let a = &analyses[&analysed(e).pixel_digest.sha256];
             let wrap = a
                 .lattice
                 .as_ref()
@@ -616,6 +706,23 @@ fn base_record(
         // Which sample pixels may be copied decides the output: part of the content key.
         output_json["sample_mask"] = serde_json::json!({ "pixels": m.pixel_digest });
     }
+    if let Some(samples) = &masks.samples {
+        // Every sample's pixels and mask, and the transforms searched, decide the output: part
+        // of the content key (the first sample's pixels are in it as the sample's, as always).
+        output_json["samples"] = samples
+            .iter()
+            .map(|(_, l, m)| {
+                let mut v = serde_json::json!({ "pixels": l.pixel_digest });
+                if let Some((_, m)) = m {
+                    v["mask"] = serde_json::json!(m.pixel_digest);
+                }
+                v
+            })
+            .collect();
+        if !masks.augment.is_empty() {
+            output_json["augment"] = masks.augment.iter().map(|a| serde_json::json!(a.name())).collect();
+        }
+    }
     if let Some(source) = &masks.inpaint {
         // Which pixels are filled decides the output: part of the content key.
         output_json["inpaint"] = source.spec();
@@ -666,6 +773,13 @@ fn base_record(
         },
         guide_target: masks.guide.as_ref().map(|g| sample_record(g.target.0, g.target.1)),
         guide_source: masks.guide.as_ref().and_then(|g| g.source).map(|(p, l)| sample_record(p, l)),
+        samples: masks.samples.iter().flatten().map(|(p, l, _)| sample_record(p, l)).collect(),
+        sample_masks: match &masks.samples {
+            Some(all) if all.iter().any(|(_, _, m)| m.is_some()) => {
+                all.iter().map(|(_, _, m)| m.as_ref().map(|(p, l)| sample_record(p, l))).collect()
+            }
+            _ => Vec::new(),
+        },
     };
     (content_key, record)
 }
@@ -722,5 +836,7 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         inpaint_mask: None,
         guide_target: None,
         guide_source: None,
+        samples: Vec::new(),
+        sample_masks: Vec::new(),
     }
 }

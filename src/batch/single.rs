@@ -132,6 +132,10 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
 pub struct OneOff {
     /// The sample; when inpainting, the image to repair (it is its own sample).
     pub sample: PathBuf,
+    /// Further samples to learn from with `sample` (`samples = [...]`).
+    pub more_samples: Vec<PathBuf>,
+    /// Transformed copies of the samples to search too (`augment`, e.g. `rot90`).
+    pub augment: Vec<String>,
     /// Inpaint `sample` instead of making a new image from it: which pixels to fill.
     pub inpaint: Option<OneOffMask>,
     /// Texture transfer: the target guide (the output's size).
@@ -186,9 +190,20 @@ impl OneOff {
         let mut t = String::from("# The job file of a `texsyn synth` one-off: put it in a job directory to make it part of a run.\n");
         match &self.inpaint {
             None => {
+                let sample = if self.more_samples.is_empty() {
+                    format!("sample = {}", q(&self.sample.to_string_lossy()))
+                } else {
+                    let all: Vec<String> =
+                        std::iter::once(&self.sample).chain(&self.more_samples).map(|p| q(&p.to_string_lossy())).collect();
+                    format!("samples = [{}]", all.join(", "))
+                };
+                let augment = if self.augment.is_empty() {
+                    String::new()
+                } else {
+                    format!("augment = [{}]\n", self.augment.iter().map(|a| q(a)).collect::<Vec<_>>().join(", "))
+                };
                 t += &format!(
-                    "sample = {}\nmethod = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
-                    q(&self.sample.to_string_lossy()),
+                    "{sample}\n{augment}method = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
                     q(&self.method),
                     self.seed,
                     q(name),
@@ -251,7 +266,12 @@ impl OneOff {
             Some(OneOffMask::File(m)) => Some(OneOffMask::File(std::path::absolute(m).map_err(|e| Error::io(m, "resolve", e))?)),
             other => other.clone(),
         };
-        let this = OneOff { sample, inpaint, ..self.clone() };
+        let more_samples = self
+            .more_samples
+            .iter()
+            .map(|p| std::path::absolute(p).map_err(|e| Error::io(p, "resolve", e)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let this = OneOff { sample, more_samples, inpaint, ..self.clone() };
         let text = this.job_text(this.size()?);
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let scratch = std::env::temp_dir().join(format!(

@@ -11,50 +11,113 @@
 //! - a text attribute `texsyn-placement` = `1 sample=WxH` (the version and the size of the images it
 //!   renders from).
 //!
+//! Version 2, for a job with several samples or `augment` (its placement is over an atlas of
+//! them, [`crate::synth::atlas`]): `X`, `Y` are in the pixel's own sample, and two more channels
+//! say which: `S` (the index in the job's `samples`) and `T` (the transform: 0 as it is, 1 rot90,
+//! 2 rot180, 3 rot270, 4 flip_h, 5 flip_v), likewise `B{k}S`, `B{k}T` for each blend step. The
+//! attribute is `2 samples=W1xH1,W2xH2,… augment=rot90,…`: enough to rebuild the atlas from the
+//! samples and replay the map over them, or over any maps of their sizes.
+//!
 //! Any EXR reader shows `X` and `Y` as images of where each pixel came from.
 
-use crate::synth::placement::{Blend, Placement, UNCOVERED};
+use crate::synth::atlas::{Atlas, Augment};
+use crate::synth::params::Choice;
+use crate::synth::placement::{Placement, UNCOVERED};
 use exr::prelude::*;
 
 const ATTRIBUTE: &str = "texsyn-placement";
 
-/// Encodes a placement as a source-map EXR.
-pub fn encode(p: &Placement) -> std::result::Result<Vec<u8>, String> {
+/// Encodes a placement as a source-map EXR: version 1 over one sample, version 2 over an atlas
+/// of several samples or transformed copies (`atlas`, whose size the placement's sample is).
+pub fn encode(p: &Placement, atlas: Option<&Atlas>) -> std::result::Result<Vec<u8>, String> {
     let (w, h) = p.dimensions();
-    let (sw, _) = p.sample_size();
+    let (sw, sh) = p.sample_size();
     let n = w as usize * h as usize;
     let steps = p.max_blends();
-    let split = |s: u32| if s == UNCOVERED { (UNCOVERED, UNCOVERED) } else { (s % sw, s / sw) };
-    let mut xs = Vec::with_capacity(n);
-    let mut ys = Vec::with_capacity(n);
-    let mut blend_channels: Vec<[Vec<u32>; 4]> = (0..steps).map(|_| [vec![0; n], vec![0; n], vec![0; n], vec![0; n]]).collect();
+    // A sample index as (x, y, sample, transform) in the sample it shows.
+    let split = |s: u32| -> [u32; 4] {
+        if s == UNCOVERED {
+            return [UNCOVERED; 4];
+        }
+        let (ax, ay) = (s % sw, s / sw);
+        match atlas {
+            None => [ax, ay, 0, 0],
+            Some(a) => match a.locate(ax, ay) {
+                Some((piece, (x, y))) => [x, y, piece.sample as u32, piece.transform.map_or(0, Augment::code)],
+                None => [UNCOVERED; 4],
+            },
+        }
+    };
+    let fields = if atlas.is_some() { 4 } else { 2 };
+    let mut base: Vec<Vec<u32>> = (0..fields).map(|_| Vec::with_capacity(n)).collect();
+    let mut blend_channels: Vec<Vec<Vec<u32>>> = (0..steps).map(|_| (0..fields + 2).map(|_| vec![0; n]).collect()).collect();
     for y in 0..h {
         for x in 0..w {
-            let (sx, sy) = split(p.source(x, y));
-            xs.push(sx);
-            ys.push(sy);
+            let v = split(p.source(x, y));
+            for (f, ch) in base.iter_mut().enumerate() {
+                ch.push(v[f]);
+            }
             let i = y as usize * w as usize + x as usize;
             for (k, b) in p.blends_at(x, y).iter().enumerate() {
-                let (bx, by) = split(b.source);
+                let v = split(b.source);
                 let ch = &mut blend_channels[k];
-                (ch[0][i], ch[1][i], ch[2][i], ch[3][i]) = (bx, by, b.num, b.den);
+                for f in 0..fields {
+                    ch[f][i] = v[f];
+                }
+                (ch[fields][i], ch[fields + 1][i]) = (b.num, b.den);
             }
         }
     }
+    let names = ["X", "Y", "S", "T"];
     let mut list: Vec<AnyChannel<FlatSamples>> =
-        vec![AnyChannel::new("X", FlatSamples::U32(xs)), AnyChannel::new("Y", FlatSamples::U32(ys))];
+        base.into_iter().zip(names).map(|(data, name)| AnyChannel::new(name, FlatSamples::U32(data))).collect();
+    let blend_names: Vec<&str> = names[..fields].iter().copied().chain(["N", "D"]).collect();
     for (k, ch) in blend_channels.into_iter().enumerate() {
-        for (suffix, data) in ["X", "Y", "N", "D"].iter().zip(ch) {
+        for (suffix, data) in blend_names.iter().zip(ch) {
             list.push(AnyChannel::new(format!("B{}{suffix}", k + 1).as_str(), FlatSamples::U32(data)));
         }
     }
     let mut attrs = LayerAttributes::named("placement");
-    let (sw, sh) = p.sample_size();
-    attrs.other.insert(Text::from(ATTRIBUTE), AttributeValue::Text(Text::from(format!("1 sample={sw}x{sh}").as_str())));
+    let info = match atlas {
+        None => format!("1 sample={sw}x{sh}"),
+        Some(a) => {
+            let mut sizes: Vec<(u32, u32)> = vec![(0, 0); a.samples()];
+            for piece in a.pieces() {
+                sizes[piece.sample] = piece.sample_size;
+            }
+            let sizes: Vec<String> = sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
+            let augment: Vec<&str> = a.pieces().iter().filter(|p| p.sample == 0).filter_map(|p| p.transform.map(Augment::name)).collect();
+            format!("2 samples={} augment={}", sizes.join(","), augment.join(","))
+        }
+    };
+    attrs.other.insert(Text::from(ATTRIBUTE), AttributeValue::Text(Text::from(info.as_str())));
     let layer = Layer::new((w as usize, h as usize), attrs, Encoding::FAST_LOSSLESS, AnyChannels::sort(SmallVec::from_vec(list)));
     let mut cursor = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer).write().non_parallel().to_buffered(&mut cursor).map_err(|e| format!("EXR encoding failed: {e}"))?;
     Ok(cursor.into_inner())
+}
+
+/// A decoded source map: the placement, over the atlas of its samples for version 2.
+pub struct SourceMap {
+    /// Over one sample (version 1) or over `atlas` (version 2).
+    pub placement: Placement,
+    pub atlas: Option<Atlas>,
+}
+
+impl SourceMap {
+    /// The sizes of the images it renders from, one per sample.
+    pub fn sample_sizes(&self) -> Vec<(u32, u32)> {
+        match &self.atlas {
+            None => vec![self.placement.sample_size()],
+            Some(a) => {
+                let mut sizes = vec![(0, 0); a.samples()];
+                for piece in a.pieces() {
+                    sizes[piece.sample] = piece.sample_size;
+                }
+                sizes
+            }
+        }
+    }
 }
 
 /// The largest source map [`decode`] reads: an output's side limit, 16384² pixels (about 2 GB of
@@ -85,8 +148,14 @@ pub fn declared_size(bytes: &[u8]) -> std::result::Result<(u64, u64, u64), Strin
     Ok(largest)
 }
 
-/// Decodes a source map written by [`encode`]; the error says what is wrong with the file.
+/// Decodes a source map written by [`encode`] into its placement (over the atlas of its samples
+/// for version 2); the error says what is wrong with the file.
 pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
+    decode_map(bytes).map(|m| m.placement)
+}
+
+/// Decodes a source map of either version; the error says what is wrong with the file.
+pub fn decode_map(bytes: &[u8]) -> std::result::Result<SourceMap, String> {
     // The header first: a small file may declare any size, and the decoder allocates what it
     // declares before reading a pixel.
     declared_size(bytes)?;
@@ -110,11 +179,36 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
         Some(AttributeValue::Text(t)) => t.to_string(),
         _ => return Err(format!("not a texsyn source map (no `{ATTRIBUTE}` attribute)")),
     };
-    let sample = info
-        .strip_prefix("1 sample=")
-        .and_then(|s| s.split_once('x'))
-        .and_then(|(a, b)| Some((a.parse::<u32>().ok()?, b.parse::<u32>().ok()?)))
-        .ok_or_else(|| format!("unsupported source map `{info}` (this texsyn reads version 1)"))?;
+    let size = |s: &str| -> Option<(u32, u32)> {
+        let (a, b) = s.split_once('x')?;
+        Some((a.parse::<u32>().ok()?, b.parse::<u32>().ok()?))
+    };
+    let atlas = if let Some(rest) = info.strip_prefix("2 ") {
+        let bad = || format!("malformed version 2 source map attribute `{info}`");
+        let (samples, augment) = rest.split_once(' ').ok_or_else(bad)?;
+        let sizes: Vec<(u32, u32)> =
+            samples.strip_prefix("samples=").ok_or_else(bad)?.split(',').map(size).collect::<Option<_>>().ok_or_else(bad)?;
+        let augment: Vec<Augment> = match augment.strip_prefix("augment=").ok_or_else(bad)? {
+            "" => Vec::new(),
+            list => list.split(',').map(Augment::parse).collect::<Option<_>>().ok_or_else(bad)?,
+        };
+        if sizes.is_empty()
+            || sizes.len() > 4096
+            || sizes.iter().any(|&(w, h)| w == 0 || h == 0 || u64::from(w) * u64::from(h) > MAX_PIXELS)
+        {
+            return Err(bad());
+        }
+        Some(Atlas::layout(&sizes, &augment))
+    } else {
+        None
+    };
+    let sample = match &atlas {
+        Some(a) => a.dimensions(),
+        None => info
+            .strip_prefix("1 sample=")
+            .and_then(size)
+            .ok_or_else(|| format!("unsupported source map `{info}` (this texsyn reads versions 1 and 2)"))?,
+    };
     let (w, h) = (layer.size.width() as u32, layer.size.height() as u32);
     let channel = |name: &str| -> Option<&Vec<u32>> {
         layer.channel_data.list.iter().find(|c| c.name.eq(name)).and_then(|c| match &c.sample_data {
@@ -122,48 +216,60 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<Placement, String> {
             _ => None,
         })
     };
-    let (Some(xs), Some(ys)) = (channel("X"), channel("Y")) else {
-        return Err("source map lacks its integer X and Y channels".into());
-    };
-    let mut p = Placement::new(w, h, sample);
-    let check = |x: u32, y: u32| -> std::result::Result<(), String> {
-        if x >= sample.0 || y >= sample.1 {
-            Err(format!("source map points at ({x}, {y}), outside its {}x{} sample", sample.0, sample.1))
-        } else {
-            Ok(())
+    // Where (x, y) of sample `s` under transform `t` lies in what the placement renders from.
+    let place = |x: u32, y: u32, s: u32, t: u32| -> std::result::Result<(u32, u32), String> {
+        match &atlas {
+            None if x < sample.0 && y < sample.1 => Ok((x, y)),
+            None => Err(format!("source map points at ({x}, {y}), outside its {}x{} sample", sample.0, sample.1)),
+            Some(a) => {
+                let transform = Augment::from_code(t).ok_or_else(|| format!("source map has an unknown transform code {t}"))?;
+                a.position(s as usize, transform, x, y).ok_or_else(|| {
+                    format!("source map points at ({x}, {y}) of sample {s} under transform {t}, which its samples do not have")
+                })
+            }
         }
     };
+    let zeros = vec![0u32; w as usize * h as usize];
+    let pick = |name: &str| -> Option<&Vec<u32>> { if atlas.is_some() { channel(name) } else { Some(&zeros) } };
+    let (Some(xs), Some(ys), Some(ss), Some(ts)) = (channel("X"), channel("Y"), pick("S"), pick("T")) else {
+        return Err("source map lacks its integer X and Y channels (and S and T for version 2)".into());
+    };
+    let mut p = Placement::new(w, h, sample);
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
             if xs[i] == UNCOVERED {
                 continue;
             }
-            check(xs[i], ys[i])?;
-            p.copy(x, y, xs[i], ys[i]);
+            let (sx, sy) = place(xs[i], ys[i], ss[i], ts[i])?;
+            p.copy(x, y, sx, sy);
         }
     }
     let mut k = 1;
-    while let (Some(bx), Some(by), Some(bn), Some(bd)) =
-        (channel(&format!("B{k}X")), channel(&format!("B{k}Y")), channel(&format!("B{k}N")), channel(&format!("B{k}D")))
-    {
+    while let (Some(bx), Some(by), Some(bs), Some(bt), Some(bn), Some(bd)) = (
+        channel(&format!("B{k}X")),
+        channel(&format!("B{k}Y")),
+        pick(&format!("B{k}S")),
+        pick(&format!("B{k}T")),
+        channel(&format!("B{k}N")),
+        channel(&format!("B{k}D")),
+    ) {
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) as usize;
                 if bd[i] == 0 {
                     continue;
                 }
-                check(bx[i], by[i])?;
+                let (sx, sy) = place(bx[i], by[i], bs[i], bt[i])?;
                 if xs[i] == UNCOVERED {
                     return Err(format!("source map blends into uncovered pixel ({x}, {y})"));
                 }
-                let b = Blend { source: by[i] * sample.0 + bx[i], num: bn[i], den: bd[i] };
-                p.blend(x, y, bx[i], by[i], b.num, b.den);
+                p.blend(x, y, sx, sy, bn[i], bd[i]);
             }
         }
         k += 1;
     }
-    Ok(p)
+    Ok(SourceMap { placement: p, atlas })
 }
 
 #[cfg(test)]
@@ -180,13 +286,40 @@ mod tests {
         p.blend(1, 0, 0, 0, 1, 3);
         p.copy(4, 2, 1, 1);
         p.blend(4, 2, 5, 2, 3, 4);
-        let bytes = encode(&p).unwrap();
+        let bytes = encode(&p, None).unwrap();
         let back = decode(&bytes).unwrap();
         assert_eq!(back.sample_size(), (7, 4));
         let s = RgbImage::from_fn(7, 4, |x, y| [(x * 30) as u8, (y * 60) as u8, 90]);
         assert_eq!(back.render_rgb8(&s), p.render_rgb8(&s));
         assert_eq!(back.blends_at(1, 0), p.blends_at(1, 0));
         assert_eq!(back.source(3, 1), UNCOVERED);
+    }
+
+    #[test]
+    fn version_2_names_each_pixels_sample_and_transform_and_round_trips() {
+        let atlas = Atlas::layout(&[(7, 4), (5, 6)], &[Augment::Rot90]);
+        let (aw, ah) = atlas.dimensions();
+        let mut p = Placement::new(4, 2, (aw, ah));
+        let at = |s, t, x, y| atlas.position(s, t, x, y).unwrap();
+        let (x0, y0) = at(1, Some(Augment::Rot90), 4, 2);
+        p.copy(0, 0, x0, y0);
+        let (x1, y1) = at(0, None, 6, 3);
+        p.copy(1, 0, x1, y1);
+        let (x2, y2) = at(1, None, 0, 5);
+        p.blend(1, 0, x2, y2, 1, 4);
+        let bytes = encode(&p, Some(&atlas)).unwrap();
+        let map = decode_map(&bytes).unwrap();
+        assert_eq!(map.atlas.as_ref(), Some(&atlas));
+        assert_eq!(map.sample_sizes(), vec![(7, 4), (5, 6)]);
+        assert_eq!(map.placement, p);
+        // Any EXR reader sees the sample, transform and pixel in the sample's own coordinates.
+        let image = read_all_flat_layers_from_buffered(std::io::Cursor::new(&bytes)).unwrap();
+        let ch = |name: &str| match &image.layer_data[0].channel_data.list.iter().find(|c| c.name.eq(name)).unwrap().sample_data {
+            FlatSamples::U32(v) => v.clone(),
+            _ => panic!(),
+        };
+        assert_eq!((ch("X")[0], ch("Y")[0], ch("S")[0], ch("T")[0]), (4, 2, 1, 1));
+        assert_eq!((ch("B1X")[1], ch("B1Y")[1], ch("B1S")[1], ch("B1T")[1], ch("B1N")[1], ch("B1D")[1]), (0, 5, 1, 0, 1, 4));
     }
 
     #[test]

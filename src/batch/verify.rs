@@ -6,6 +6,7 @@
 //! directory still has the recorded bytes and pixels. The manifest's deterministic digest is
 //! recomputed too, so an edited manifest is caught even when its jobs still reproduce.
 
+use crate::batch::execute::LoadedSample;
 use crate::batch::execute::{JobInputs, SOURCE_MAP_FORMAT, load_sample, synthesize_and_encode};
 use crate::batch::job::Companion;
 use crate::batch::job::OutputSpec;
@@ -173,9 +174,19 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     if loaded.pixel_digest != sample.pixel_digest {
         return Outcome::Mismatch(vec![format!("sample `{}` no longer has the recorded pixels", sample.path)]);
     }
+    let loaded = std::sync::Arc::new(loaded);
+    // Several samples or `augment`: the atlas the job searched, from the recorded files.
+    let atlas = match atlas_of_record(rec, spec, dir, &loaded) {
+        Ok(a) => a,
+        Err(e) => return Outcome::Mismatch(vec![e]),
+    };
+    let searched: &LoadedSample = atlas.as_ref().map_or(&*loaded, |a| &*a.search);
     // The method's own checks, as for a job file: a manifest may have been edited into
     // parameters no job file would pass (a block larger than the sample).
-    let size = loaded.image.dimensions();
+    let size = searched.image.dimensions();
+    if let Some(Err((key, e))) = atlas.as_ref().map(|a| a.check_block(params.int("block").ok())) {
+        return Outcome::Mismatch(vec![format!("recorded `{key}`: {e}")]);
+    }
     let issues = method.check(&params, size, (output.width, output.height));
     if !issues.is_empty() {
         return Outcome::Mismatch(issues.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
@@ -207,6 +218,11 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             Ok(s) => s,
             Err(e) => return Outcome::Mismatch(vec![e]),
         };
+        // Packed like the samples when the job searched an atlas of transformed copies.
+        let loaded = match &atlas {
+            Some(a) => crate::batch::samples::pack_map(&a.atlas, &[&loaded], spec.kind),
+            None => loaded,
+        };
         companions.push((spec, loaded));
     }
     // The sample mask: still the recorded pixels, of the sample's size.
@@ -220,7 +236,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             if mask.pixel_digest != m.pixel_digest || wanted.get("pixels") != Some(&serde_json::json!(m.pixel_digest)) {
                 return Outcome::Mismatch(vec![format!("sample mask `{}` no longer has the recorded pixels", m.path)]);
             }
-            if mask.image.dimensions() != size {
+            if mask.image.dimensions() != loaded.image.dimensions() {
                 return Outcome::Mismatch(vec![format!("sample mask `{}` is not the sample's size", m.path)]);
             }
             Some(SampleMask::from_image(&mask.image))
@@ -303,7 +319,13 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             if &images.spec() != wanted {
                 return Outcome::Mismatch(vec!["the record's guides do not match its output spec".into()]);
             }
-            match images.guide(&loaded, &sample_path, (output.width, output.height)) {
+            let packed = atlas
+                .as_ref()
+                .zip(source.as_ref())
+                .map(|(a, s)| crate::batch::samples::pack_map(&a.atlas, &[s], crate::synth::placement::MapKind::Color));
+            let images =
+                crate::batch::guide::GuideImages { source: source_path.as_deref().zip(packed.as_ref().or(source.as_ref())), ..images };
+            match images.guide(searched, &sample_path, (output.width, output.height)) {
                 Ok(g) => Some(g),
                 Err((key, e)) => return Outcome::Mismatch(vec![format!("recorded `{key}`: {e}")]),
             }
@@ -315,14 +337,15 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     }
     let inputs = JobInputs {
         method,
-        sample: &loaded,
+        sample: searched,
         params: &params,
         seed,
         output: &output,
         companions: companions.iter().map(|(c, l)| (c, l)).collect(),
-        sample_mask: sample_mask.as_ref(),
+        sample_mask: atlas.as_ref().map(|a| &a.mask).or(sample_mask.as_ref()),
         fill: fill.as_ref(),
         guide: guide.as_ref(),
+        atlas: atlas.as_ref().map(|a| crate::batch::execute::AtlasInputs { atlas: &a.atlas, first: &a.first }),
     };
     match synthesize_and_encode(&inputs) {
         Err(e) => problems.push(format!("re-run failed: {e}")),
@@ -415,4 +438,64 @@ pub fn pixel_digests(manifest: &Manifest) -> Vec<(&JobRecord, Vec<(&str, &Digest
         .filter(|j| matches!(j.status, Status::Ok | Status::UpToDate))
         .map(|j| (j, j.outputs.iter().map(|o| (o.path.as_str(), &o.pixel_digest)).collect()))
         .collect()
+}
+
+/// The atlas a recorded job with several samples or `augment` searched (`output_spec.samples`),
+/// rebuilt from its recorded sample and mask files, each checked against its recorded pixels.
+fn atlas_of_record(
+    rec: &JobRecord,
+    spec: &serde_json::Value,
+    dir: &Path,
+    first: &std::sync::Arc<LoadedSample>,
+) -> Result<Option<crate::batch::samples::AtlasSamples>, String> {
+    use crate::synth::params::Choice;
+    let Some(wanted) = spec.get("samples") else {
+        return if rec.samples.is_empty() && spec.get("augment").is_none() {
+            Ok(None)
+        } else {
+            Err("the record's samples do not match its output spec".into())
+        };
+    };
+    let wanted = wanted.as_array().ok_or("recorded `output_spec.samples` is not a list")?;
+    if wanted.len() != rec.samples.len()
+        || rec.samples.is_empty()
+        || (!rec.sample_masks.is_empty() && rec.sample_masks.len() != wanted.len())
+    {
+        return Err("the record's samples do not match its output spec".into());
+    }
+    let augment: Vec<crate::synth::atlas::Augment> = match spec.get("augment") {
+        None => Vec::new(),
+        Some(list) => list
+            .as_array()
+            .and_then(|l| l.iter().map(|a| a.as_str().and_then(crate::synth::atlas::Augment::parse)).collect::<Option<Vec<_>>>())
+            .ok_or("recorded `output_spec.augment` is not a list of transforms")?,
+    };
+    let load = |r: &crate::batch::manifest::SampleRecord, what: &str| -> Result<std::sync::Arc<LoadedSample>, String> {
+        match load_sample(&dir.join(&r.path)) {
+            Ok(l) if l.pixel_digest == r.pixel_digest => Ok(std::sync::Arc::new(l)),
+            Ok(_) => Err(format!("{what} `{}` no longer has the recorded pixels", r.path)),
+            Err(e) => Err(format!("{what} {e}")),
+        }
+    };
+    let mut samples = Vec::new();
+    let mut masks = Vec::new();
+    for (i, (w, r)) in wanted.iter().zip(&rec.samples).enumerate() {
+        if w.get("pixels") != Some(&serde_json::json!(r.pixel_digest)) {
+            return Err(format!("sample `{}` does not match its output spec", r.path));
+        }
+        let s = if i == 0 { first.clone() } else { load(r, "sample")? };
+        if i == 0 && s.pixel_digest != r.pixel_digest {
+            return Err(format!("sample `{}` does not match the record's first sample", r.path));
+        }
+        samples.push((dir.join(&r.path), s));
+        let mask = match rec.sample_masks.get(i).cloned().flatten() {
+            Some(m) if w.get("mask") == Some(&serde_json::json!(m.pixel_digest)) => Some((dir.join(&m.path), load(&m, "sample mask")?)),
+            None if w.get("mask").is_none() => None,
+            _ => return Err("the record's sample masks do not match its output spec".into()),
+        };
+        masks.push(mask);
+    }
+    let samples_ref: Vec<(&Path, std::sync::Arc<LoadedSample>)> = samples.iter().map(|(p, s)| (p.as_path(), s.clone())).collect();
+    let masks_ref: Vec<Option<(&Path, &LoadedSample)>> = masks.iter().map(|m| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
+    crate::batch::samples::assemble(&samples_ref, &masks_ref, &augment).map(Some).map_err(|(key, e)| format!("recorded `{key}`: {e}"))
 }

@@ -9,6 +9,8 @@ use texsyn::image::io::{self as imageio, Encoding, Format, ImageError};
 use texsyn::synth::placement::MapKind;
 
 pub const HELP: &str = "\
+A map of a job with several samples (or `augment`) is replayed over one image per sample, in the
+order of the job's `samples`: `texsyn apply map.exr a_normal.png b_normal.png -o normal.png`.
 The output has the image's channels; its precision is the image's (8 or 16-bit PNG, float EXR)
 unless --bit-depth asks for another PNG depth. Applying a job's source map over its own sample
 gives the job's output, pixel for pixel.";
@@ -17,8 +19,9 @@ gives the job's output, pixel for pixel.";
 pub struct Args {
     /// The source map a job wrote (`[output] source_map = \"….exr\"`).
     map: PathBuf,
-    /// Any image of the job's sample size.
-    image: PathBuf,
+    /// Any image of the job's sample size; one per sample, in order, for a job with several samples.
+    #[arg(required = true, num_args = 1..)]
+    image: Vec<PathBuf>,
     /// Where to write the result (.png or .exr).
     #[arg(short, long)]
     output: PathBuf,
@@ -53,20 +56,50 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
             texsyn::batch::memory::too_large(needed, limit)
         )));
     }
-    let placement = texsyn::batch::source_map::decode(&bytes)
+    let map = texsyn::batch::source_map::decode_map(&bytes)
         .map_err(|reason| Error::Image { path: args.map.clone(), source: ImageError::Decode(reason) })?;
-    let image = load_sample(&args.image)?;
-    let native = image.native_or_guide();
-    if (native.width, native.height) != placement.sample_size() {
-        let (w, h) = placement.sample_size();
+    let sizes = map.sample_sizes();
+    if args.image.len() != sizes.len() {
         return Err(Error::Usage(format!(
-            "{} is {}x{}, but the source map {} renders from images of its sample's size, {w}x{h}",
-            args.image.display(),
-            native.width,
-            native.height,
-            args.map.display()
+            "the source map {} was made from {} sample{}; give one image per sample, in the job's order (got {})",
+            args.map.display(),
+            sizes.len(),
+            if sizes.len() == 1 { "" } else { "s" },
+            args.image.len()
         )));
     }
+    let mut images = Vec::new();
+    for (path, &(w, h)) in args.image.iter().zip(&sizes) {
+        let image = load_sample(path)?;
+        let (iw, ih) = image.image.dimensions();
+        if (iw, ih) != (w, h) {
+            return Err(Error::Usage(format!(
+                "{} is {iw}x{ih}, but the source map {} renders from images of its sample's size, {w}x{h}",
+                path.display(),
+                args.map.display()
+            )));
+        }
+        if let Some(first) = images.first().map(|i: &texsyn::batch::execute::LoadedSample| i.describe())
+            && first != image.describe()
+        {
+            return Err(Error::Usage(format!(
+                "{} is {} but {} is {first}; the images must share channels and precision",
+                path.display(),
+                image.describe(),
+                args.image[0].display()
+            )));
+        }
+        images.push(image);
+    }
+    let image = &images[0];
+    let placement = &map.placement;
+    let native = match &map.atlas {
+        None => image.native_or_guide(),
+        Some(atlas) => {
+            let natives: Vec<_> = images.iter().map(|i| i.native_or_guide()).collect();
+            std::borrow::Cow::Owned(atlas.compose(&natives.iter().map(|n| &**n).collect::<Vec<_>>(), kind))
+        }
+    };
     let bit_depth = match (format, args.bit_depth) {
         (Format::Exr, None) => 32,
         (Format::Exr, Some(_)) => return Err(Error::Usage("--bit-depth applies to PNG outputs only".into())),
@@ -87,7 +120,7 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         args.output.display(),
         placement.width(),
         placement.height(),
-        args.image.display(),
+        args.image.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
         image.describe(),
         encoded.pixels.pixel_digest().short()
     ));

@@ -14,9 +14,14 @@ running it, so that a one-off can join a job directory.";
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The sample image (PNG 8/16-bit, JPEG, EXR); leave it out with --inpaint.
-    #[arg(required_unless_present = "inpaint", conflicts_with = "inpaint")]
-    sample: Option<PathBuf>,
+    /// The sample image (PNG 8/16-bit, JPEG, EXR), or several to learn from together; leave it
+    /// out with --inpaint.
+    #[arg(required_unless_present = "inpaint", conflicts_with = "inpaint", num_args = 1..)]
+    sample: Vec<PathBuf>,
+    /// Also search turned or mirrored copies of the samples: any of rot90, rot180, rot270,
+    /// flip_h, flip_v, comma-separated.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    augment: Vec<String>,
     /// Repair IMAGE instead: fill the pixels --mask marks (or --mask-channel), keep every other one.
     #[arg(long, value_name = "IMAGE", requires = "inpaint_mask")]
     inpaint: Option<PathBuf>,
@@ -78,7 +83,8 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     if inpaint.is_some() && args.size.is_some() {
         return Err(Error::Usage("--inpaint makes an output of the image's size: leave --size out".into()));
     }
-    let sample = args.inpaint.or(args.sample).expect("clap requires a sample or --inpaint");
+    let mut samples = args.sample.into_iter();
+    let sample = args.inpaint.or(samples.next()).expect("clap requires a sample or --inpaint");
     let guide = args.guide.map(|t| std::path::absolute(&t).unwrap_or(t));
     let size = match (&args.size, &guide) {
         (Some(s), _) => Some(parse_size(s)?),
@@ -87,6 +93,8 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     };
     let one = OneOff {
         sample,
+        more_samples: samples.collect(),
+        augment: args.augment,
         inpaint,
         guide,
         output: args.output,

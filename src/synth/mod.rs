@@ -6,6 +6,7 @@
 //! `metrics` (autocorrelation), below the batch pipeline.
 
 pub mod advice;
+pub mod atlas;
 pub mod constraints;
 pub mod error;
 pub mod lattice;

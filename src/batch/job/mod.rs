@@ -26,8 +26,21 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The top-level keys of a job file.
-pub const TOP_KEYS: &[&str] =
-    &["sample", "method", "seed", "output", "params", "sweep", "metrics", "companion", "sample_mask", "inpaint", "guide"];
+pub const TOP_KEYS: &[&str] = &[
+    "sample",
+    "samples",
+    "augment",
+    "method",
+    "seed",
+    "output",
+    "params",
+    "sweep",
+    "metrics",
+    "companion",
+    "sample_mask",
+    "inpaint",
+    "guide",
+];
 /// The keys of the `[guide]` table.
 pub const GUIDE_KEYS: &[&str] = &["target", "source", "weight", "passes"];
 /// `[guide] passes` when the file leaves it out: Efros and Freeman iterate three to five times.
@@ -175,6 +188,13 @@ pub struct GuideSpec {
     pub passes: u32,
 }
 
+/// A sample after the first of `samples = [...]`, with its `sample_mask` entry.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MoreSample {
+    pub path: PathBuf,
+    pub mask: Option<PathBuf>,
+}
+
 /// One runnable job (a job file, or one point of its sweep).
 #[derive(Clone)]
 pub struct Job {
@@ -187,8 +207,13 @@ pub struct Job {
     pub file_digest: Digest,
     /// The sample, resolved against the job file's directory.
     pub sample: PathBuf,
-    /// `sample_mask`: which sample pixels may be copied (white), resolved like the sample.
+    /// `sample_mask`: which sample pixels may be copied (white), resolved like the sample (with
+    /// `samples`, the first sample's; the others' are in [`Job::more_samples`]).
     pub sample_mask: Option<PathBuf>,
+    /// `samples = [...]`: the samples after the first (which is [`Job::sample`]).
+    pub more_samples: Vec<MoreSample>,
+    /// `augment = [...]`: transformed copies of every sample that are searched too.
+    pub augment: Vec<crate::synth::atlas::Augment>,
     /// `[inpaint]`: fill part of the sample (the image) and keep the rest.
     pub inpaint: Option<Inpaint>,
     /// `[guide]`: follow a target guide.
@@ -212,6 +237,22 @@ impl fmt::Debug for Job {
 }
 
 impl Job {
+    /// Whether the job searches an atlas of pieces ([`crate::synth::atlas`]): several samples,
+    /// or transformed copies of its sample.
+    pub fn uses_atlas(&self) -> bool {
+        !self.more_samples.is_empty() || !self.augment.is_empty()
+    }
+
+    /// Every sample, the first one first.
+    pub fn sample_paths(&self) -> Vec<PathBuf> {
+        std::iter::once(self.sample.clone()).chain(self.more_samples.iter().map(|m| m.path.clone())).collect()
+    }
+
+    /// Every sample's mask file, in the order of [`Job::sample_paths`].
+    pub fn sample_mask_paths(&self) -> Vec<Option<PathBuf>> {
+        std::iter::once(self.sample_mask.clone()).chain(self.more_samples.iter().map(|m| m.mask.clone())).collect()
+    }
+
     /// The guide images, when the job is guided (decoded with the samples).
     pub fn guide_files(&self) -> Vec<PathBuf> {
         self.guide.iter().flat_map(|g| std::iter::once(g.target.clone()).chain(g.source.clone())).collect()

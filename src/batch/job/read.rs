@@ -52,6 +52,9 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
     let mut raw = Raw {
         sample: None,
         sample_mask: None,
+        samples: None,
+        sample_masks: None,
+        augment: None,
         inpaint: None,
         guide: None,
         method: None,
@@ -84,12 +87,28 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
             "sample_mask" => match v.get_ref() {
                 DeValue::String(s) if !s.is_empty() => raw.sample_mask = Some((s.to_string(), v.span())),
                 DeValue::String(_) => ctx.err(Some(v.span()), Some("sample_mask"), "sample_mask path is empty"),
+                DeValue::Array(_) => {
+                    raw.sample_masks = read_string_list(ctx, v, "sample_mask", true).map(|l| (l, v.span()));
+                }
                 other => ctx.err(
                     Some(v.span()),
                     Some("sample_mask"),
-                    format!("expected a string (the mask image's path: white = may be copied, black = never), found {}", type_name(other)),
+                    format!(
+                        "expected a string (the mask image's path: white = may be copied, black = never) or a list parallel to `samples`, found {}",
+                        type_name(other)
+                    ),
                 ),
             },
+            "samples" => match v.get_ref() {
+                DeValue::Array(a) if a.is_empty() => ctx.err(Some(v.span()), Some("samples"), "samples is empty: name at least one sample"),
+                DeValue::Array(_) => raw.samples = read_string_list(ctx, v, "samples", false).map(|l| (l, v.span())),
+                other => ctx.err(
+                    Some(v.span()),
+                    Some("samples"),
+                    format!("expected a list of sample paths (`samples = [\"a.png\", \"b.png\"]`), found {}", type_name(other)),
+                ),
+            },
+            "augment" => read_augment(ctx, v, &mut raw),
             "method" => match v.get_ref() {
                 DeValue::String(s) => match methods::find(s) {
                     Some(m) => raw.method = Some(m),
@@ -146,7 +165,8 @@ fn read_top_level<'t>(ctx: &mut Ctx, table: &'t DeTable) -> (Raw<'t>, Option<&'t
 /// Reads one file's keys, reports every problem, and expands the valid result into jobs.
 fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
     let (mut raw, params_table, sweep_table) = read_top_level(ctx, table);
-    for (key, what) in [("sample", raw.sample.is_some() || raw.inpaint.is_some()), ("method", table.get("method").is_some())] {
+    let sample_given = raw.sample.is_some() || raw.samples.is_some() || raw.inpaint.is_some() || table.get("samples").is_some();
+    for (key, what) in [("sample", sample_given), ("method", table.get("method").is_some())] {
         if !what && table.get(key).is_none() {
             ctx.err(None, Some(key), format!("missing required key `{key}`"));
         }
@@ -193,42 +213,103 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         ctx.err(span, Some("seed"), "seed is given both at the top level and in [sweep]; keep one");
     }
 
-    // The sample must exist (it is decoded later, once per distinct file).
+    // The samples must exist (they are decoded later, once per distinct file).
+    let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let exists = |ctx: &mut Ctx, s: &str, span: &std::ops::Range<usize>, key: &str, what: &str| {
+        let p = base.join(s);
+        if p.is_file() {
+            Some(p)
+        } else {
+            let why = missing_file_reason(&p);
+            ctx.err(Some(span.clone()), Some(key), format!("{what} `{}` {why} (paths are relative to the job file)", p.display()));
+            None
+        }
+    };
+    if let (Some(_), Some((_, span))) = (&raw.sample, &raw.samples) {
+        ctx.err(Some(span.clone()), Some("samples"), "both `sample` and `samples` are given; keep one (`samples` may hold a single path)");
+    }
     let mut sample_path = None;
+    let mut more_paths: Vec<Option<std::path::PathBuf>> = Vec::new();
     if let Some((s, span)) = &raw.sample {
-        let base = ctx.file.path.parent().unwrap_or(Path::new(""));
-        let p = base.join(s);
-        if !p.is_file() {
-            let why = missing_file_reason(&p);
-            ctx.err(Some(span.clone()), Some("sample"), format!("sample `{}` {why} (paths are relative to the job file)", p.display()));
-        } else {
-            sample_path = Some(p);
-        }
+        sample_path = exists(ctx, s, span, "sample", "sample");
+    } else if let Some((list, _)) = &raw.samples {
+        let found: Vec<_> = list.iter().map(|(s, span)| exists(ctx, s, span, "samples", "sample")).collect();
+        sample_path = found[0].clone();
+        more_paths = found[1..].to_vec();
     }
-    // The sample mask, likewise; and only for a method that honours one.
+    let sample_count = raw.samples.as_ref().map_or(1, |(l, _)| l.len());
+    // The sample masks, likewise: one string for one sample, or a list parallel to `samples`.
     let mut sample_mask = None;
+    let mut more_masks: Vec<Option<std::path::PathBuf>> = vec![None; sample_count.saturating_sub(1)];
+    let mask_span = raw.sample_mask.as_ref().map(|(_, s)| s.clone()).or_else(|| raw.sample_masks.as_ref().map(|(_, s)| s.clone()));
     if let Some((s, span)) = &raw.sample_mask {
-        let base = ctx.file.path.parent().unwrap_or(Path::new(""));
-        let p = base.join(s);
-        if !p.is_file() {
-            let why = missing_file_reason(&p);
+        if sample_count > 1 {
             ctx.err(
                 Some(span.clone()),
                 Some("sample_mask"),
-                format!("sample mask `{}` {why} (paths are relative to the job file)", p.display()),
+                format!(
+                    "with {sample_count} samples, give `sample_mask` as a list parallel to `samples` (\"\" for a sample without a mask)"
+                ),
             );
         } else {
-            sample_mask = Some(p);
+            sample_mask = exists(ctx, s, span, "sample_mask", "sample mask");
         }
-        if let Some(m) = method.filter(|m| !m.honours_sample_mask()) {
-            let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_sample_mask()).map(|m| m.name()).collect();
+    }
+    if let Some((list, span)) = &raw.sample_masks {
+        if list.len() != sample_count {
             ctx.err(
                 Some(span.clone()),
                 Some("sample_mask"),
-                format!("{} does not honour a sample mask; methods that do: {}", m.name(), can.join(", ")),
+                format!(
+                    "lists {} masks for {sample_count} samples; give one per sample, in the order of `samples` (\"\" for none)",
+                    list.len()
+                ),
+            );
+        } else {
+            let resolved: Vec<Option<std::path::PathBuf>> =
+                list.iter().map(|(s, span)| if s.is_empty() { None } else { exists(ctx, s, span, "sample_mask", "sample mask") }).collect();
+            sample_mask = resolved[0].clone();
+            more_masks = resolved[1..].to_vec();
+        }
+    }
+    let masked = raw.sample_mask.is_some() || raw.sample_masks.as_ref().is_some_and(|(l, _)| l.iter().any(|(s, _)| !s.is_empty()));
+    if masked && let (Some(m), Some(span)) = (method.filter(|m| !m.honours_sample_mask()), &mask_span) {
+        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_sample_mask()).map(|m| m.name()).collect();
+        ctx.err(
+            Some(span.clone()),
+            Some("sample_mask"),
+            format!("{} does not honour a sample mask; methods that do: {}", m.name(), can.join(", ")),
+        );
+    }
+    // Several samples and transformed copies are searched as one atlas whose gutters a sample
+    // mask forbids: only a method that honours sample masks can learn from them.
+    let augment = raw.augment.as_ref().map(|(a, _)| a.clone()).unwrap_or_default();
+    if let Some(m) = method.filter(|m| !m.honours_sample_mask()) {
+        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_sample_mask()).map(|m| m.name()).collect();
+        if let Some((_, span)) = raw.samples.as_ref().filter(|(l, _)| l.len() > 1) {
+            ctx.err(
+                Some(span.clone()),
+                Some("samples"),
+                format!("{} learns from one sample; methods that take several: {}", m.name(), can.join(", ")),
+            );
+        }
+        if let Some((_, span)) = raw.augment.as_ref().filter(|(a, _)| !a.is_empty()) {
+            ctx.err(
+                Some(span.clone()),
+                Some("augment"),
+                format!("{} cannot search transformed copies of its sample; methods that can: {}", m.name(), can.join(", ")),
             );
         }
     }
+    if sample_count > 1 && !raw.companions.is_empty() {
+        ctx.err(
+            None,
+            Some("companion"),
+            "companions are rendered from one sample's maps; with several `samples` they are not supported yet (`augment` with one sample works)",
+        );
+    }
+    let more_samples: Vec<super::MoreSample> =
+        more_paths.into_iter().zip(more_masks).filter_map(|(p, mask)| p.map(|path| super::MoreSample { path, mask })).collect();
     let inpaint = match raw.inpaint.take() {
         Some(r) => check_inpaint(ctx, r, &raw, method, &mut sample_path).map(|(inpaint, size)| {
             if let Some((w, h)) = size {
@@ -288,6 +369,8 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         method,
         sample,
         sample_mask,
+        more_samples,
+        augment,
         inpaint,
         guide,
         path_template,
@@ -301,6 +384,69 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         companions,
     };
     sweep::expand(ctx, &raw, &ready)
+}
+
+/// A list of strings (paths), each checked; `allow_empty`: `""` entries are kept (a sample
+/// without a mask). `None` when an entry is not a string.
+fn read_string_list(ctx: &mut Ctx, v: &Spanned<DeValue>, key: &str, allow_empty: bool) -> Option<Vec<(String, std::ops::Range<usize>)>> {
+    let DeValue::Array(items) = v.get_ref() else { return None };
+    let mut out = Vec::new();
+    let mut ok = true;
+    for (i, item) in items.iter().enumerate() {
+        match item.get_ref() {
+            DeValue::String(s) if !s.is_empty() || allow_empty => out.push((s.to_string(), item.span())),
+            DeValue::String(_) => {
+                ctx.err(Some(item.span()), Some(key), format!("entry {} is an empty path", i + 1));
+                ok = false;
+            }
+            other => {
+                ctx.err(Some(item.span()), Some(key), format!("entry {} should be a path (a string), found {}", i + 1, type_name(other)));
+                ok = false;
+            }
+        }
+    }
+    ok.then_some(out)
+}
+
+/// `augment = ["rot90", …]`: known words, each once.
+fn read_augment(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
+    use crate::synth::atlas::Augment;
+    let DeValue::Array(items) = v.get_ref() else {
+        ctx.err(
+            Some(v.span()),
+            Some("augment"),
+            format!("expected a list of transforms (any of {}), found {}", Augment::NAMES.join(", "), type_name(v.get_ref())),
+        );
+        return;
+    };
+    let mut out: Vec<Augment> = Vec::new();
+    let mut ok = true;
+    for item in items.iter() {
+        let DeValue::String(word) = item.get_ref() else {
+            ctx.err(Some(item.span()), Some("augment"), format!("expected a transform name, found {}", type_name(item.get_ref())));
+            ok = false;
+            continue;
+        };
+        match Augment::parse(word) {
+            Some(a) if out.contains(&a) => {
+                ctx.err(Some(item.span()), Some("augment"), format!("`{word}` is listed twice"));
+                ok = false;
+            }
+            Some(a) => out.push(a),
+            None => {
+                let hint = params::nearest(word, Augment::NAMES).map(|n| format!(" (did you mean `{n}`?)")).unwrap_or_default();
+                ctx.err(
+                    Some(item.span()),
+                    Some("augment"),
+                    format!("unknown transform `{word}`{hint}; valid: {}", Augment::NAMES.join(", ")),
+                );
+                ok = false;
+            }
+        }
+    }
+    if ok {
+        raw.augment = Some((out, v.span()));
+    }
 }
 
 /// `[guide]`: `target` and `source` (paths), `weight` (a number in 0..=1), each checked for type.
@@ -366,6 +512,16 @@ fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dy
     }
     if raw.tileable {
         ctx.err(Some(g.span.clone()), Some("guide"), "a guided output cannot wrap yet: leave output.tileable out");
+        ok = false;
+    }
+    if let (Some((_, span)), Some((list, _))) = (&g.source, &raw.samples)
+        && list.len() > 1
+    {
+        ctx.err(
+            Some(span.clone()),
+            Some("guide.source"),
+            "with several `samples`, each sample's luminance is its guide: leave `guide.source` out (one source guide per sample is not supported yet)",
+        );
         ok = false;
     }
     let mut file = |key: &str, value: &Option<(String, std::ops::Range<usize>)>, what: &str| -> Option<std::path::PathBuf> {
@@ -453,6 +609,16 @@ fn check_inpaint(
             "an [inpaint] job copies from its image (outside the mask): leave `sample` out (a separate sample for inpainting is not supported yet)",
         );
         ok = false;
+    }
+    for (key, span) in [("samples", raw.samples.as_ref().map(|(_, s)| s)), ("augment", raw.augment.as_ref().map(|(_, s)| s))] {
+        if let Some(span) = span {
+            ctx.err(
+                Some(span.clone()),
+                Some(key),
+                format!("an [inpaint] job copies from its image (outside the mask): leave `{key}` out (other samples for inpainting are not supported yet)"),
+            );
+            ok = false;
+        }
     }
     if let Some(m) = method.filter(|m| !m.honours_inpaint()) {
         let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_inpaint()).map(|m| m.name()).collect();

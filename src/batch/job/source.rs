@@ -147,7 +147,14 @@ pub(super) fn de_param(v: &DeValue) -> Result<ParamValue, String> {
 
 pub(super) struct Raw<'a> {
     pub(super) sample: Option<(String, std::ops::Range<usize>)>,
+    /// `sample_mask` as a string (one sample's mask).
     pub(super) sample_mask: Option<(String, std::ops::Range<usize>)>,
+    /// `samples = [...]` as read: each path with its span, and the list's span.
+    pub(super) samples: Option<(Vec<(String, std::ops::Range<usize>)>, std::ops::Range<usize>)>,
+    /// `sample_mask = [...]`, a list parallel to `samples` (`""` for a sample without a mask).
+    pub(super) sample_masks: Option<(Vec<(String, std::ops::Range<usize>)>, std::ops::Range<usize>)>,
+    /// `augment = [...]`, checked word by word, and the list's span.
+    pub(super) augment: Option<(Vec<crate::synth::atlas::Augment>, std::ops::Range<usize>)>,
     /// `[inpaint]`: the image (path, span) and the mask as read; checked in `read`.
     pub(super) inpaint: Option<RawInpaint>,
     /// `[guide]` as read: target and source (path, span), weight; checked in `read`.
@@ -204,6 +211,9 @@ pub(super) struct Ready {
     pub sample: PathBuf,
     /// `sample_mask`, resolved against the job file's directory.
     pub sample_mask: Option<PathBuf>,
+    /// `samples[1..]`, each with its mask.
+    pub more_samples: Vec<super::MoreSample>,
+    pub augment: Vec<crate::synth::atlas::Augment>,
     pub inpaint: Option<super::Inpaint>,
     pub guide: Option<super::GuideSpec>,
     pub path_template: String,

@@ -1,0 +1,441 @@
+//! Several samples, and turned or mirrored copies of them, as one image a method can search.
+//!
+//! A job may learn from several photos of a material (`samples = [...]`) and from their
+//! rotations and mirror images (`augment = [...]`). Rather than teach every method's search about
+//! lists of images, the pieces — each sample as it is, then each of its transformed copies — are
+//! packed into one *atlas* with a forbidden one-pixel gutter between them, and the atlas's
+//! [`SampleMask`] allows exactly the pieces' pixels (and, inside a piece, what its own sample
+//! mask allows). A method that honours sample masks copies only blocks whose every pixel is
+//! allowed, so no block can straddle two pieces, and every output pixel comes from one sample
+//! under one transform. The placement is then in atlas coordinates; [`Atlas::locate`] turns
+//! them back into (sample, transform, pixel of the original sample), which is what the source
+//! map records (version 2) and `texsyn apply` renders from.
+//!
+//! The layout is a pure function of the samples' sizes and the transform list, so anyone holding
+//! the samples rebuilds the same atlas.
+
+use crate::image::io::{NativeImage, Samples};
+use crate::synth::constraints::SampleMask;
+use crate::synth::placement::MapKind;
+
+crate::choice! {
+    /// A transformed copy of every sample that is also searched (`augment` in a job file). The
+    /// rotations are clockwise, as an image viewer shows them.
+    pub enum Augment {
+        Rot90 = "rot90",
+        Rot180 = "rot180",
+        Rot270 = "rot270",
+        FlipH = "flip_h",
+        FlipV = "flip_v",
+    }
+}
+
+impl Augment {
+    /// The size of a `w × h` image under the transform.
+    pub fn size(self, w: u32, h: u32) -> (u32, u32) {
+        match self {
+            Augment::Rot90 | Augment::Rot270 => (h, w),
+            _ => (w, h),
+        }
+    }
+
+    /// The pixel of the original `w × h` image shown at `(u, v)` of the transformed copy.
+    pub fn source_of(self, u: u32, v: u32, w: u32, h: u32) -> (u32, u32) {
+        match self {
+            Augment::Rot90 => (v, h - 1 - u),
+            Augment::Rot180 => (w - 1 - u, h - 1 - v),
+            Augment::Rot270 => (w - 1 - v, u),
+            Augment::FlipH => (w - 1 - u, v),
+            Augment::FlipV => (u, h - 1 - v),
+        }
+    }
+
+    /// Where the original pixel `(x, y)` lands in the transformed copy (the inverse of
+    /// [`Augment::source_of`]).
+    pub fn target_of(self, x: u32, y: u32, w: u32, h: u32) -> (u32, u32) {
+        match self {
+            Augment::Rot90 => (h - 1 - y, x),
+            Augment::Rot180 => (w - 1 - x, h - 1 - y),
+            Augment::Rot270 => (y, w - 1 - x),
+            Augment::FlipH => (w - 1 - x, y),
+            Augment::FlipV => (x, h - 1 - y),
+        }
+    }
+
+    /// The code the source map's `T` channel holds (0 is the sample as it is).
+    pub fn code(self) -> u32 {
+        match self {
+            Augment::Rot90 => 1,
+            Augment::Rot180 => 2,
+            Augment::Rot270 => 3,
+            Augment::FlipH => 4,
+            Augment::FlipV => 5,
+        }
+    }
+
+    /// The transform of a source map `T` code (`Some(None)`: as it is; `None`: no such code).
+    pub fn from_code(code: u32) -> Option<Option<Augment>> {
+        match code {
+            0 => Some(None),
+            1 => Some(Some(Augment::Rot90)),
+            2 => Some(Some(Augment::Rot180)),
+            3 => Some(Some(Augment::Rot270)),
+            4 => Some(Some(Augment::FlipH)),
+            5 => Some(Some(Augment::FlipV)),
+            _ => None,
+        }
+    }
+
+    /// A tangent-space normal's stored `(r, g)` (OpenGL convention, +y up the image; a value
+    /// `v` on `max` holds `n = 2v/max − 1`) turned with the image, so that a turned bump still
+    /// lights from the side it now faces. Negating `n` is `max − v`: exact in integers.
+    fn turn_normal(self, r: f64, g: f64, max: f64) -> (f64, f64) {
+        match self {
+            Augment::Rot90 => (g, max - r),
+            Augment::Rot180 => (max - r, max - g),
+            Augment::Rot270 => (max - g, r),
+            Augment::FlipH => (max - r, g),
+            Augment::FlipV => (r, max - g),
+        }
+    }
+}
+
+/// One sample, as it is or transformed, and where it lies in the atlas.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Piece {
+    /// Index in the job's `samples`.
+    pub sample: usize,
+    pub transform: Option<Augment>,
+    /// Top-left corner in the atlas.
+    pub x: u32,
+    pub y: u32,
+    /// Its size in the atlas (the sample's, swapped by a quarter turn).
+    pub width: u32,
+    pub height: u32,
+    /// The original sample's size.
+    pub sample_size: (u32, u32),
+}
+
+#[cfg(test)]
+impl Piece {
+    fn contains(&self, ax: u32, ay: u32) -> bool {
+        ax >= self.x && ay >= self.y && ax < self.x + self.width && ay < self.y + self.height
+    }
+}
+
+/// Pieces packed into one image, in shelves, with a gutter of [`GUTTER`] pixels between pieces.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Atlas {
+    width: u32,
+    height: u32,
+    pieces: Vec<Piece>,
+    /// For each atlas pixel, its piece (`u32::MAX` in gutters and unused corners).
+    owner: Vec<u32>,
+}
+
+/// Pixels between two pieces: one forbidden pixel keeps any block from straddling them.
+pub const GUTTER: u32 = 1;
+
+impl Atlas {
+    /// Every sample as it is, then each transformed copy of it, in the order given: sample-major,
+    /// transforms in `augment`'s order. Packed row by row into shelves no wider than the widest
+    /// piece or the side of a square of the pieces' area, whichever is larger.
+    pub fn layout(sample_sizes: &[(u32, u32)], augment: &[Augment]) -> Atlas {
+        let mut pieces = Vec::new();
+        for (i, &(w, h)) in sample_sizes.iter().enumerate() {
+            for t in std::iter::once(None).chain(augment.iter().copied().map(Some)) {
+                let (pw, ph) = t.map_or((w, h), |t| t.size(w, h));
+                pieces.push(Piece { sample: i, transform: t, x: 0, y: 0, width: pw, height: ph, sample_size: (w, h) });
+            }
+        }
+        let area: u64 = pieces.iter().map(|p| u64::from(p.width + GUTTER) * u64::from(p.height + GUTTER)).sum();
+        let widest = pieces.iter().map(|p| p.width).max().unwrap_or(0);
+        let shelf = widest.max((area as f64).sqrt().ceil() as u32);
+        let (mut x, mut y, mut row_height, mut width) = (0u32, 0u32, 0u32, 0u32);
+        for p in &mut pieces {
+            if x > 0 && x + p.width > shelf {
+                y += row_height + GUTTER;
+                x = 0;
+                row_height = 0;
+            }
+            (p.x, p.y) = (x, y);
+            x += p.width + GUTTER;
+            row_height = row_height.max(p.height);
+            width = width.max(p.x + p.width);
+        }
+        let height = y + row_height;
+        let mut owner = vec![u32::MAX; width as usize * height as usize];
+        for (k, p) in pieces.iter().enumerate() {
+            for py in p.y..p.y + p.height {
+                let row = py as usize * width as usize;
+                owner[row + p.x as usize..row + (p.x + p.width) as usize].fill(k as u32);
+            }
+        }
+        Atlas { width, height, pieces, owner }
+    }
+
+    pub fn dimensions(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    pub fn pieces(&self) -> &[Piece] {
+        &self.pieces
+    }
+
+    /// How many samples it was made from.
+    pub fn samples(&self) -> usize {
+        self.pieces.iter().map(|p| p.sample + 1).max().unwrap_or(0)
+    }
+
+    /// The piece an atlas pixel belongs to and the pixel of the original sample it shows; `None`
+    /// in a gutter.
+    pub fn locate(&self, ax: u32, ay: u32) -> Option<(&Piece, (u32, u32))> {
+        if ax >= self.width || ay >= self.height {
+            return None;
+        }
+        let k = self.owner[ay as usize * self.width as usize + ax as usize];
+        let p = self.pieces.get(k as usize)?;
+        let (u, v) = (ax - p.x, ay - p.y);
+        let (w, h) = p.sample_size;
+        Some((p, p.transform.map_or((u, v), |t| t.source_of(u, v, w, h))))
+    }
+
+    /// The atlas pixel showing pixel `(x, y)` of sample `sample` under `transform`; `None` when
+    /// the atlas has no such piece or the pixel lies outside the sample.
+    pub fn position(&self, sample: usize, transform: Option<Augment>, x: u32, y: u32) -> Option<(u32, u32)> {
+        let p = self.pieces.iter().find(|p| p.sample == sample && p.transform == transform)?;
+        let (w, h) = p.sample_size;
+        if x >= w || y >= h {
+            return None;
+        }
+        let (u, v) = transform.map_or((x, y), |t| t.target_of(x, y, w, h));
+        Some((p.x + u, p.y + v))
+    }
+
+    /// Which atlas pixels may be copied: the pieces', less what each sample's own mask (given
+    /// per sample, `None` = all of it) forbids.
+    pub fn mask(&self, sample_masks: &[Option<&SampleMask>]) -> SampleMask {
+        let allowed = (0..self.height)
+            .flat_map(|y| (0..self.width).map(move |x| (x, y)))
+            .map(|(x, y)| match self.locate(x, y) {
+                None => false,
+                Some((p, (sx, sy))) => sample_masks.get(p.sample).copied().flatten().is_none_or(|m| m.allows(sx, sy)),
+            })
+            .collect();
+        SampleMask::new(self.width, self.height, allowed)
+    }
+
+    /// The atlas of `images` (one per sample, each of its sample's size and all of one channel
+    /// count and precision): every piece's pixels from its sample, transformed; a normal map's
+    /// vectors turned with it (`kind`). Gutters and unused corners hold the pieces' mean value,
+    /// so that a search's coarse levels and a guide's statistics are not pulled by black lines.
+    pub fn compose(&self, images: &[&NativeImage], kind: MapKind) -> NativeImage {
+        let channels = images[0].channels as usize;
+        let n = self.width as usize * self.height as usize;
+        match &images[0].samples {
+            Samples::U8(_) => {
+                let data = self.compose_with(images, |s| match s {
+                    Samples::U8(v) => v.iter().map(|&x| f64::from(x)).collect(),
+                    _ => unreachable!("checked: one precision"),
+                });
+                let max = 255.0;
+                NativeImage {
+                    width: self.width,
+                    height: self.height,
+                    channels: channels as u32,
+                    samples: Samples::U8(self.finish(data, n, channels, kind, max).into_iter().map(|v| v as u8).collect()),
+                }
+            }
+            Samples::U16(_) => {
+                let data = self.compose_with(images, |s| match s {
+                    Samples::U16(v) => v.iter().map(|&x| f64::from(x)).collect(),
+                    _ => unreachable!("checked: one precision"),
+                });
+                NativeImage {
+                    width: self.width,
+                    height: self.height,
+                    channels: channels as u32,
+                    samples: Samples::U16(self.finish(data, n, channels, kind, 65535.0).into_iter().map(|v| v as u16).collect()),
+                }
+            }
+            Samples::F32(_) => {
+                let data = self.compose_with(images, |s| match s {
+                    Samples::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
+                    _ => unreachable!("checked: one precision"),
+                });
+                NativeImage {
+                    width: self.width,
+                    height: self.height,
+                    channels: channels as u32,
+                    samples: Samples::F32(self.finish(data, n, channels, kind, 1.0).into_iter().map(|v| v as f32).collect()),
+                }
+            }
+        }
+    }
+
+    /// The pieces' values (as f64, exact for every stored precision), `None` outside pieces.
+    fn compose_with(&self, images: &[&NativeImage], values: impl Fn(&Samples) -> Vec<f64>) -> Vec<Option<f64>> {
+        let channels = images[0].channels as usize;
+        let per_sample: Vec<Vec<f64>> = images.iter().map(|i| values(&i.samples)).collect();
+        let mut out = vec![None; self.width as usize * self.height as usize * channels];
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let Some((p, (sx, sy))) = self.locate(x, y) else { continue };
+                let src = &per_sample[p.sample];
+                let from = (sy as usize * p.sample_size.0 as usize + sx as usize) * channels;
+                let to = (y as usize * self.width as usize + x as usize) * channels;
+                for c in 0..channels {
+                    out[to + c] = Some(src[from + c]);
+                }
+            }
+        }
+        out
+    }
+
+    /// Turns normals with their pieces, then fills gutters with the pieces' mean.
+    fn finish(&self, mut data: Vec<Option<f64>>, n: usize, channels: usize, kind: MapKind, max: f64) -> Vec<f64> {
+        if kind == MapKind::Normal && channels >= 2 {
+            for i in 0..n {
+                let (x, y) = ((i % self.width as usize) as u32, (i / self.width as usize) as u32);
+                let Some((Piece { transform: Some(t), .. }, _)) = self.locate(x, y) else { continue };
+                let (Some(r), Some(g)) = (data[i * channels], data[i * channels + 1]) else { continue };
+                let (r, g) = t.turn_normal(r, g, max);
+                (data[i * channels], data[i * channels + 1]) = (Some(r), Some(g));
+            }
+        }
+        let mut mean = vec![0.0; channels];
+        let mut count = 0u64;
+        for px in data.chunks(channels) {
+            if px[0].is_some() {
+                for (m, v) in mean.iter_mut().zip(px) {
+                    *m += v.unwrap_or(0.0);
+                }
+                count += 1;
+            }
+        }
+        let integer = max > 1.0;
+        for m in &mut mean {
+            *m /= count.max(1) as f64;
+            if integer {
+                *m = m.round();
+            }
+        }
+        data.chunks(channels).flat_map(|px| px.iter().zip(&mean).map(|(v, m)| v.unwrap_or(*m)).collect::<Vec<_>>()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient(w: u32, h: u32) -> NativeImage {
+        let samples = (0..h).flat_map(|y| (0..w).flat_map(move |x| [x as u8, y as u8, (x * 7 + y) as u8])).collect();
+        NativeImage { width: w, height: h, channels: 3, samples: Samples::U8(samples) }
+    }
+
+    #[test]
+    fn every_transform_inverts_and_stays_inside() {
+        let (w, h) = (5, 3);
+        for t in [Augment::Rot90, Augment::Rot180, Augment::Rot270, Augment::FlipH, Augment::FlipV] {
+            let (tw, th) = t.size(w, h);
+            let mut seen = std::collections::BTreeSet::new();
+            for v in 0..th {
+                for u in 0..tw {
+                    let (x, y) = t.source_of(u, v, w, h);
+                    assert!(x < w && y < h, "{t:?}");
+                    assert_eq!(t.target_of(x, y, w, h), (u, v), "{t:?}");
+                    seen.insert((x, y));
+                }
+            }
+            assert_eq!(seen.len(), (w * h) as usize, "{t:?} is a bijection");
+            assert_eq!(Augment::from_code(t.code()), Some(Some(t)));
+        }
+        // A clockwise quarter turn puts the bottom-left pixel at the top-left.
+        assert_eq!(Augment::Rot90.source_of(0, 0, w, h), (0, h - 1));
+        assert_eq!(Augment::Rot270.source_of(0, 0, w, h), (w - 1, 0));
+    }
+
+    #[test]
+    fn pieces_do_not_overlap_and_are_separated_by_forbidden_gutters() {
+        let atlas = Atlas::layout(&[(40, 30), (25, 50)], &[Augment::Rot90, Augment::FlipH]);
+        assert_eq!(atlas.pieces().len(), 6);
+        assert_eq!(atlas.samples(), 2);
+        let mask = atlas.mask(&[None, None]);
+        let (w, h) = atlas.dimensions();
+        let mut covered = 0u64;
+        for y in 0..h {
+            for x in 0..w {
+                let inside: Vec<_> = atlas.pieces().iter().filter(|p| p.contains(x, y)).collect();
+                assert!(inside.len() <= 1);
+                assert_eq!(mask.allows(x, y), inside.len() == 1);
+                covered += inside.len() as u64;
+            }
+        }
+        assert_eq!(covered, mask.allowed_pixels());
+        // No allowed 2x2 block straddles two pieces.
+        let blocks = mask.block_positions(2, 2);
+        for y in 0..h - 1 {
+            for x in 0..w - 1 {
+                if blocks[(y * (w - 1) + x) as usize] {
+                    let a = atlas.locate(x, y).unwrap().0;
+                    let b = atlas.locate(x + 1, y + 1).unwrap().0;
+                    assert_eq!(a, b);
+                }
+            }
+        }
+        // Roughly square, not one long row.
+        assert!(w < 3 * h && h < 3 * w, "{w}x{h}");
+    }
+
+    #[test]
+    fn composed_pixels_are_the_transformed_samples() {
+        let (a, b) = (gradient(6, 4), gradient(3, 5));
+        let atlas = Atlas::layout(&[(6, 4), (3, 5)], &[Augment::Rot90, Augment::FlipV]);
+        let img = atlas.compose(&[&a, &b], MapKind::Color);
+        let Samples::U8(data) = &img.samples else { panic!() };
+        for p in atlas.pieces() {
+            let src = if p.sample == 0 { &a } else { &b };
+            let Samples::U8(s) = &src.samples else { panic!() };
+            for v in 0..p.height {
+                for u in 0..p.width {
+                    let (ax, ay) = (p.x + u, p.y + v);
+                    let (loc, (sx, sy)) = atlas.locate(ax, ay).unwrap();
+                    assert_eq!(loc, p);
+                    assert_eq!(atlas.position(p.sample, p.transform, sx, sy), Some((ax, ay)));
+                    let at = ((ay * img.width + ax) * 3) as usize;
+                    let from = ((sy * src.width + sx) * 3) as usize;
+                    assert_eq!(&data[at..at + 3], &s[from..from + 3]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn normals_turn_with_their_piece() {
+        // One pixel whose normal leans right (+x): turned a quarter clockwise it leans down (−y).
+        let n = NativeImage { width: 1, height: 1, channels: 3, samples: Samples::U16(vec![65535, 32768, 65535]) };
+        let atlas = Atlas::layout(&[(1, 1)], &[Augment::Rot90, Augment::FlipH]);
+        let img = atlas.compose(&[&n], MapKind::Normal);
+        let Samples::U16(d) = &img.samples else { panic!() };
+        let at = |k: usize| {
+            let p = atlas.pieces()[k];
+            let i = ((p.y * img.width + p.x) * 3) as usize;
+            (d[i], d[i + 1], d[i + 2])
+        };
+        assert_eq!(at(0), (65535, 32768, 65535));
+        assert_eq!(at(1), (32768, 0, 65535), "rot90: right becomes down");
+        assert_eq!(at(2), (0, 32768, 65535), "flip_h: right becomes left");
+    }
+
+    #[test]
+    fn per_sample_masks_carry_into_their_pieces() {
+        let mut allowed = vec![true; 12];
+        allowed[0] = false; // (0, 0) of a 4x3 sample
+        let m = SampleMask::new(4, 3, allowed);
+        let atlas = Atlas::layout(&[(4, 3)], &[Augment::Rot180]);
+        let mask = atlas.mask(&[Some(&m)]);
+        let (x, y) = atlas.position(0, Some(Augment::Rot180), 0, 0).unwrap();
+        assert!(!mask.allows(x, y));
+        assert_eq!(mask.allowed_pixels(), 2 * 11);
+    }
+}
