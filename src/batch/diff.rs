@@ -94,7 +94,8 @@ pub fn describe_changes(changes: &[KeyChange]) -> String {
         .map(|c| {
             let change = format!("{} {} → {}", c.key, short_value(&c.old), short_value(&c.new));
             // A mask is an image whose digest says little to a reader; say what it is.
-            if c.key == "sample_mask.pixels" || c.key == "inpaint.mask.pixels" { format!("mask changed ({change})") } else { change }
+            let mask = c.key == "sample_mask.pixels" || c.key == "inpaint.mask.pixels" || c.key.contains("].mask");
+            if mask { format!("mask changed ({change})") } else { change }
         })
         .collect::<Vec<_>>()
         .join("; ")
@@ -187,11 +188,22 @@ fn input_changes(o: &JobRecord, n: &JobRecord) -> Vec<KeyChange> {
     cmp("sample_mask.pixels", to_value(&mask(o)), to_value(&mask(n)));
     let inpaint_mask = |r: &JobRecord| r.inpaint_mask.as_ref().map(|s| s.pixel_digest.sha256.clone());
     cmp("inpaint.mask.pixels", to_value(&inpaint_mask(o)), to_value(&inpaint_mask(n)));
+    // Several samples: each sample's pixels and mask, numbered from 1 as in `samples`.
+    let listed =
+        |r: &JobRecord| r.output_spec.as_ref().and_then(|s| s.get("samples")).and_then(|l| l.as_array()).cloned().unwrap_or_default();
+    let (a, b) = (listed(o), listed(n));
+    for i in 0..a.len().max(b.len()) {
+        for part in ["pixels", "mask"] {
+            let at = |l: &[Value]| l.get(i).and_then(|s| s.get(part)).cloned().unwrap_or(Value::Null);
+            cmp(&format!("samples[{}].{part}", i + 1), at(&a), at(&b));
+        }
+    }
     // The mask's digest is also in the output spec (for the content key): said once, above.
     let spec = |r: &JobRecord| {
         let mut v = r.output_spec.clone().unwrap_or(Value::Null);
         if let Some(m) = v.as_object_mut() {
             m.remove("sample_mask");
+            m.remove("samples");
             // An inpaint mask image likewise; a channel stays in the spec, where it is named.
             if let Some(i) = m.get_mut("inpaint").and_then(|i| i.as_object_mut()) {
                 i.remove("mask");

@@ -18,6 +18,7 @@ mod pipeline;
 mod placement;
 mod pyramid;
 mod report;
+mod samples;
 mod shards;
 mod signals;
 mod synth;
