@@ -199,25 +199,34 @@ pub struct Entry {
 
 /// The images a job followed besides its sample, as the record names them.
 fn job_inputs(job: &JobRecord, base: &Path) -> Vec<(String, OutputInfo)> {
-    [
-        ("sample mask", &job.sample_mask),
-        ("inpaint mask", &job.inpaint_mask),
-        ("target guide", &job.guide_target),
-        ("source guide", &job.guide_source),
-    ]
-    .into_iter()
-    .filter_map(|(what, r)| r.as_ref().map(|r| (what, r)))
-    .map(|(what, r)| {
-        let info = OutputInfo {
-            recorded_path: r.path.clone(),
-            path: resolve(base, &r.path),
-            width: r.width,
-            height: r.height,
-            pixel_digest: r.pixel_digest.sha256.clone(),
-        };
-        (what.to_string(), info)
-    })
-    .collect()
+    // With several samples: the ones after the first (which is shown as the sample), and each
+    // sample's mask.
+    let more_samples = job.samples.iter().enumerate().skip(1).map(|(i, r)| (format!("sample {}", i + 1), Some(r)));
+    let masks = job.sample_masks.iter().enumerate().map(|(i, r)| (format!("mask of sample {}", i + 1), r.as_ref()));
+    more_samples
+        .chain(masks)
+        .chain(
+            [
+                ("sample mask", &job.sample_mask),
+                ("inpaint mask", &job.inpaint_mask),
+                ("target guide", &job.guide_target),
+                ("source guide", &job.guide_source),
+            ]
+            .into_iter()
+            .map(|(what, r)| (what.to_string(), r.as_ref())),
+        )
+        .filter_map(|(what, r)| r.map(|r| (what, r)))
+        .map(|(what, r)| {
+            let info = OutputInfo {
+                recorded_path: r.path.clone(),
+                path: resolve(base, &r.path),
+                width: r.width,
+                height: r.height,
+                pixel_digest: r.pixel_digest.sha256.clone(),
+            };
+            (what, info)
+        })
+        .collect()
 }
 
 /// The outputs of a job that are its `[[companion]]` maps.
