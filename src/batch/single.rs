@@ -136,6 +136,14 @@ pub struct OneOff {
     pub more_samples: Vec<PathBuf>,
     /// Transformed copies of the samples to search too (`augment`, e.g. `rot90`).
     pub augment: Vec<String>,
+    /// `sample_mask`: one per sample (`None` for a sample without), or empty for none.
+    pub sample_masks: Vec<Option<PathBuf>>,
+    /// With `guide`: the sample's guide (`guide.source`), the guide's weight and passes.
+    pub guide_source: Option<PathBuf>,
+    pub guide_weight: Option<f64>,
+    pub guide_passes: Option<u32>,
+    /// Also write the placement as `{stem}.map.exr` beside the output.
+    pub source_map: bool,
     /// Inpaint `sample` instead of making a new image from it: which pixels to fill.
     pub inpaint: Option<OneOffMask>,
     /// Texture transfer: the target guide (the output's size).
@@ -201,7 +209,7 @@ impl OneOff {
                     String::new()
                 } else {
                     format!("augment = [{}]\n", self.augment.iter().map(|a| q(a)).collect::<Vec<_>>().join(", "))
-                };
+                } + &self.mask_line();
                 t += &format!(
                     "{sample}\n{augment}method = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
                     q(&self.method),
@@ -218,7 +226,8 @@ impl OneOff {
                     OneOffMask::Channel(c) => format!("channel = {}", q(c)),
                 };
                 t += &format!(
-                    "method = {}\nseed = {}\n\n[inpaint]\nimage = {}\n{mask}\n\n[output]\npath = {}\n",
+                    "{}method = {}\nseed = {}\n\n[inpaint]\nimage = {}\n{mask}\n\n[output]\npath = {}\n",
+                    self.mask_line(),
                     q(&self.method),
                     self.seed,
                     q(&self.sample.to_string_lossy()),
@@ -229,8 +238,20 @@ impl OneOff {
         if self.tileable {
             t += "tileable = true\n";
         }
+        if self.source_map {
+            t += &format!("source_map = {}\n", q(&format!("{}.map.exr", crate::batch::job::output_stem(name))));
+        }
         if let Some(target) = &self.guide {
             t += &format!("\n[guide]\ntarget = {}\n", q(&target.to_string_lossy()));
+            if let Some(source) = &self.guide_source {
+                t += &format!("source = {}\n", q(&source.to_string_lossy()));
+            }
+            if let Some(w) = self.guide_weight {
+                t += &format!("weight = {}\n", toml::Value::Float(w));
+            }
+            if let Some(p) = self.guide_passes {
+                t += &format!("passes = {p}\n");
+            }
         }
         if !self.params.is_empty() {
             t += "\n[params]\n";
@@ -240,6 +261,18 @@ impl OneOff {
             }
         }
         t
+    }
+
+    /// The `sample_mask = …` line, when there are masks: a string for one sample, else a list
+    /// parallel to the samples (`""` for a sample without a mask).
+    fn mask_line(&self) -> String {
+        let q = |s: &str| toml::Value::String(s.to_string()).to_string();
+        let path = |m: &Option<PathBuf>| q(&m.as_ref().map(|p| p.to_string_lossy().into_owned()).unwrap_or_default());
+        match self.sample_masks.as_slice() {
+            [] => String::new(),
+            [one] if self.more_samples.is_empty() => format!("sample_mask = {}\n", path(one)),
+            all => format!("sample_mask = [{}]\n", all.iter().map(path).collect::<Vec<_>>().join(", ")),
+        }
     }
 
     /// The size the output gets: the one given, else the sample's (read for it).
@@ -271,7 +304,10 @@ impl OneOff {
             .iter()
             .map(|p| std::path::absolute(p).map_err(|e| Error::io(p, "resolve", e)))
             .collect::<Result<Vec<_>, _>>()?;
-        let this = OneOff { sample, more_samples, inpaint, ..self.clone() };
+        let absolute = |p: &PathBuf| std::path::absolute(p).map_err(|e| Error::io(p, "resolve", e));
+        let sample_masks = self.sample_masks.iter().map(|m| m.as_ref().map(absolute).transpose()).collect::<Result<Vec<_>, _>>()?;
+        let guide_source = self.guide_source.as_ref().map(absolute).transpose()?;
+        let this = OneOff { sample, more_samples, sample_masks, guide_source, inpaint, ..self.clone() };
         let text = this.job_text(this.size()?);
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let scratch = std::env::temp_dir().join(format!(

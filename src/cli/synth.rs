@@ -29,10 +29,25 @@ pub struct Args {
     #[arg(long, value_name = "MASK", group = "inpaint_mask", requires = "inpaint")]
     mask: Option<PathBuf>,
     /// Texture transfer: follow TARGET's light and dark (an image of the output's size; with no
-    /// --size, the output takes TARGET's size). `--set` cannot reach the guide's keys: edit the
-    /// job file `--print-job` gives for `weight` and `passes`.
+    /// --size, the output takes TARGET's size).
     #[arg(long, value_name = "TARGET", conflicts_with = "inpaint")]
     guide: Option<PathBuf>,
+    /// With --guide: the sample's guide (default: the sample's luminance).
+    #[arg(long, value_name = "SOURCE", requires = "guide")]
+    guide_source: Option<PathBuf>,
+    /// With --guide: the guide's share of a block's error, 0..=1 (default 0.5).
+    #[arg(long, value_name = "W", requires = "guide")]
+    guide_weight: Option<f64>,
+    /// With --guide: passes of the iteration, 1..=8 (default 3).
+    #[arg(long, value_name = "N", requires = "guide")]
+    guide_passes: Option<u32>,
+    /// Pixels of the sample that may be copied (white) and never (black); with several samples,
+    /// one per sample in their order (`--sample-mask none` for a sample without one).
+    #[arg(long, value_name = "MASK")]
+    sample_mask: Vec<String>,
+    /// Also write the placement beside OUT as `{OUT's stem}.map.exr` (for `texsyn apply`).
+    #[arg(long)]
+    source_map: bool,
     /// With --inpaint: fill where this channel of IMAGE is below half (`a`: the transparent pixels).
     #[arg(long, value_name = "CHANNEL", group = "inpaint_mask", requires = "inpaint")]
     mask_channel: Option<String>,
@@ -95,6 +110,11 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
         sample,
         more_samples: samples.collect(),
         augment: args.augment,
+        sample_masks: args.sample_mask.into_iter().map(|m| (m != "none").then(|| PathBuf::from(m))).collect(),
+        guide_source: args.guide_source,
+        guide_weight: args.guide_weight,
+        guide_passes: args.guide_passes,
+        source_map: args.source_map,
         inpaint,
         guide,
         output: args.output,
