@@ -179,8 +179,19 @@ fn placement_to_py(py: Python<'_>, p: &texsyn::synth::placement::Placement) -> P
 /// array in the sample's channels and precision, or with `full=True` a `Synthesis` with the
 /// placement, warnings and the manifest record. Parameters are the job file's `[params]` keys;
 /// a wrong key, type or range raises `ParamError`.
+///
+/// The everyday jobs take keyword arguments named like the job file's keys: `sample` may be a
+/// list (several samples), `augment` a list of transforms, `sample_mask` a mask (or a list, one
+/// per sample, `None` for none), `inpaint` the mask of pixels to fill in `sample` (an image, white
+/// = fill, or a channel name such as "a"), `guide` a target guide with `guide_source`,
+/// `guide_weight` and `guide_passes`. These run through the job file they stand for (as
+/// `texsyn synth` does), so they are validated with the same messages and give the same pixels.
 #[pyfunction]
-#[pyo3(signature = (sample, method="quilting", *, seed=0, size=None, tileable=false, full=false, **params))]
+#[pyo3(signature = (
+    sample, method="quilting", *, seed=0, size=None, tileable=false, full=false, augment=None, sample_mask=None,
+    inpaint=None, guide=None, guide_source=None, guide_weight=None, guide_passes=None, **params
+))]
+#[allow(clippy::too_many_arguments)]
 fn synthesize(
     py: Python<'_>,
     sample: &Bound<'_, PyAny>,
@@ -189,8 +200,36 @@ fn synthesize(
     size: Option<(u32, u32)>,
     tileable: bool,
     full: bool,
+    augment: Option<Vec<String>>,
+    sample_mask: Option<&Bound<'_, PyAny>>,
+    inpaint: Option<&Bound<'_, PyAny>>,
+    guide: Option<&Bound<'_, PyAny>>,
+    guide_source: Option<&Bound<'_, PyAny>>,
+    guide_weight: Option<f64>,
+    guide_passes: Option<u32>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
+    let several = sample.cast::<pyo3::types::PyList>().is_ok() || sample.cast::<pyo3::types::PyTuple>().is_ok();
+    if several || augment.is_some() || sample_mask.is_some() || inpaint.is_some() || guide.is_some() {
+        let job = EverydayJob {
+            method,
+            seed,
+            size,
+            tileable,
+            full,
+            augment,
+            sample_mask,
+            inpaint,
+            guide,
+            guide_source,
+            guide_weight,
+            guide_passes,
+        };
+        return job.run(py, sample, params);
+    }
+    if guide_source.is_some() || guide_weight.is_some() || guide_passes.is_some() {
+        return Err(PyValueError::new_err("guide_source, guide_weight and guide_passes go with guide=TARGET"));
+    }
     let sample = sample_from(sample, "sample")?;
     let req = request(method, seed, size, tileable, full, params)?;
     let done = py.detach(|| single::synthesize(&sample, &req)).map_err(py_err)?;
@@ -204,6 +243,174 @@ fn synthesize(
     };
     let result = Synthesis { image, placement, warnings: done.warnings, record: json_to_py(py, &done.record)? };
     Ok(Py::new(py, result)?.into_any())
+}
+
+/// A `synthesize` call with the everyday jobs' arguments: run as the job file it stands for.
+struct EverydayJob<'a, 'py> {
+    method: &'a str,
+    seed: u64,
+    size: Option<(u32, u32)>,
+    tileable: bool,
+    full: bool,
+    augment: Option<Vec<String>>,
+    sample_mask: Option<&'a Bound<'py, PyAny>>,
+    inpaint: Option<&'a Bound<'py, PyAny>>,
+    guide: Option<&'a Bound<'py, PyAny>>,
+    guide_source: Option<&'a Bound<'py, PyAny>>,
+    guide_weight: Option<f64>,
+    guide_passes: Option<u32>,
+}
+
+/// A scratch folder for one call's images and output, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+impl EverydayJob<'_, '_> {
+    fn run(self, py: Python<'_>, sample: &Bound<'_, PyAny>, params: Option<&Bound<'_, PyDict>>) -> PyResult<Py<PyAny>> {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let dir = std::env::temp_dir().join(format!("texsyn-py-{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed)));
+        std::fs::create_dir_all(&dir).map_err(|e| TexsynError::new_err(format!("{}: cannot create: {e}", dir.display())))?;
+        let scratch = Scratch(dir);
+        let mut count = 0;
+        // A path as it is (absolute), an array written as texsyn reads it back, bit for bit.
+        let mut file = |arg: &Bound<'_, PyAny>, what: &str| -> PyResult<PathBuf> {
+            if let Ok(path) = arg.extract::<PathBuf>() {
+                return std::path::absolute(&path).map_err(|e| TexsynError::new_err(format!("{}: {e}", path.display())));
+            }
+            let loaded = sample_from(arg, what)?;
+            let native = loaded.native_or_guide().into_owned();
+            let (ext, bit_depth) = match native.samples {
+                Samples::U8(_) => ("png", 8),
+                Samples::U16(_) => ("png", 16),
+                Samples::F32(_) => ("exr", 32),
+            };
+            count += 1;
+            let path = scratch.0.join(format!("{count}-{}.{ext}", what.replace(|c: char| !c.is_ascii_alphanumeric(), "_")));
+            let format = texsyn::image::io::Format::from_path(&path).expect("png or exr");
+            let encoded = texsyn::image::io::encode_native(&native, texsyn::image::io::Encoding { format, bit_depth })
+                .map_err(|source| py_err(texsyn::Error::Image { path: path.clone(), source }))?;
+            std::fs::write(&path, &encoded.bytes).map_err(|e| TexsynError::new_err(format!("{}: {e}", path.display())))?;
+            Ok(path)
+        };
+        fn list<'py>(arg: &Bound<'py, PyAny>) -> Option<Vec<Bound<'py, PyAny>>> {
+            if arg.cast::<pyo3::types::PyList>().is_ok() || arg.cast::<pyo3::types::PyTuple>().is_ok() {
+                arg.try_iter().ok()?.collect::<PyResult<Vec<_>>>().ok()
+            } else {
+                None
+            }
+        }
+        let samples: Vec<PathBuf> = match list(sample) {
+            Some(items) if items.is_empty() => return Err(PyValueError::new_err("sample: the list of samples is empty")),
+            Some(items) => items.iter().enumerate().map(|(i, s)| file(s, &format!("sample {}", i + 1))).collect::<PyResult<_>>()?,
+            None => vec![file(sample, "sample")?],
+        };
+        let sample_masks: Vec<Option<PathBuf>> = match self.sample_mask {
+            None => Vec::new(),
+            Some(m) => match list(m) {
+                Some(items) => items
+                    .iter()
+                    .enumerate()
+                    .map(|(i, m)| if m.is_none() { Ok(None) } else { file(m, &format!("sample_mask {}", i + 1)).map(Some) })
+                    .collect::<PyResult<_>>()?,
+                None => vec![Some(file(m, "sample_mask")?)],
+            },
+        };
+        let inpaint = match self.inpaint {
+            None => None,
+            Some(m) => match m.extract::<String>() {
+                Ok(c) if c.len() == 1 => Some(single::OneOffMask::Channel(c)),
+                _ => Some(single::OneOffMask::File(file(m, "inpaint")?)),
+            },
+        };
+        let guide = self.guide.map(|g| file(g, "guide")).transpose()?;
+        let guide_source = self.guide_source.map(|g| file(g, "guide_source")).transpose()?;
+        if guide.is_none() && (guide_source.is_some() || self.guide_weight.is_some() || self.guide_passes.is_some()) {
+            return Err(PyValueError::new_err("guide_source, guide_weight and guide_passes go with guide=TARGET"));
+        }
+        let float = load_sample(&samples[0]).map_err(py_err)?.native.as_ref().is_some_and(|n| matches!(n.samples, Samples::F32(_)));
+        let output = scratch.0.join(if float { "out.exr" } else { "out.png" });
+        let size = match (self.size, &guide, &inpaint) {
+            (Some(s), _, _) => Some(s),
+            (None, Some(t), None) => Some(load_sample(t).map_err(py_err)?.image.dimensions()),
+            _ => None,
+        };
+        let params = params_from(params)?.into_iter().map(|(k, v)| (k, single::OneOff::param_text(&v))).collect();
+        let mut samples = samples.into_iter();
+        let one = single::OneOff {
+            sample: samples.next().expect("at least one sample"),
+            more_samples: samples.collect(),
+            augment: self.augment.unwrap_or_default(),
+            sample_masks,
+            inpaint,
+            guide,
+            guide_source,
+            guide_weight: self.guide_weight,
+            guide_passes: self.guide_passes,
+            source_map: self.full,
+            output: output.clone(),
+            method: self.method.to_string(),
+            size,
+            seed: self.seed,
+            tileable: self.tileable,
+            params,
+            max_memory: None,
+        };
+        let done = py.detach(|| one.run()).map_err(|e| match e {
+            // The job file is the call's own: its problems read as the arguments'.
+            texsyn::Error::Usage(m) if m.contains("`params.") => ParamError::new_err(m),
+            e => py_err(e),
+        })?;
+        let image = load_sample(&output).map_err(py_err)?.native_or_guide().into_owned();
+        let image = image_to_py(py, image)?;
+        if !self.full {
+            return Ok(image);
+        }
+        let map_path = scratch.0.join("out.map.exr");
+        let bytes = std::fs::read(&map_path).map_err(|e| TexsynError::new_err(format!("{}: {e}", map_path.display())))?;
+        let map = texsyn::batch::source_map::decode_map(&bytes).map_err(TexsynError::new_err)?;
+        let placement = match &map.atlas {
+            None => placement_to_py(py, &map.placement)?,
+            Some(atlas) => atlas_placement_to_py(py, &map.placement, atlas)?,
+        };
+        let record = serde_json::to_value(&done.record).map_err(|e| TexsynError::new_err(e.to_string()))?;
+        let result = Synthesis { image, placement, warnings: done.record.warnings.clone(), record: json_to_py(py, &record)? };
+        Ok(Py::new(py, result)?.into_any())
+    }
+}
+
+/// A placement over several samples or turned copies: `x`, `y` in each pixel's own sample, and
+/// `sample` (its index) and `transform` (0 as it is, 1 rot90, 2 rot180, 3 rot270, 4 flip_h,
+/// 5 flip_v), each an int32 array of the output's shape (-1 where nothing was copied).
+fn atlas_placement_to_py(
+    py: Python<'_>,
+    p: &texsyn::synth::placement::Placement,
+    atlas: &texsyn::synth::atlas::Atlas,
+) -> PyResult<Py<PyAny>> {
+    let (w, h) = p.dimensions();
+    let (sw, _) = p.sample_size();
+    let n = p.sources().len();
+    let (mut xs, mut ys, mut ss, mut ts) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    for &s in p.sources() {
+        let found = (s != texsyn::synth::placement::UNCOVERED).then(|| atlas.locate(s % sw, s / sw)).flatten();
+        let (x, y, i, t) = match found {
+            Some((piece, (x, y))) => (x as i32, y as i32, piece.sample as i32, piece.transform.map_or(0, |t| t.code()) as i32),
+            None => (-1, -1, -1, -1),
+        };
+        xs.push(x);
+        ys.push(y);
+        ss.push(i);
+        ts.push(t);
+    }
+    let d = PyDict::new(py);
+    for (name, v) in [("x", xs), ("y", ys), ("sample", ss), ("transform", ts)] {
+        d.set_item(name, v.into_pyarray(py).reshape([h as usize, w as usize])?)?;
+    }
+    Ok(d.into_any().unbind())
 }
 
 /// For the overhead benchmark: the library's own seconds for the call (synthesis and rendering

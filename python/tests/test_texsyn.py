@@ -225,3 +225,57 @@ def test_one_thread_gives_the_same_pixels_as_all_of_them():
     one = subprocess.run([sys.executable, "-c", code], env={**os.environ, "RAYON_NUM_THREADS": "1"}, capture_output=True, text=True, check=True)
     here = texsyn.synthesize(SAMPLES / "crops/hedge_leaves_128.png", "patch-sampling", seed=4, size=(240, 200))
     assert one.stdout == hashlib.sha256(here.tobytes()).hexdigest()
+
+
+GUIDED = SAMPLES / "guided"
+
+
+def test_everyday_jobs_take_the_job_files_keys_as_arguments(tmp_path):
+    """Several samples, augment, sample masks, inpainting and guides: the same pixels as the
+    job file they stand for, arrays or paths alike, and the placement names sample and transform."""
+    left, right = GUIDED / "gravel_gray_left.png", GUIDED / "gravel_gray_right.png"
+    # Several samples (one as an array) with augment: the job file's pixels.
+    job = tmp_path / "remix.toml"
+    job.write_text(
+        f'samples = ["{left}", "{right}"]\naugment = ["rot90", "flip_h"]\nmethod = "quilting"\nseed = 4\n'
+        '[output]\npath = "remix.png"\nwidth = 120\nheight = 100\n[params]\nblock = 32\n'
+    )
+    subprocess.run([str(texsyn_cli()), "run", str(job), "-o", str(tmp_path / "out"), "-q"], check=True)
+    expected = json.loads((tmp_path / "out" / "manifest.json").read_text())["jobs"][0]["outputs"][0]["pixel_digest"]["sha256"]
+    res = texsyn.synthesize([left, right], "quilting", seed=4, size=(120, 100), augment=["rot90", "flip_h"], full=True, block=32)
+    assert pixel_digest(res.image) == expected
+    p = res.placement
+    assert set(np.unique(p["sample"])) <= {0, 1} and set(np.unique(p["transform"])) <= {0, 1, 4}
+    assert (p["sample"] == 1).any() and (p["transform"] > 0).any()
+    # A sample mask per sample: no pixel comes from the top half of the right photo.
+    mask = np.full((256, 128), 255, np.uint8)
+    mask[:128] = 0
+    res = texsyn.synthesize([str(left), str(right)], "quilting", seed=4, size=(120, 100), sample_mask=[None, mask], full=True, block=32)
+    from_right = res.placement["sample"] == 1
+    assert from_right.any() and (res.placement["y"][from_right] >= 128).all()
+    # Inpainting: every known pixel stays; a channel or a mask image.
+    image = GUIDED / "cork_cable.png"
+    hole = GUIDED / "cork_cable_mask.png"
+    out = texsyn.synthesize(image, "quilting", seed=2, inpaint=hole, block=32)
+    original = texsyn.synthesize(image, "quilting", seed=2, inpaint=np.zeros((256, 256), np.uint8), block=32)  # nothing to fill
+    box = np.zeros((256, 256), np.uint8)
+    box[100:140, 60:180] = 255
+    boxed = texsyn.synthesize(image, "quilting", seed=2, inpaint=box, block=32)
+    np.testing.assert_array_equal(boxed[box == 0], original[box == 0])
+    assert (boxed[box == 255] != original[box == 255]).any(axis=1).sum() > 1000, "the hole is filled"
+    job = tmp_path / "heal.toml"
+    job.write_text(f'method = "quilting"\nseed = 2\n[inpaint]\nimage = "{image}"\nmask = "{hole}"\n[output]\npath = "heal.png"\n[params]\nblock = 32\n')
+    subprocess.run([str(texsyn_cli()), "run", str(job), "-o", str(tmp_path / "heal"), "-q"], check=True)
+    heal = json.loads((tmp_path / "heal" / "manifest.json").read_text())["jobs"][0]["outputs"][0]["pixel_digest"]["sha256"]
+    assert pixel_digest(out) == heal
+    # A guide: the output takes the target's size; weight and passes reach the job file.
+    out = texsyn.synthesize(SAMPLES / "pebbles_beige.png", "quilting", seed=1, guide=GUIDED / "target_rings.png", guide_weight=0.7, guide_passes=1)
+    header = (GUIDED / "target_rings.png").read_bytes()[16:24]
+    assert out.shape[:2] == (int.from_bytes(header[4:], "big"), int.from_bytes(header[:4], "big"))
+    # Mistakes get the job file's messages.
+    with pytest.raises(texsyn.TexsynError, match="unknown transform `rot45`"):
+        texsyn.synthesize(left, augment=["rot45"])
+    with pytest.raises(texsyn.TexsynError, match="tes learns from one sample"):
+        texsyn.synthesize([left, right], "tes")
+    with pytest.raises(ValueError, match="go with guide"):
+        texsyn.synthesize(left, guide_weight=0.3)

@@ -33,34 +33,55 @@ class Synthesis:
 
 @overload
 def synthesize(
-    sample: Sample,
+    sample: Union[Sample, Sequence[Sample]],
     method: str = "quilting",
     *,
     seed: int = 0,
     size: Optional[Tuple[int, int]] = None,
     tileable: bool = False,
     full: Literal[False] = False,
+    augment: Optional[Sequence[str]] = None,
+    sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
+    inpaint: Union[Sample, str, None] = None,
+    guide: Optional[Sample] = None,
+    guide_source: Optional[Sample] = None,
+    guide_weight: Optional[float] = None,
+    guide_passes: Optional[int] = None,
     **params: Param,
 ) -> Image: ...
 @overload
 def synthesize(
-    sample: Sample,
+    sample: Union[Sample, Sequence[Sample]],
     method: str = "quilting",
     *,
     seed: int = 0,
     size: Optional[Tuple[int, int]] = None,
     tileable: bool = False,
     full: Literal[True],
+    augment: Optional[Sequence[str]] = None,
+    sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
+    inpaint: Union[Sample, str, None] = None,
+    guide: Optional[Sample] = None,
+    guide_source: Optional[Sample] = None,
+    guide_weight: Optional[float] = None,
+    guide_passes: Optional[int] = None,
     **params: Param,
 ) -> Synthesis: ...
 def synthesize(
-    sample: Sample,
+    sample: Union[Sample, Sequence[Sample]],
     method: str = "quilting",
     *,
     seed: int = 0,
     size: Optional[Tuple[int, int]] = None,
     tileable: bool = False,
     full: bool = False,
+    augment: Optional[Sequence[str]] = None,
+    sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
+    inpaint: Union[Sample, str, None] = None,
+    guide: Optional[Sample] = None,
+    guide_source: Optional[Sample] = None,
+    guide_weight: Optional[float] = None,
+    guide_passes: Optional[int] = None,
     **params: Param,
 ) -> Union[Image, Synthesis]:
     """Makes a texture from ``sample`` (a path or an array of shape (h, w) or (h, w, c), c in 1..4,
@@ -68,7 +89,15 @@ def synthesize(
 
     ``size`` is (width, height), the sample's by default. ``params`` are the job file's ``[params]``
     keys (``texsyn.methods()`` lists them); a wrong key, type or range raises ``ParamError``.
-    ``full=True`` returns a ``Synthesis`` with the placement, warnings and manifest record."""
+    ``full=True`` returns a ``Synthesis`` with the placement, warnings and manifest record.
+
+    The everyday jobs take the job file's keys: ``sample`` may be a list of samples, ``augment``
+    a list of transforms (rot90, rot180, rot270, flip_h, flip_v), ``sample_mask`` a mask (white =
+    may be copied) or one per sample (``None`` for none), ``inpaint`` the pixels of ``sample`` to
+    fill (a mask, white = fill, or a channel name like "a"), ``guide`` a target guide (texture
+    transfer) with ``guide_source``, ``guide_weight`` and ``guide_passes``. They run through the
+    job file they stand for, with its messages and its pixels; with several samples or
+    ``augment`` the placement also has ``sample`` and ``transform`` arrays."""
 
 def run(
     jobs: Union[PathLike, Sequence[PathLike]],

@@ -190,6 +190,16 @@ impl OneOff {
         if toml::from_str::<toml::Table>(&as_toml).is_ok() { text.to_string() } else { toml::Value::String(text.to_string()).to_string() }
     }
 
+    /// A parameter value as a job file's `[params]` writes it.
+    pub fn param_text(value: &ParamValue) -> String {
+        match value {
+            ParamValue::Int(i) => i.to_string(),
+            ParamValue::Float(f) => toml::Value::Float(*f).to_string(),
+            ParamValue::Bool(b) => b.to_string(),
+            ParamValue::Str(s) => toml::Value::String(s.clone()).to_string(),
+        }
+    }
+
     /// The job file these flags stand for; `sample` as given (absolute where it was), the output
     /// by its file name, the size given or the sample's.
     pub fn job_text(&self, size: (u32, u32)) -> String {
