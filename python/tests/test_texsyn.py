@@ -166,12 +166,15 @@ def test_a_progress_callback_that_raises_stops_the_run_and_reraises(tmp_path):
 def test_ctrl_c_stops_a_run_cleanly_and_raises_keyboard_interrupt(tmp_path):
     write_jobs(tmp_path / "jobs")
     script = f"""
-import os, signal, threading, texsyn
+import os, signal, threading, time, texsyn
 fired = []
 def progress(e):
     if e["event"] == "started" and not fired:
         fired.append(1)
         threading.Timer(0.05, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        # Hold the run here until the signal has come: a loaded machine may start the timer's
+        # thread only after the small jobs are all done.
+        time.sleep(1.0)
 try:
     texsyn.run({str(tmp_path / "jobs")!r}, {str(tmp_path / "out")!r}, jobs_parallel=1, progress=progress)
     print("NOT INTERRUPTED")

@@ -313,8 +313,15 @@ mod tests {
         assert_eq!(map.sample_sizes(), vec![(7, 4), (5, 6)]);
         assert_eq!(map.placement, p);
         // Any EXR reader sees the sample, transform and pixel in the sample's own coordinates.
-        let image = read_all_flat_layers_from_buffered(std::io::Cursor::new(&bytes)).unwrap();
-        let ch = |name: &str| match &image.layer_data[0].channel_data.list.iter().find(|c| c.name.eq(name)).unwrap().sample_data {
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .from_buffered(std::io::Cursor::new(&bytes))
+            .unwrap();
+        let ch = |name: &str| match &image.layer_data.channel_data.list.iter().find(|c| c.name.eq(name)).unwrap().sample_data {
             FlatSamples::U32(v) => v.clone(),
             _ => panic!(),
         };
