@@ -12,7 +12,7 @@ const LAYERS: &[&str] = &["files", "digest", "image", "metrics", "synth", "error
 const SYNTH_LAYERS: &[&[&str]] = &[
     &["synth::error", "synth::rng"],
     &["synth::params"],
-    &["synth::constraints", "synth::lattice", "synth::primitives", "synth::wrap"],
+    &["synth::atlas", "synth::constraints", "synth::lattice", "synth::primitives", "synth::wrap"],
     &["synth::method"],
     &["synth::methods"],
     &["synth::advice"],

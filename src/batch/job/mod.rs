@@ -28,8 +28,6 @@ use std::path::{Path, PathBuf};
 /// The top-level keys of a job file.
 pub const TOP_KEYS: &[&str] = &[
     "sample",
-    "samples",
-    "augment",
     "method",
     "seed",
     "output",
@@ -38,6 +36,8 @@ pub const TOP_KEYS: &[&str] = &[
     "metrics",
     "companion",
     "sample_mask",
+    "samples",
+    "augment",
     "inpaint",
     "guide",
 ];
