@@ -26,6 +26,8 @@ use std::time::Instant;
 
 #[path = "peers/inpaint.rs"]
 mod inpaint;
+#[path = "peers/samples.rs"]
+mod samples;
 
 const SIZE: u32 = 512;
 /// Structured and stochastic samples of 256², plus a near-regular one for the lattice methods.
@@ -97,6 +99,12 @@ fn main() {
     if std::env::args().any(|a| a == "inpaint") {
         inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
         inpaint::transfer(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+        let _ = std::fs::remove_dir_all(&work);
+        return;
+    }
+    // `cargo bench --bench peers -- samples` runs only the several-samples and augment part.
+    if std::env::args().any(|a| a == "samples") {
+        samples::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
         let _ = std::fs::remove_dir_all(&work);
         return;
     }
@@ -182,6 +190,7 @@ fn main() {
     big_samples(&work, embark.as_deref(), reps);
     inpaint::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
     inpaint::transfer(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+    samples::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));
     let _ = std::fs::remove_dir_all(&work);
 }
 
