@@ -178,9 +178,11 @@ fn every_wrapping_method_tiles_the_sizes_artists_use_with_its_defaults() {
 }
 
 /// The same sizes for the tile methods with their defaults (`tile = "auto"` takes a size that
-/// divides the output: 64 for the powers of two and 384×320, 50 or 40 for 1000×600): every one
-/// wraps, the wrap line no more visible than 1.5 times the tile seams (the bar), and the
-/// tiles take their own interiors (more than two colours on these samples).
+/// divides the output: 64 for the powers of two and 384×320, 50 or 40 for 1000×600), and
+/// 1001×601, which no tile size divides: the tiling wraps on the torus of whole tiles nearest it
+/// and the output leaves out or repeats a few of its columns and rows (`diagnostics.tileable_fit`).
+/// Every one wraps, the wrap line no more visible than 1.5 times the tile seams (the bar),
+/// and the tiles take their own interiors (more than two colours on these samples).
 #[test]
 fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
     let chosen: Vec<(String, RgbImage)> = samples()
@@ -188,13 +190,15 @@ fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
         .filter(|(n, _)| ["pebbles_beige.png", "rock_a_albedo.png", "cobblestone_a_albedo.png"].contains(&n.as_str()))
         .collect();
     for method in ["wang-tiles", "rw-tiles"] {
-        for size in [(512, 512), (1024, 1024), (384, 320), (1000, 600)] {
+        for size in [(512, 512), (1024, 1024), (384, 320), (1000, 600), (1001, 601)] {
             for (name, sample) in &chosen {
                 let out = synth(method, sample, size, &[], false);
+                let fitted = out.diagnostics.get("tileable_fit");
+                assert_eq!(fitted.is_some(), size == (1001, 601), "{method} {size:?} {name}: {}", out.diagnostics);
                 let wrap = wrap_visibility(&out.image).unwrap();
                 let seams = seam_visibility(&out.image, out.seams.as_ref().unwrap()).unwrap();
                 let tile = &out.diagnostics["geometry"]["tile"];
-                println!("{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}");
+                println!("{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}; fit {}", fitted.map_or(String::new(), |f| format!("x {} y {}", f["x"]["torus"], f["y"]["torus"])));
                 assert_eq!(out.diagnostics["interior"]["interior"], "own", "{method} {name}: {}", out.diagnostics);
                 if std::env::var("TEXSYN_NO_ASSERT").is_err() {
                     assert!(wrap <= 1.5 * seams, "{method} {size:?} on {name}: wrap {wrap} > 1.5 x tile seams {seams}");
