@@ -198,7 +198,10 @@ fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
                 let wrap = wrap_visibility(&out.image).unwrap();
                 let seams = seam_visibility(&out.image, out.seams.as_ref().unwrap()).unwrap();
                 let tile = &out.diagnostics["geometry"]["tile"];
-                println!("{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}; fit {}", fitted.map_or(String::new(), |f| format!("x {} y {}", f["x"]["torus"], f["y"]["torus"])));
+                println!(
+                    "{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}; fit {}",
+                    fitted.map_or(String::new(), |f| format!("x {} y {}", f["x"]["torus"], f["y"]["torus"]))
+                );
                 assert_eq!(out.diagnostics["interior"]["interior"], "own", "{method} {name}: {}", out.diagnostics);
                 if std::env::var("TEXSYN_NO_ASSERT").is_err() {
                     assert!(wrap <= 1.5 * seams, "{method} {size:?} on {name}: wrap {wrap} > 1.5 x tile seams {seams}");
@@ -320,7 +323,8 @@ fn a_wrap_that_cuts_the_lattice_is_warned_about_with_the_sizes_that_keep_it() {
     let warnings_of = |k: usize| -> Vec<String> {
         m["jobs"][k]["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap().to_string()).collect()
     };
-    let (warnings, seam_warnings) = if m["jobs"][0]["method"] == "quilting" { (warnings_of(0), warnings_of(1)) } else { (warnings_of(1), warnings_of(0)) };
+    let (warnings, seam_warnings) =
+        if m["jobs"][0]["method"] == "quilting" { (warnings_of(0), warnings_of(1)) } else { (warnings_of(1), warnings_of(0)) };
     let wrap = warnings.iter().find(|w| w.contains("at its wrap")).unwrap_or_else(|| panic!("{warnings:?}"));
     assert!(seam_warnings.contains(wrap), "double-seam: {seam_warnings:?}");
     // metal_tread_studs repeats every 27 px across and 26 px down.
@@ -386,12 +390,17 @@ fn at_a_size_the_lattice_divides_the_lattice_runs_on_across_the_wrap() {
         if method == "double-seam" {
             let phase = &kept_out.diagnostics["lattice_phase"];
             let vectors = [phase["t1"].clone(), phase["t2"].clone()];
-            assert!(vectors.contains(&serde_json::json!([27, 0])) && vectors.contains(&serde_json::json!([0, 26])), "{}", kept_out.diagnostics);
+            assert!(
+                vectors.contains(&serde_json::json!([27, 0])) && vectors.contains(&serde_json::json!([0, 26])),
+                "{}",
+                kept_out.diagnostics
+            );
             let cut_out = synth(method, &sample, (425, 325), &block, false);
             assert!(cut_out.diagnostics.get("lattice_phase").is_none(), "{}", cut_out.diagnostics);
         }
         if let Ok(dir) = std::env::var("TEXSYN_TILEABLE_PNG") {
-            texsyn::save_image(&tiled(&kept_out.image), std::path::Path::new(&dir).join(format!("{method}_studs_432x312_2x2.png"))).unwrap();
+            texsyn::save_image(&tiled(&kept_out.image), std::path::Path::new(&dir).join(format!("{method}_studs_432x312_2x2.png")))
+                .unwrap();
         }
         let kept = correlations(&kept_out.image);
         let cut = correlations(&synth(method, &sample, (425, 325), &block, false).image);

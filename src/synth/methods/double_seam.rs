@@ -851,8 +851,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
             }
             let origin = (ox as i32, oy as i32);
             let allowed = |x: i32, y: i32| {
-                mask.allows(x, y)
-                    && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
+                mask.allows(x, y) && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
             };
             let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || phase.is_some() { Some(&allowed) } else { None };
             let (pick, size, f_max) = choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict)?;
@@ -863,7 +862,6 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
         out.paste(prep, (x as u32, y as u32), (ox, oy), g..g + torus.spacing_x(bj), g..g + torus.spacing_y(bi));
         done[torus.index(bi, bj)] = true;
         picks[torus.index(bi, bj)] = (x, y);
-
     }
     let (image, placement) = out.rgb.finish();
     // Each pasted part starts at its block's origin + g; block 0's is where the wrap closes.
@@ -902,7 +900,10 @@ impl MaskPositions {
         if !positions.contains(&true) {
             return Err(SynthError::param(
                 "block",
-                format!("the sample mask leaves no whole {block}x{block} block to copy; the largest block it allows is {}", mask.largest_block()),
+                format!(
+                    "the sample mask leaves no whole {block}x{block} block to copy; the largest block it allows is {}",
+                    mask.largest_block()
+                ),
             ));
         }
         Ok(MaskPositions { positions: Some(positions), cols, rows })

@@ -468,7 +468,8 @@ pub fn auto_tile(
     // fewest of its columns and rows, or any within [`fit::AUTO_FIT_TOLERANCE`] of them.
     let fitted = match wrap {
         Some(w) if dividing.is_empty() => {
-            let usable: Vec<i64> = pool.iter().copied().filter(|&t| super::fit::fits(w.0, t as u32) && super::fit::fits(w.1, t as u32)).collect();
+            let usable: Vec<i64> =
+                pool.iter().copied().filter(|&t| super::fit::fits(w.0, t as u32) && super::fit::fits(w.1, t as u32)).collect();
             let cost = |t: i64| super::fit::cost2(w, t as u32);
             let least = usable.iter().map(|&t| cost(t)).fold(f64::INFINITY, f64::min);
             Some(usable.iter().copied().filter(|&t| cost(t) <= least.max(super::fit::AUTO_FIT_TOLERANCE)).collect::<Vec<i64>>())
@@ -533,7 +534,9 @@ pub fn auto_tile(
         _ => FALLBACK_TILE,
     };
     let how = if is_fitted {
-        format!("auto: {tile}, the size nearest {FALLBACK_TILE} among those{wrapping} with the fewest columns and rows left out or repeated ({why})")
+        format!(
+            "auto: {tile}, the size nearest {FALLBACK_TILE} among those{wrapping} with the fewest columns and rows left out or repeated ({why})"
+        )
     } else if tile == FALLBACK_TILE {
         format!("auto: {tile} ({why})")
     } else {

@@ -116,7 +116,9 @@ pub fn render_in_strips(filled: Filled<impl TileRenderer>, req: &Request) -> Str
     });
     Strips {
         synthesis,
-        render: Box::new(move |y0, rows| rows_of(shared.2.as_ref(), width, y0, rows, 3, |w, y0, rows| shared.0.render_rows(&shared.1, w, y0, rows))),
+        render: Box::new(move |y0, rows| {
+            rows_of(shared.2.as_ref(), width, y0, rows, 3, |w, y0, rows| shared.0.render_rows(&shared.1, w, y0, rows))
+        }),
         sources,
     }
 }
@@ -651,7 +653,7 @@ pub(crate) mod testing {
         assert!(wrap <= 1.5 * interior, "{}: wrap {wrap} vs seams {interior}", m.name());
         let out = m.synthesize(&Request { width: 701, height: 433, sample: &pebbles, seed: 3, ..req }).unwrap();
         let fit = &out.diagnostics["tileable_fit"];
-        assert!(fit["x"]["torus"].as_u64().unwrap() % u64::from(tile) == 0, "{fit}");
+        assert!(fit["x"]["torus"].as_u64().unwrap().is_multiple_of(u64::from(tile)), "{fit}");
         assert!(out.diagnostics["tile_choice"]["how"].as_str().unwrap().contains("fitting"), "{}", out.diagnostics["tile_choice"]);
         // A given size below two tiles: refused naming the smallest that works, also by the fill.
         let e = m.tileable(&auto, (256, 256), (47, 433)).unwrap_err();

@@ -207,7 +207,10 @@ mod tests {
     #[test]
     fn seams_follow_the_columns_shown() {
         let f = Fit { period: (8, 4), xs: vec![0, 1, 2, 4, 5, 6, 7], ys: vec![0, 1, 1, 2, 3] };
-        let torus = SeamGrid { columns: vec![SeamBand { start: 3, len: 1 }, SeamBand { start: 4, len: 2 }], rows: vec![SeamBand { start: 1, len: 2 }] };
+        let torus = SeamGrid {
+            columns: vec![SeamBand { start: 3, len: 1 }, SeamBand { start: 4, len: 2 }],
+            rows: vec![SeamBand { start: 1, len: 2 }],
+        };
         let s = f.seams(&torus);
         assert_eq!(s.columns, vec![SeamBand { start: 3, len: 2 }]);
         assert_eq!(s.rows, vec![SeamBand { start: 1, len: 3 }]);

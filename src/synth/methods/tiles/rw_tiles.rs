@@ -46,7 +46,7 @@ const PARAMS: &[ParamSpec] = &[
         name: "tile",
         kind: ParamKind::IntOr { min: 8, max: 4096, word: "auto" },
         default: Default::Str("auto"),
-        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it; the choice recorded as diagnostics.tile_choice",
+        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it, or when none does the sizes that fit it leaving out or repeating the fewest columns and rows (diagnostics.tileable_fit); the choice recorded as diagnostics.tile_choice",
     },
     ParamSpec {
         name: "overlap",
