@@ -395,6 +395,7 @@ fn at_a_size_the_lattice_divides_the_lattice_runs_on_across_the_wrap() {
                 "{}",
                 kept_out.diagnostics
             );
+            assert_eq!(phase["blocks_out_of_phase"], 0, "{}", kept_out.diagnostics);
             let cut_out = synth(method, &sample, (425, 325), &block, false);
             assert!(cut_out.diagnostics.get("lattice_phase").is_none(), "{}", cut_out.diagnostics);
         }

@@ -807,6 +807,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
     // lattice phase, so the texels run on through the wrap as they do inside.
     let phase = LatticePhase::of(sample, (req.width, req.height));
     let mut first_offset = (0i32, 0i32);
+    let mut phase_missed = 0usize;
     let g = s.g as u32;
     let (w, h) = torus.size();
     let mut out = Canvas::new(w, h, sample.dimensions(), req.placement);
@@ -854,7 +855,17 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
                 mask.allows(x, y) && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
             };
             let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || phase.is_some() { Some(&allowed) } else { None };
-            let (pick, size, f_max) = choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict)?;
+            let masked = |x: i32, y: i32| mask.allows(x, y);
+            let mask_only: Option<&Allowed<'_>> = if mask.positions.is_some() { Some(&masked) } else { None };
+            let (pick, size, f_max) = match choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict) {
+                // No position in the lattice phase lies where this block's seam lines fit (a
+                // lattice cell large next to the sample): the block goes without the phase.
+                Err(_) if phase.is_some() => {
+                    phase_missed += 1;
+                    choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), mask_only)?
+                }
+                r => r?,
+            };
             set_sizes.push(size);
             f_max_sum += f_max;
             pick
@@ -879,6 +890,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
     torus.record_fit(&mut diagnostics);
     if let Some(p) = &phase {
         diagnostics["lattice_phase"] = p.describe();
+        diagnostics["lattice_phase"]["blocks_out_of_phase"] = serde_json::json!(phase_missed);
     }
     Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
 }
