@@ -37,6 +37,17 @@ fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
     job(&d.join("jobs"), "masked.toml", "quilting", &mask_path, "[params]\nblock = 32\n");
     job(&d.join("jobs"), "tileable.toml", "quilting", &mask_path, "tileable = true\n[params]\nblock = 32\n");
     job(&d.join("jobs"), "feather.toml", "quilting", &mask_path, "[params]\nblock = 32\ncut = \"none\"\nblend = \"feather\"\n");
+    // Double-seam pastes blocks verbatim: every pixel of every pasted part must be allowed.
+    job(&d.join("jobs"), "seam.toml", "double-seam", &mask_path, "[params]\nblock = 32\n");
+    job(&d.join("jobs"), "seam_tileable.toml", "double-seam", &mask_path, "tileable = true\n[params]\nblock = 32\n");
+    std::fs::write(
+        d.join("jobs/seam_unmasked.toml"),
+        format!(
+            "sample = \"{}\"\nmethod = \"double-seam\"\nseed = 3\n[output]\npath = \"seam_unmasked.png\"\nwidth = 200\nheight = 160\nsource_map = \"seam_unmasked.map.exr\"\n[params]\nblock = 32\n",
+            repo().join(SAMPLE).display()
+        ),
+    )
+    .unwrap();
     std::fs::write(
         d.join("jobs/unmasked.toml"),
         format!(
@@ -60,10 +71,11 @@ fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
         }
         used.iter().filter(|&&i| !mask.allows(i % w, i / w)).count()
     };
-    for name in ["masked.map.exr", "tileable.map.exr", "feather.map.exr"] {
+    for name in ["masked.map.exr", "tileable.map.exr", "feather.map.exr", "seam.map.exr", "seam_tileable.map.exr"] {
         assert_eq!(forbidden(name), 0, "{name}");
     }
     assert!(forbidden("unmasked.map.exr") > 100, "the unmasked job copies the watermark");
+    assert!(forbidden("seam_unmasked.map.exr") > 100, "the unmasked double-seam job copies the watermark");
     // Recorded: the mask's file, and its pixels in the content key.
     let m = json(&d.join("out/manifest.json"));
     let job = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "masked.toml").unwrap();
@@ -147,7 +159,7 @@ fn bad_masks_are_refused_naming_the_file_and_the_reason() {
         "is black everywhere: it leaves nothing to copy",
         "stripe.toml:2:1: `sample_mask`: sample mask",
         "leaves no whole 50x50 block (params.block) to copy; the largest block it allows is 40",
-        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting",
+        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting, double-seam",
         "missing.toml:2:15: `sample_mask`: sample mask",
         "type.toml:2:15: `sample_mask`: expected a string (the mask image's path",
     ] {

@@ -178,9 +178,11 @@ fn every_wrapping_method_tiles_the_sizes_artists_use_with_its_defaults() {
 }
 
 /// The same sizes for the tile methods with their defaults (`tile = "auto"` takes a size that
-/// divides the output: 64 for the powers of two and 384×320, 50 or 40 for 1000×600): every one
-/// wraps, the wrap line no more visible than 1.5 times the tile seams (the bar), and the
-/// tiles take their own interiors (more than two colours on these samples).
+/// divides the output: 64 for the powers of two and 384×320, 50 or 40 for 1000×600), and
+/// 1001×601, which no tile size divides: the tiling wraps on the torus of whole tiles nearest it
+/// and the output leaves out or repeats a few of its columns and rows (`diagnostics.tileable_fit`).
+/// Every one wraps, the wrap line no more visible than 1.5 times the tile seams (the bar),
+/// and the tiles take their own interiors (more than two colours on these samples).
 #[test]
 fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
     let chosen: Vec<(String, RgbImage)> = samples()
@@ -188,13 +190,18 @@ fn the_tile_methods_tile_the_sizes_artists_use_with_their_defaults() {
         .filter(|(n, _)| ["pebbles_beige.png", "rock_a_albedo.png", "cobblestone_a_albedo.png"].contains(&n.as_str()))
         .collect();
     for method in ["wang-tiles", "rw-tiles"] {
-        for size in [(512, 512), (1024, 1024), (384, 320), (1000, 600)] {
+        for size in [(512, 512), (1024, 1024), (384, 320), (1000, 600), (1001, 601)] {
             for (name, sample) in &chosen {
                 let out = synth(method, sample, size, &[], false);
+                let fitted = out.diagnostics.get("tileable_fit");
+                assert_eq!(fitted.is_some(), size == (1001, 601), "{method} {size:?} {name}: {}", out.diagnostics);
                 let wrap = wrap_visibility(&out.image).unwrap();
                 let seams = seam_visibility(&out.image, out.seams.as_ref().unwrap()).unwrap();
                 let tile = &out.diagnostics["geometry"]["tile"];
-                println!("{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}");
+                println!(
+                    "{method} {size:?} {name}: tile {tile}, wrap {wrap:.3}, tile seams {seams:.3}; fit {}",
+                    fitted.map_or(String::new(), |f| format!("x {} y {}", f["x"]["torus"], f["y"]["torus"]))
+                );
                 assert_eq!(out.diagnostics["interior"]["interior"], "own", "{method} {name}: {}", out.diagnostics);
                 if std::env::var("TEXSYN_NO_ASSERT").is_err() {
                     assert!(wrap <= 1.5 * seams, "{method} {size:?} on {name}: wrap {wrap} > 1.5 x tile seams {seams}");
@@ -302,14 +309,28 @@ fn a_wrap_that_cuts_the_lattice_is_warned_about_with_the_sizes_that_keep_it() {
         ),
     )
     .unwrap();
+    // Double-seam gets the same warning.
+    std::fs::write(
+        d.join("jobs/studs_seam.toml"),
+        format!(
+            "sample = \"{}\"\nmethod = \"double-seam\"\nseed = 2\n[output]\npath = \"studs_seam.png\"\nwidth = 425\nheight = 325\ntileable = true\n[params]\nblock = 30\n",
+            sample.display()
+        ),
+    )
+    .unwrap();
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
     let m = json(&d.join("out/manifest.json"));
-    let warnings: Vec<&str> = m["jobs"][0]["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap()).collect();
+    let warnings_of = |k: usize| -> Vec<String> {
+        m["jobs"][k]["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap().to_string()).collect()
+    };
+    let (warnings, seam_warnings) =
+        if m["jobs"][0]["method"] == "quilting" { (warnings_of(0), warnings_of(1)) } else { (warnings_of(1), warnings_of(0)) };
     let wrap = warnings.iter().find(|w| w.contains("at its wrap")).unwrap_or_else(|| panic!("{warnings:?}"));
+    assert!(seam_warnings.contains(wrap), "double-seam: {seam_warnings:?}");
     // metal_tread_studs repeats every 27 px across and 26 px down.
     assert!(wrap.contains("432x312 or 432x338 keep whole texels") || wrap.contains("432x338 or 432x312 keep whole texels"), "{wrap}");
     let advised = text(&run_ok(texsyn().arg("advise").arg(&sample).args(["--tileable", "425x325"])));
-    assert!(advised.contains(*wrap), "{advised}");
+    assert!(advised.contains(wrap.as_str()), "{advised}");
     let fine = text(&run_ok(texsyn().arg("advise").arg(&sample).args(["--tileable", "432x338"])));
     assert!(fine.contains("tileable 432x338: keeps the lattice whole"), "{fine}");
     let doc: Value =
@@ -321,7 +342,9 @@ fn a_wrap_that_cuts_the_lattice_is_warned_about_with_the_sizes_that_keep_it() {
 /// At a size the lattice divides, the lattice runs on across the wrap: a texel's neighbour one
 /// period on, through the wrap, correlates with it nearly as well as inside the image (quilting:
 /// 0.39 and 0.41 across the wrap against 0.56 and 0.52 inside, seed 11; cut at 425x325: 0.20 and
-/// -0.04). (At a size it does not
+/// -0.04). Double-seam keeps every block in the first block's lattice phase when the size keeps
+/// the lattice (`diagnostics.lattice_phase`); before it did, its wrap across broke the lattice
+/// (-0.06 against 0.55 inside). (At a size it does not
 /// divide, the wrap cuts texels however well the pixels join, which the test above warns about;
 /// measured here too, as the contrast that shows the measure can tell.)
 #[test]
@@ -363,20 +386,42 @@ fn at_a_size_the_lattice_divides_the_lattice_runs_on_across_the_wrap() {
     };
     let block = [("block", ParamValue::Int(30))];
     for method in ["quilting", "double-seam"] {
-        let kept = correlations(&synth(method, &sample, (432, 312), &block, false).image);
+        let kept_out = synth(method, &sample, (432, 312), &block, false);
+        if method == "double-seam" {
+            let phase = &kept_out.diagnostics["lattice_phase"];
+            let vectors = [phase["t1"].clone(), phase["t2"].clone()];
+            assert!(
+                vectors.contains(&serde_json::json!([27, 0])) && vectors.contains(&serde_json::json!([0, 26])),
+                "{}",
+                kept_out.diagnostics
+            );
+            assert_eq!(phase["blocks_out_of_phase"], 0, "{}", kept_out.diagnostics);
+            let cut_out = synth(method, &sample, (425, 325), &block, false);
+            assert!(cut_out.diagnostics.get("lattice_phase").is_none(), "{}", cut_out.diagnostics);
+        }
+        if let Ok(dir) = std::env::var("TEXSYN_TILEABLE_PNG") {
+            texsyn::save_image(&tiled(&kept_out.image), std::path::Path::new(&dir).join(format!("{method}_studs_432x312_2x2.png")))
+                .unwrap();
+        }
+        let kept = correlations(&kept_out.image);
         let cut = correlations(&synth(method, &sample, (425, 325), &block, false).image);
         println!(
             "{method}: 432x312 (wrap, interior) across {:?} down {:?}; 425x325 across {:?} down {:?}",
             kept[0], kept[1], cut[0], cut[1]
         );
-        // Double-seam is measured, not held to it: its blocks are pasted verbatim and nothing keeps
-        // a row's picks in one lattice phase, so at 432x312 its wrap across breaks the lattice
-        // (correlation -0.06 against 0.55 inside; down 0.62 against 0.56). Still to do (#30).
-        if std::env::var("TEXSYN_NO_ASSERT").is_ok() || method == "double-seam" {
+        if std::env::var("TEXSYN_NO_ASSERT").is_ok() {
             continue;
         }
+        // Double-seam's blocks are pasted verbatim, each in the first block's lattice phase within
+        // 2.6 px: across its wrap 0.25 against 0.67 inside at seed 11 (0.64 against 0.70 at seed
+        // 2; down 0.60 against 0.69 and 0.52 against 0.66), where it was -0.06 against 0.55 before
+        // the phase was kept. The rest is the sample's: its period across is 26.7 px, not the
+        // 27 px the lattice measures in whole pixels, so 432 px is 16.2 periods and the wrap is
+        // 4 to 5 px out of phase whatever the method does (quilting's overlaps and cuts hide it
+        // better).
+        let factor = if method == "double-seam" { 0.3 } else { 0.6 };
         for (axis, (wrap, interior)) in ["across", "down"].iter().zip(kept) {
-            assert!(wrap >= 0.6 * interior, "{method} 432x312 {axis}: wrap {wrap:.3} vs interior {interior:.3}");
+            assert!(wrap >= factor * interior, "{method} 432x312 {axis}: wrap {wrap:.3} vs interior {interior:.3}");
         }
         assert!(cut.iter().any(|&(wrap, interior)| wrap < 0.5 * interior), "{method} 425x325: {cut:?}");
     }

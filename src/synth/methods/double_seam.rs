@@ -651,8 +651,9 @@ impl Method for DoubleSeam {
             return Err(SynthError::Failed(format!("block {} does not fit in the {sw}x{sh} sample", s.block)));
         }
         let prep = Prepared::of(sample);
+        let mask = MaskPositions::of(req, s.block as u32)?;
         if req.tileable {
-            return synthesize_torus(req, &s, &prep);
+            return synthesize_torus(req, &s, &prep, &mask);
         }
         let (block, g) = (s.block as u32, s.g as u32);
         // The quilting grid; the overlap is only virtual here.
@@ -668,10 +669,7 @@ impl Method for DoubleSeam {
             for bj in 0..cols {
                 let (ox, oy) = grid.origin(bi, bj);
                 let (x, y) = if bi == 0 && bj == 0 {
-                    let mut st = Stream::new(req.seed, "seam/first");
-                    let x = st.below((sw - s.block + 1) as u64) as i32;
-                    let y = st.below((sh - s.block + 1) as u64) as i32;
-                    (x, y)
+                    mask.first(req.seed)
                 } else {
                     let case = if bi == 0 {
                         Case::Horizontal
@@ -695,7 +693,9 @@ impl Method for DoubleSeam {
                         hints.push((px, py + stride as i32));
                     }
                     let origin = (ox as i32, oy as i32);
-                    let (pick, size, f_max) = choose(&prep, &s, shape, &out, origin, &hints, (req.seed, bi, bj))?;
+                    let allowed = |x: i32, y: i32| mask.allows(x, y);
+                    let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() { Some(&allowed) } else { None };
+                    let (pick, size, f_max) = choose(&prep, &s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict)?;
                     set_sizes.push(size);
                     f_max_sum += f_max;
                     pick
@@ -723,6 +723,10 @@ impl Method for DoubleSeam {
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let s = Settings::of(&DoubleSeamConfig::from_params(p).map_err(|e| e.to_string())?);
         torus_of(&s, sample, output).map(|_| ())
+    }
+
+    fn honours_sample_mask(&self) -> bool {
+        true
     }
 }
 
@@ -796,10 +800,15 @@ fn line_ranges(prep: &Prepared, s: &Settings, ls: &[Vec<(i32, i32)>; 2]) -> Rang
     (-min_c..=sw - 1 - max_c, -min_r..=sh - 1 - max_r)
 }
 
-fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synthesis, SynthError> {
+fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPositions) -> Result<Synthesis, SynthError> {
     let sample = req.sample;
     let torus = torus_of(s, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?;
-    let (block, g) = (s.block as u32, s.g as u32);
+    // A lattice the output's size keeps whole across the wrap: every block in the first block's
+    // lattice phase, so the texels run on through the wrap as they do inside.
+    let phase = LatticePhase::of(sample, (req.width, req.height));
+    let mut first_offset = (0i32, 0i32);
+    let mut phase_missed = 0usize;
+    let g = s.g as u32;
     let (w, h) = torus.size();
     let mut out = Canvas::new(w, h, sample.dimensions(), req.placement);
     let mut done = vec![false; (torus.rows * torus.cols) as usize];
@@ -812,9 +821,8 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
     for (bi, bj) in torus.raster() {
         let (ox, oy) = torus.origin(bi, bj);
         let (x, y) = if bi == 0 && bj == 0 {
-            let mut st = Stream::new(req.seed, "seam/first");
-            let x = st.below((sample.width() - block + 1) as u64) as i32;
-            let y = st.below((sample.height() - block + 1) as u64) as i32;
+            let (x, y) = mask.first(req.seed);
+            first_offset = (x - ox as i32, y - oy as i32);
             (x, y)
         } else {
             let ls = torus_lines(&torus, &done, s, bi, bj);
@@ -843,7 +851,21 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
                 }
             }
             let origin = (ox as i32, oy as i32);
-            let (pick, size, f_max) = choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj))?;
+            let allowed = |x: i32, y: i32| {
+                mask.allows(x, y) && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
+            };
+            let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || phase.is_some() { Some(&allowed) } else { None };
+            let masked = |x: i32, y: i32| mask.allows(x, y);
+            let mask_only: Option<&Allowed<'_>> = if mask.positions.is_some() { Some(&masked) } else { None };
+            let (pick, size, f_max) = match choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict) {
+                // No position in the lattice phase lies where this block's seam lines fit (a
+                // lattice cell large next to the sample): the block goes without the phase.
+                Err(_) if phase.is_some() => {
+                    phase_missed += 1;
+                    choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), mask_only)?
+                }
+                r => r?,
+            };
             set_sizes.push(size);
             f_max_sum += f_max;
             pick
@@ -866,7 +888,117 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared) -> Result<Synt
         "mean_f_max": f_max_sum / n,
     });
     torus.record_fit(&mut diagnostics);
+    if let Some(p) = &phase {
+        diagnostics["lattice_phase"] = p.describe();
+        diagnostics["lattice_phase"]["blocks_out_of_phase"] = serde_json::json!(phase_missed);
+    }
     Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+}
+
+/// The block positions a request's sample mask allows (every pixel of the block, a superset of
+/// what any block pastes), or every position when it has none.
+struct MaskPositions {
+    /// Row-major over `(W − B + 1) × (H − B + 1)`; `None` when every position is allowed.
+    positions: Option<Vec<bool>>,
+    cols: i32,
+    rows: i32,
+}
+
+impl MaskPositions {
+    fn of(req: &Request, block: u32) -> Result<MaskPositions, SynthError> {
+        let (cols, rows) = (req.sample.width() as i32 - block as i32 + 1, req.sample.height() as i32 - block as i32 + 1);
+        let Some(mask) = req.constraints.copyable() else { return Ok(MaskPositions { positions: None, cols, rows }) };
+        let positions = mask.block_positions(block, block);
+        if !positions.contains(&true) {
+            return Err(SynthError::param(
+                "block",
+                format!(
+                    "the sample mask leaves no whole {block}x{block} block to copy; the largest block it allows is {}",
+                    mask.largest_block()
+                ),
+            ));
+        }
+        Ok(MaskPositions { positions: Some(positions), cols, rows })
+    }
+
+    fn allows(&self, x: i32, y: i32) -> bool {
+        self.positions.as_ref().is_none_or(|v| x >= 0 && y >= 0 && x < self.cols && y < self.rows && v[(y * self.cols + x) as usize])
+    }
+
+    /// The first block's position (stream `seam/first`): uniform over the sample, or over the
+    /// allowed positions with a mask.
+    fn first(&self, seed: u64) -> (i32, i32) {
+        let mut st = Stream::new(seed, "seam/first");
+        match &self.positions {
+            None => {
+                let x = st.below(self.cols as u64) as i32;
+                let y = st.below(self.rows as u64) as i32;
+                (x, y)
+            }
+            Some(v) => {
+                let n = v.iter().filter(|&&a| a).count();
+                let k = v.iter().enumerate().filter(|(_, a)| **a).nth(st.below_usize(n)).expect("an allowed position").0 as i32;
+                (k % self.cols, k / self.cols)
+            }
+        }
+    }
+}
+
+/// The sample's lattice when a tileable output's size keeps it whole across the wrap
+/// ([`crate::synth::wrap::wrap_fit`], the lattice `texsyn advise` and the manifest's wrap warning
+/// use): blocks are then kept to offsets (sample position − output position) within
+/// [`LatticePhase::tolerance`] of a lattice vector from the first block's.
+struct LatticePhase {
+    t1: (f64, f64),
+    t2: (f64, f64),
+    tolerance: f64,
+    lattice: ((i64, i64), (i64, i64)),
+}
+
+impl LatticePhase {
+    /// Phase tolerance as a share of the shorter lattice vector (at least a pixel): the measured
+    /// vectors are whole pixels, so a few periods away the true phase is a pixel or two off
+    /// (metal_tread_studs measures 27 px across; the blocks double-seam picks inside one row sit
+    /// 80, 133, 160, 214, 295 px apart, 26.7 px a period).
+    const SHARE: f64 = 0.1;
+
+    fn of(sample: &RgbImage, size: (u32, u32)) -> Option<LatticePhase> {
+        let l = crate::synth::lattice::extract(sample, &crate::synth::lattice::LatticeOptions::default()).ok()?;
+        if !crate::synth::wrap::wrap_fit(&l, size).continuous {
+            return None;
+        }
+        let (a, b) = crate::synth::lattice::reduce(l.t1, l.t2);
+        let f = |v: (i64, i64)| (v.0 as f64, v.1 as f64);
+        let norm = |v: (f64, f64)| v.0.hypot(v.1);
+        let tolerance = (Self::SHARE * norm(f(a)).min(norm(f(b)))).max(1.0);
+        Some(LatticePhase { t1: f(a), t2: f(b), tolerance, lattice: (a, b) })
+    }
+
+    /// Whether offset difference `d` is within the tolerance of a lattice vector (largest
+    /// coordinate of the residual).
+    fn keeps(&self, d: (i32, i32)) -> bool {
+        let (t1, t2) = (self.t1, self.t2);
+        let (x, y) = (f64::from(d.0), f64::from(d.1));
+        let det = t1.0 * t2.1 - t1.1 * t2.0;
+        let (a, b) = ((x * t2.1 - y * t2.0) / det, (t1.0 * y - t1.1 * x) / det);
+        let mut best = f64::INFINITY;
+        for m in [a.floor() - 1.0, a.floor(), a.floor() + 1.0, a.floor() + 2.0] {
+            for n in [b.floor() - 1.0, b.floor(), b.floor() + 1.0, b.floor() + 2.0] {
+                let (rx, ry) = (x - m * t1.0 - n * t2.0, y - m * t1.1 - n * t2.1);
+                best = best.min(rx.abs().max(ry.abs()));
+            }
+        }
+        best <= self.tolerance
+    }
+
+    fn describe(&self) -> serde_json::Value {
+        serde_json::json!({
+            "how": "the output's size keeps the sample's lattice whole across the wrap: every block in the first block's lattice phase",
+            "t1": [self.lattice.0.0, self.lattice.0.1],
+            "t2": [self.lattice.1.0, self.lattice.1.1],
+            "tolerance_px": (self.tolerance * 1000.0).round() / 1000.0,
+        })
+    }
 }
 
 /// The candidate set `F ≥ min(tau_f, F_max − eps_f)` and one member drawn from it: the position,
@@ -1092,6 +1224,12 @@ const LANES: usize = 4;
 /// table or [`exact_line_stats`], the same bits), so `F_max`, `θ` and the set are bit for bit the
 /// same. The table of every candidate's statistics is built only once some search has many
 /// survivors: most searches score a handful.
+/// Which candidate positions (the block's top-left corner in the sample) a block may take: those
+/// whose copied pixels the sample mask allows, and on a tileable output that keeps a lattice, those
+/// in the first block's lattice phase.
+type Allowed<'a> = dyn Fn(i32, i32) -> bool + Sync + 'a;
+
+#[allow(clippy::too_many_arguments)]
 fn choose(
     prep: &Prepared,
     s: &Settings,
@@ -1100,10 +1238,21 @@ fn choose(
     origin: (i32, i32),
     hints: &[(i32, i32)],
     (seed, bi, bj): (u64, u32, u32),
+    allowed: Option<&Allowed<'_>>,
 ) -> Result<((i32, i32), usize, f64), SynthError> {
     let (ls, (xs, ys)) = (&shape.ls, shape.ranges.clone());
+    let ok = |x: i32, y: i32| allowed.is_none_or(|a| a(x, y));
     let everything = || -> Result<((i32, i32), usize, f64), SynthError> {
         let (positions, scores) = score_lines(prep, s, ls, (xs.clone(), ys.clone()), shape.exact(prep, s), out, origin);
+        if allowed.is_none() {
+            return pick(s, &positions, &scores, seed, bi, bj);
+        }
+        let (positions, scores): (Vec<(i32, i32)>, Vec<f64>) = positions.into_iter().zip(scores).filter(|(p, _)| ok(p.0, p.1)).unzip();
+        if positions.is_empty() {
+            return Err(SynthError::Failed(format!(
+                "no candidate position at grid ({bi}, {bj}) is allowed (sample mask, lattice phase) with its seam lines in the sample"
+            )));
+        }
         pick(s, &positions, &scores, seed, bi, bj)
     };
     if s.circular {
@@ -1165,7 +1314,7 @@ fn choose(
     // A lower bound of F_max from the hints, hence a lower bound of θ.
     let mut f_low = f64::NEG_INFINITY;
     for &(x, y) in hints {
-        if xs.contains(&x) && ys.contains(&y) {
+        if xs.contains(&x) && ys.contains(&y) && ok(x, y) {
             let k = (y - y0) as usize * nx + (x - x0) as usize;
             f_low = f_low.max(full(k, [mismatches_of(k, 0), mismatches_of(k, 1)]));
         }
@@ -1176,6 +1325,11 @@ fn choose(
         if s.clamp { c.max(0.0) } else { c }
     };
     if nx == 0 || ny == 0 {
+        return everything();
+    }
+    // Whether candidate `k` may be picked (all may without a restriction).
+    let ok_k = |k: usize| ok(x0 + (k % nx) as i32, y0 + (k / nx) as i32);
+    if allowed.is_some() && !(0..nx * ny).any(ok_k) {
         return everything();
     }
     // Edge mismatches of both lines for every candidate, by rows.
@@ -1211,7 +1365,7 @@ fn choose(
         survivors = mism
             .iter()
             .enumerate()
-            .filter(|&(k, m)| may_reach(edge_cap[0][m[0] as usize] + edge_cap[1][m[1] as usize] - penalty_of(k), theta_low))
+            .filter(|&(k, m)| may_reach(edge_cap[0][m[0] as usize] + edge_cap[1][m[1] as usize] - penalty_of(k), theta_low) && ok_k(k))
             .map(|(k, _)| k)
             .collect();
     }
@@ -1224,6 +1378,10 @@ fn choose(
         let penalise = |mut u: Vec<f64>| {
             if let Some(p) = &penalty {
                 u.iter_mut().zip(p).for_each(|(u, p)| *u -= p);
+            }
+            if allowed.is_some() {
+                // A position that may not be picked bounds nothing and survives nothing.
+                u.iter_mut().enumerate().filter(|(k, _)| !ok_k(*k)).for_each(|(_, u)| *u = f64::NEG_INFINITY);
             }
             u
         };
@@ -1240,7 +1398,7 @@ fn choose(
             }
             f_low = f_low.max(full(best, mism[best]));
             let theta_low = s.tau.min(f_low - s.eps);
-            survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low)).collect();
+            survivors = (0..u.len()).filter(|&k| may_reach(u[k], theta_low) && ok_k(k)).collect();
             if hs {
                 break;
             }
@@ -2063,7 +2221,7 @@ mod tests {
                 for seed in [1u64, 2, 3] {
                     let want = pick(s, &positions, &scores, seed, 1, 1).unwrap();
                     for hints in [vec![natural], vec![(3, 60), natural], vec![(50, 50)], vec![]] {
-                        let got = choose(&prep, s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                        let got = choose(&prep, s, &shape, &out, origin, &hints, (seed, 1, 1), None).unwrap();
                         assert_eq!(got.0, want.0, "{case:?} {s:?} {hints:?}");
                         assert_eq!(got.1, want.1);
                         assert_eq!(got.2.to_bits(), want.2.to_bits());
@@ -2105,7 +2263,7 @@ mod tests {
                 for seed in [1u64, 2, 3] {
                     let want = pick(&s, &positions, &scores, seed, 1, 1).unwrap();
                     for hints in [vec![], vec![(40, 40)], vec![best]] {
-                        let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                        let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1), None).unwrap();
                         assert_eq!(got.0, want.0, "{s:?} bottom {bottom} {hints:?}");
                         assert_eq!(got.1, want.1);
                         assert_eq!(got.2.to_bits(), want.2.to_bits());
@@ -2137,7 +2295,7 @@ mod tests {
             for seed in [1u64, 2] {
                 let want = pick(&s, &positions, &scores, seed, 1, 1).unwrap();
                 for hints in [vec![], vec![(40, 40)]] {
-                    let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1)).unwrap();
+                    let got = choose(&prep, &s, &shape, &out, origin, &hints, (seed, 1, 1), None).unwrap();
                     assert_eq!((got.0, got.1, got.2.to_bits()), (want.0, want.1, want.2.to_bits()), "{case:?} {hints:?}");
                 }
             }

@@ -462,10 +462,28 @@ pub fn auto_tile(
     let (sw, sh) = (i64::from(sample.0), i64::from(sample.1));
     let divides = |t: i64| wrap.is_none_or(|(w, h)| i64::from(w) % t == 0 && i64::from(h) % t == 0);
     let has_room = |t: i64| colors.as_ref().is_none_or(|c| (c.room)(t) >= c.need);
-    let sizes: Vec<i64> =
-        sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= sw.min(sh) && divides(t) && has_room(t)).collect();
+    let pool: Vec<i64> = sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= sw.min(sh) && has_room(t)).collect();
+    let dividing: Vec<i64> = pool.iter().copied().filter(|&t| divides(t)).collect();
+    // A tileable output that no size divides is fitted ([`fit::Fit`]): the sizes that change the
+    // fewest of its columns and rows, or any within [`fit::AUTO_FIT_TOLERANCE`] of them.
+    let fitted = match wrap {
+        Some(w) if dividing.is_empty() => {
+            let usable: Vec<i64> =
+                pool.iter().copied().filter(|&t| super::fit::fits(w.0, t as u32) && super::fit::fits(w.1, t as u32)).collect();
+            let cost = |t: i64| super::fit::cost2(w, t as u32);
+            let least = usable.iter().map(|&t| cost(t)).fold(f64::INFINITY, f64::min);
+            Some(usable.iter().copied().filter(|&t| cost(t) <= least.max(super::fit::AUTO_FIT_TOLERANCE)).collect::<Vec<i64>>())
+        }
+        _ => None,
+    };
+    let is_fitted = fitted.is_some();
+    let sizes = fitted.unwrap_or(dividing);
     let r3 = |x: f64| (x * 1000.0).round() / 1000.0;
-    let wrapping = if wrap.is_some() { " dividing the tileable output" } else { "" };
+    let wrapping = match wrap {
+        Some(_) if is_fitted => " fitting the tileable output (none divides it)",
+        Some(_) => " dividing the tileable output",
+        None => "",
+    };
     if let Some(al) = al {
         let (a, b) = al.reduced;
         let (mx, my) = (a.0.abs() + b.0.abs(), a.1.abs() + b.1.abs());
@@ -510,12 +528,16 @@ pub fn auto_tile(
         return TileChoice { tile, record: serde_json::json!({ "tile": tile, "how": how }) };
     }
     let tile = match wrap {
-        Some(_) if !divides(FALLBACK_TILE) => {
+        Some(_) if is_fitted || !divides(FALLBACK_TILE) => {
             sizes.iter().copied().min_by_key(|&t| ((t - FALLBACK_TILE).abs(), t)).unwrap_or(FALLBACK_TILE)
         }
         _ => FALLBACK_TILE,
     };
-    let how = if tile == FALLBACK_TILE {
+    let how = if is_fitted {
+        format!(
+            "auto: {tile}, the size nearest {FALLBACK_TILE} among those{wrapping} with the fewest columns and rows left out or repeated ({why})"
+        )
+    } else if tile == FALLBACK_TILE {
         format!("auto: {tile} ({why})")
     } else {
         format!("auto: {tile}, the size nearest {FALLBACK_TILE} that divides the tileable output ({why})")
@@ -535,18 +557,19 @@ pub fn auto_tileable(
 ) -> Result<(), String> {
     let side = i64::from(sample.0.min(sample.1));
     let fit: Vec<i64> = sizes.filter(|&t| (AUTO_MIN_TILE..=TILE_RANGE.1).contains(&t) && patch(t) <= side).collect();
-    if fit.iter().any(|&t| i64::from(output.0) % t == 0 && i64::from(output.1) % t == 0) {
+    let fits = |t: i64| super::fit::fits(output.0, t as u32) && super::fit::fits(output.1, t as u32);
+    if fit.iter().any(|&t| fits(t)) {
         return Ok(());
     }
-    let near = |v: u32| ((i64::from(v) + FALLBACK_TILE / 2) / FALLBACK_TILE).max(1) * FALLBACK_TILE;
+    let smallest = fit.first().copied().unwrap_or(AUTO_MIN_TILE);
+    let least = |v: u32| if super::fit::fits(v, smallest as u32) { i64::from(v) } else { 2 * smallest };
     Err(format!(
-        "tileable {method} output must be a multiple of the tile size in both directions, and with tile = \"auto\" no tile size that fits this sample ({}..={}) divides {}x{}; {}x{} would work (tile {FALLBACK_TILE}), or set tile",
-        fit.first().copied().unwrap_or(AUTO_MIN_TILE),
+        "tileable {method} needs at least two tiles each way (or exactly one), and with tile = \"auto\" the smallest tile size that fits this sample is {smallest} ({}..={}), {} pixels a side; {}x{} would work, or set a smaller tile",
+        smallest,
         fit.last().copied().unwrap_or(AUTO_MIN_TILE),
-        output.0,
-        output.1,
-        near(output.0),
-        near(output.1)
+        2 * smallest,
+        least(output.0),
+        least(output.1)
     ))
 }
 
@@ -652,12 +675,22 @@ mod tests {
         let small = auto_tile(Some(&al), (60, 60), sizes(), patch, wang, None, None);
         assert_eq!(small.tile, 64);
         assert!(small.record.get("residual_px").is_none(), "{}", small.record);
-        // A tileable 640x130 output: only 130's even divisors from 32 (also dividing 640)…
+        // A tileable 640x130 output: no even size from 32 divides both, so the sizes that fit
+        // it changing at most 3 % of its columns and rows, the one nearest the lattice (130)…
         let w = auto_tile(Some(&al), (256, 256), sizes(), patch, wang, Some((640, 130)), None);
-        assert!(640 % w.tile == 0 && 130 % w.tile == 0 || w.tile == 64, "{}", w.record);
+        assert!(crate::synth::methods::tiles::fit::cost2((640, 130), w.tile as u32) <= 0.03, "{}", w.record);
+        assert_eq!(auto_tile(Some(&al), (256, 256), sizes(), patch, wang, Some((640, 128)), None).tile, 64);
         // …and 700x100 without a lattice: the divisor nearest 64.
         assert_eq!(auto_tile(None, (256, 256), sizes(), patch, wang, Some((700, 100)), None).tile, 50);
-        assert!(auto_tileable("wang-tiles", (256, 256), sizes(), patch, (701, 701)).unwrap_err().contains("704x704 would work"));
+        // No size divides 701x701 or 1001x601: fitted, the sizes that change the fewest columns
+        // and rows (or at most 3 % of them) nearest 64.
+        assert_eq!(auto_tileable("wang-tiles", (256, 256), sizes(), patch, (701, 701)), Ok(()));
+        let f = auto_tile(None, (256, 256), sizes(), patch, wang, Some((1001, 601)), None);
+        assert!(crate::synth::methods::tiles::fit::cost2((1001, 601), f.tile as u32) <= 0.03, "{}", f.record);
+        assert!(f.record["how"].as_str().unwrap().contains("fitting the tileable output"), "{}", f.record);
+        // Below two tiles of the smallest size each way: refused, naming the size that works.
+        let e = auto_tileable("wang-tiles", (256, 256), sizes(), patch, (47, 701)).unwrap_err();
+        assert!(e.contains("64 pixels a side; 64x701 would work"), "{e}");
     }
 
     #[test]

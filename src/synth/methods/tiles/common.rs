@@ -7,6 +7,7 @@
 //! It sits below both methods and below the tile-set modules, so that `wang-tiles` does not have to
 //! borrow these from `rw-tiles` (or the reverse) and the family's imports only go one way.
 
+use super::fit::{Fit, Slots};
 use super::wang::{Tiling, TilingOrder};
 use crate::image::RgbImage;
 use crate::synth::method::{Placement, Request, STRIP_ROWS, SourceRows, Strips, Synthesis, linear_memory};
@@ -31,26 +32,66 @@ pub trait TileRenderer: Send + Sync + 'static {
     /// The tiling of an output that wraps with `period` (sizes already checked by [`tileable`]),
     /// over `cover` pixels: the output itself, or a larger area that shows the repeat.
     fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling;
+    /// The pixels a wrapping tiling repeats after, both ways (the tile size).
+    fn unit(&self) -> u32;
+    /// Where a [`Fit`] may leave out or repeat a column (row) of the torus: inside a tile, on one
+    /// continuous patch of the sample.
+    fn fit_slots(&self) -> Slots;
 
-    /// The tiling a request asks for: wrapping when [`Request::tileable`], the job's order otherwise.
-    fn tiling(&self, order: TilingOrder, req: &Request) -> Tiling {
+    /// The tiling a request asks for: wrapping when [`Request::tileable`], the job's order
+    /// otherwise; a wrapping output of a size that is not whole tiles is shown from the torus of
+    /// whole tiles nearest it ([`Fit`]).
+    fn tiling(&self, order: TilingOrder, req: &Request) -> (Tiling, Option<Fit>) {
         let size = (req.width, req.height);
-        if req.tileable { self.tile_torus(size, size, req.seed) } else { self.tile_output(order, size.0, size.1, req.seed) }
+        if !req.tileable {
+            return (self.tile_output(order, size.0, size.1, req.seed), None);
+        }
+        match Fit::new(size, self.unit(), self.fit_slots()) {
+            None => (self.tile_torus(size, size, req.seed), None),
+            Some(fit) => (self.tile_torus(fit.period, fit.period, req.seed), Some(fit)),
+        }
+    }
+}
+
+/// What a tile method's fill hands to rendering: the synthesis record, the tile set, the tiling
+/// and, for a wrapping output that is not whole tiles, its [`Fit`].
+pub type Filled<T> = (Synthesis, T, Tiling, Option<Fit>);
+
+/// Output rows `y0..` of a tiling, through its fit when it has one.
+fn rows_of<T: Copy + std::default::Default + Send + Sync>(
+    fit: Option<&Fit>,
+    width: u32,
+    y0: u32,
+    rows: &mut [T],
+    ch: usize,
+    render: impl Fn(u32, u32, &mut [T]),
+) {
+    match fit {
+        None => render(width, y0, rows),
+        Some(f) => super::fit::render_rows(f, y0, rows, ch, |v0, torus| render(f.period.0, v0, torus)),
     }
 }
 
 /// [`crate::synth::method::Method::synthesize`] of a tile method from its fill: the output
 /// rendered whole (and its placement when asked for), the rendering time added to the `fill` phase.
-pub fn render_whole(filled: (Synthesis, impl TileRenderer, Tiling), req: &Request) -> Synthesis {
-    let (mut synthesis, mut tiles, tiling) = filled;
+pub fn render_whole(filled: Filled<impl TileRenderer>, req: &Request) -> Synthesis {
+    let (mut synthesis, mut tiles, tiling, fit) = filled;
     let t = Instant::now();
     let mut image = RgbImage::new(req.width, req.height);
-    tiles.render_rows(&tiling, req.width, 0, image.as_raw_mut());
+    // A fitted output goes STRIP_ROWS rows at a time, so that the torus it is shown from is never
+    // rendered whole beside it.
+    let step = if fit.is_some() { STRIP_ROWS as usize } else { req.height.max(1) as usize };
+    let w = req.width as usize;
+    for (k, chunk) in image.as_raw_mut().chunks_mut((w * 3 * step).max(1)).enumerate() {
+        rows_of(fit.as_ref(), req.width, (k * step) as u32, chunk, 3, |width, y0, rows| tiles.render_rows(&tiling, width, y0, rows));
+    }
     synthesis.image = image;
     if req.placement {
         tiles.record_sources(req.sample.width());
         let mut sources = vec![0u32; req.width as usize * req.height as usize];
-        tiles.source_rows(&tiling, req.width, 0, &mut sources);
+        for (k, chunk) in sources.chunks_mut((w * step).max(1)).enumerate() {
+            rows_of(fit.as_ref(), req.width, (k * step) as u32, chunk, 1, |width, y0, rows| tiles.source_rows(&tiling, width, y0, rows));
+        }
         synthesis.placement = Some(Placement::from_sources(req.width, req.height, req.sample.dimensions(), sources));
     }
     if let Some(fill) = synthesis.phases.iter_mut().find(|p| p.0 == "fill") {
@@ -60,32 +101,41 @@ pub fn render_whole(filled: (Synthesis, impl TileRenderer, Tiling), req: &Reques
 }
 
 /// [`crate::synth::method::Method::synthesize_strips`] of a tile method from its fill.
-pub fn render_in_strips(filled: (Synthesis, impl TileRenderer, Tiling), req: &Request) -> Strips {
-    let (synthesis, mut tiles, tiling) = filled;
+pub fn render_in_strips(filled: Filled<impl TileRenderer>, req: &Request) -> Strips {
+    let (synthesis, mut tiles, tiling, fit) = filled;
     let width = req.width;
     if req.placement {
         tiles.record_sources(req.sample.width());
     }
-    let shared = Arc::new((tiles, tiling));
+    let shared = Arc::new((tiles, tiling, fit));
     let sources: Option<SourceRows> = req.placement.then(|| {
         let shared = Arc::clone(&shared);
-        Box::new(move |y0: u32, rows: &mut [u32]| shared.0.source_rows(&shared.1, width, y0, rows)) as SourceRows
+        Box::new(move |y0: u32, rows: &mut [u32]| {
+            rows_of(shared.2.as_ref(), width, y0, rows, 1, |w, y0, rows| shared.0.source_rows(&shared.1, w, y0, rows))
+        }) as SourceRows
     });
-    Strips { synthesis, render: Box::new(move |y0, rows| shared.0.render_rows(&shared.1, width, y0, rows)), sources }
+    Strips {
+        synthesis,
+        render: Box::new(move |y0, rows| {
+            rows_of(shared.2.as_ref(), width, y0, rows, 3, |w, y0, rows| shared.0.render_rows(&shared.1, w, y0, rows))
+        }),
+        sources,
+    }
 }
 
-/// Whether a tile method's output of `output` size can wrap: a whole number of `period`-pixel
-/// tiles both ways (the tiling is then chosen on a torus) and no tile-set export, whose index
-/// records the position-keyed tiling `texsyn tiles render` reproduces, not the wrapping one.
+/// Whether a tile method's output of `output` size can wrap: at least two `period`-pixel tiles
+/// each way, or a whole number of them (the tiling is then chosen on a torus of whole tiles,
+/// [`Fit`] when the size is not whole tiles), and no tile-set export, whose index records the
+/// position-keyed tiling `texsyn tiles render` reproduces, not the wrapping one.
 pub fn tileable(method: &str, period: u32, export_tiles: bool, output: (u32, u32)) -> Result<(), String> {
     tileable_export(method, export_tiles)?;
-    if !output.0.is_multiple_of(period) || !output.1.is_multiple_of(period) {
-        // The nearest whole numbers of tiles, never zero.
-        let near = |v: u32| ((v + period / 2) / period).max(1) * period;
+    if !super::fit::fits(output.0, period) || !super::fit::fits(output.1, period) {
+        let least = |v: u32| if super::fit::fits(v, period) { v } else { 2 * period };
         return Err(format!(
-            "tileable {method} output must be a multiple of the tile size {period} in both directions; {}x{} would work",
-            near(output.0),
-            near(output.1)
+            "tileable {method} needs at least two tiles each way (or exactly one), {} pixels a side for tile {period}; {}x{} would work, or a smaller tile",
+            2 * period,
+            least(output.0),
+            least(output.1)
         ));
     }
     Ok(())
@@ -112,7 +162,7 @@ pub fn tileable_export(method: &str, export_tiles: bool) -> Result<(), String> {
 pub fn auto_named(why: String, choice: Option<&super::align::TileChoice>) -> String {
     match choice {
         Some(c) => format!(
-            "{why}; the tile size {} is tile = \"auto\"'s choice for this sample ({}); give the output a multiple of it, or set tile",
+            "{why}; the tile size {} is tile = \"auto\"'s choice for this sample ({}); give the output at least two tiles of it each way, or set tile",
             c.tile,
             c.record["how"].as_str().unwrap_or("auto")
         ),
@@ -552,13 +602,16 @@ pub(crate) mod testing {
         assert_eq!(with.placement.unwrap().render_rgb8(&s), without.image);
     }
 
-    /// `tileable` (and `synthesize` asked to wrap anyway) refuse sizes that are not whole tiles,
-    /// naming ones that are, and the tile-set export.
+    /// `tileable` (and `synthesize` asked to wrap anyway) refuse sizes below two tiles that are not
+    /// one tile, naming the smallest that works, and the tile-set export; any size of two tiles or
+    /// more wraps (fitted when it is not whole tiles), its placement and strips exact, the wrap
+    /// as seamless as a whole-tile torus's tile edges, the fit recorded.
     pub fn refuses_what_cannot_wrap(m: &dyn Method) {
         let p = params(m, &[("tile", ParamValue::Int(64))]);
         assert_eq!(m.tileable(&p, (256, 256), (640, 128)), Ok(()));
+        assert_eq!(m.tileable(&p, (256, 256), (700, 129)), Ok(()));
         let e = m.tileable(&p, (256, 256), (700, 100)).unwrap_err();
-        assert!(e.contains("multiple of the tile size 64") && e.contains("704x128 would work"), "{e}");
+        assert!(e.contains("at least two tiles each way") && e.contains("128 pixels a side for tile 64; 700x128 would work"), "{e}");
         let s = sample("bricks_gray.png");
         let req = Request {
             sample: &s,
@@ -570,11 +623,11 @@ pub(crate) mod testing {
             tileable: true,
             constraints: std::default::Default::default(),
         };
-        assert!(m.synthesize(&req).unwrap_err().to_string().contains("704x128 would work"));
+        assert!(m.synthesize(&req).unwrap_err().to_string().contains("700x128 would work"));
         let export = params(m, &[("export_tiles", ParamValue::Bool(true))]);
         assert!(m.tileable(&export, (256, 256), (128, 128)).unwrap_err().contains("export_tiles"));
         // `tile = "auto"` (the default) keeps the sizes that divide the output: 700x100 wraps
-        // with 50 or 100, chosen with the sample's lattice and recorded.
+        // with 50 or 100, chosen with the sample's lattice and recorded, and not fitted.
         let auto = params(m, &[]);
         assert_eq!(m.tileable(&auto, (256, 256), (700, 100)), Ok(()));
         let req = Request {
@@ -590,13 +643,24 @@ pub(crate) mod testing {
         let out = m.synthesize(&req).unwrap();
         let t = out.diagnostics["tile_choice"]["tile"].as_u64().unwrap();
         assert!(700 % t == 0 && 100 % t == 0, "{}", out.diagnostics["tile_choice"]);
-        // No size divides 701: refused up front, and by the fill (asked anyway) naming the size
-        // `auto` chose.
-        let e = m.tileable(&auto, (256, 256), (701, 701)).unwrap_err();
-        assert!(e.contains("tile = \"auto\"") && e.contains("704x704 would work"), "{e}");
-        let req = Request { width: 701, height: 701, ..req };
+        assert!(out.diagnostics.get("tileable_fit").is_none(), "{}", out.diagnostics);
+        // No size divides 701x433: fitted, with exact placement and strips, recorded.
+        assert_eq!(m.tileable(&auto, (256, 256), (701, 433)), Ok(()));
+        let pebbles = sample("pebbles_beige.png");
+        let (image, wrap, interior, tile) = wrapping(m, &auto, &pebbles, (701, 433), 3);
+        assert_eq!(image.dimensions(), (701, 433));
+        eprintln!("{} 701x433 fitted, tile {tile}: wrap visibility {wrap:.3}, seam bands {interior:.3}", m.name());
+        assert!(wrap <= 1.5 * interior, "{}: wrap {wrap} vs seams {interior}", m.name());
+        let out = m.synthesize(&Request { width: 701, height: 433, sample: &pebbles, seed: 3, ..req }).unwrap();
+        let fit = &out.diagnostics["tileable_fit"];
+        assert!(fit["x"]["torus"].as_u64().unwrap().is_multiple_of(u64::from(tile)), "{fit}");
+        assert!(out.diagnostics["tile_choice"]["how"].as_str().unwrap().contains("fitting"), "{}", out.diagnostics["tile_choice"]);
+        // A given size below two tiles: refused naming the smallest that works, also by the fill.
+        let e = m.tileable(&auto, (256, 256), (47, 433)).unwrap_err();
+        assert!(e.contains("tile = \"auto\"") && e.contains("64x433 would work"), "{e}");
+        let req = Request { width: 47, height: 433, ..req };
         let e = m.synthesize(&req).unwrap_err().to_string();
-        assert!(e.contains("multiple of the tile size 64") && e.contains("tile = \"auto\"'s choice"), "{e}");
+        assert!(e.contains("at least two tiles each way") && e.contains("tile = \"auto\"'s choice"), "{e}");
     }
 
     /// What `colors` promises, for a method whose parameters `params` resolves: the default fill of
@@ -769,11 +833,16 @@ mod tests {
     }
 
     #[test]
-    fn tileable_sizes_are_whole_tiles_and_the_refusals_say_what_would_work() {
+    fn tileable_sizes_are_two_tiles_or_whole_tiles_and_the_refusals_say_what_would_work() {
         assert_eq!(tileable("wang-tiles", 64, false, (768, 128)), Ok(()));
-        let e = tileable("wang-tiles", 64, false, (750, 790)).unwrap_err();
-        assert_eq!(e, "tileable wang-tiles output must be a multiple of the tile size 64 in both directions; 768x768 would work");
-        assert!(tileable("rw-tiles", 48, false, (20, 48)).unwrap_err().ends_with("48x48 would work"));
+        assert_eq!(tileable("wang-tiles", 64, false, (750, 790)), Ok(()));
+        assert_eq!(tileable("wang-tiles", 64, false, (64, 129)), Ok(()));
+        let e = tileable("wang-tiles", 64, false, (750, 100)).unwrap_err();
+        assert_eq!(
+            e,
+            "tileable wang-tiles needs at least two tiles each way (or exactly one), 128 pixels a side for tile 64; 750x128 would work, or a smaller tile"
+        );
+        assert!(tileable("rw-tiles", 48, false, (20, 48)).unwrap_err().contains("96x48 would work"));
         assert!(tileable("rw-tiles", 48, true, (96, 48)).unwrap_err().contains("export_tiles"));
     }
 }

@@ -11,12 +11,15 @@
 //!       wang                 Wang-tile edge colours and tilings
 //! interior                   tiles' own interiors inside a closed seam (imports only common)
 //! common, align              shared by both methods: pixel error, patch candidates, `export_tiles`;
-//!                            lattice alignment (import nothing from the family)
+//!                            lattice alignment (common imports align)
+//!   fit                      tileable fills of sizes that are not whole tiles (imports nothing
+//!                            from the family)
 //! ```
 
 pub mod align;
 pub mod common;
 pub mod export;
+pub mod fit;
 pub mod interior;
 pub mod rw_set;
 pub mod rw_tiles;

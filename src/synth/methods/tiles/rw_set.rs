@@ -283,6 +283,14 @@ impl super::common::TileRenderer for RwTileSet {
     fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
         RwTileSet::tile_torus(self, period, cover, seed)
     }
+    fn unit(&self) -> u32 {
+        self.geometry.tile() as u32
+    }
+    /// Halfway between the seam strips (columns and rows `≡ 0..ov (mod h)`): inside one sub-block.
+    fn fit_slots(&self) -> super::fit::Slots {
+        let (h, ov) = (self.geometry.h as u32, self.geometry.ov as u32);
+        super::fit::Slots { step: h, phase: ov + (h - ov) / 2 }
+    }
 }
 
 #[cfg(test)]

@@ -25,7 +25,7 @@ use super::common::{
 use super::export::export_rw;
 use super::interior;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
-use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
+use super::wang::{EdgeSet, TileSet, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
@@ -46,7 +46,7 @@ const PARAMS: &[ParamSpec] = &[
         name: "tile",
         kind: ParamKind::IntOr { min: 8, max: 4096, word: "auto" },
         default: Default::Str("auto"),
-        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it; the choice recorded as diagnostics.tile_choice",
+        doc: "T: the rhombus' diagonals in pixels (even; bounding box T wide, T - 1 tall); the sub-block side is T/2 + overlap. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it, or when none does the sizes that fit it leaving out or repeating the fewest columns and rows (diagnostics.tileable_fit); the choice recorded as diagnostics.tile_choice",
     },
     ParamSpec {
         name: "overlap",
@@ -834,7 +834,7 @@ impl Method for RwTiles {
         match cfg.tile {
             Some(t) => common::tileable(self.name(), t, cfg.export_tiles, output),
             // The size is chosen with the sample's pixels ([`align::auto_tile`] keeps the sizes
-            // that divide the output); `fill` checks it again, naming the size it chose.
+            // that divide the output, else fits it); `fill` checks it again, naming the size it chose.
             None => common::tileable_export(self.name(), cfg.export_tiles)
                 .and_then(|()| align::auto_tileable(self.name(), sample, sizes(cfg.overlap), patch(cfg.overlap), output)),
         }
@@ -884,7 +884,7 @@ impl RwTiles {
 
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
-    fn fill(&self, req: &Request) -> Result<(Synthesis, RwTileSet, Tiling), SynthError> {
+    fn fill(&self, req: &Request) -> Result<common::Filled<RwTileSet>, SynthError> {
         let cfg = RwTilesConfig::from_params(req.params)?;
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
@@ -917,7 +917,7 @@ impl RwTiles {
         let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tiles.tiling(order, req);
+        let (tiling, fit) = tiles.tiling(order, req);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -936,6 +936,10 @@ impl RwTiles {
             // Only then, so that the record of an ordinary fill stays as it was.
             diagnostics["wraps"] = serde_json::Value::Bool(true);
         }
+        if let Some(f) = &fit {
+            // Only for a size that is not whole tiles: how it was met.
+            diagnostics["tileable_fit"] = f.describe(tiles.unit());
+        }
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
             diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
@@ -953,13 +957,16 @@ impl RwTiles {
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
-            seams: Some(seam_grid(&g, req.width, req.height)),
+            seams: Some(match &fit {
+                Some(f) => f.seams(&seam_grid(&g, f.period.0, f.period.1)),
+                None => seam_grid(&g, req.width, req.height),
+            }),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
             extras: if cfg.export_tiles { export_rw(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
             placement: None,
         };
-        Ok((synthesis, tiles, tiling))
+        Ok((synthesis, tiles, tiling, fit))
     }
 }
 

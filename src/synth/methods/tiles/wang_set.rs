@@ -219,4 +219,12 @@ impl super::common::TileRenderer for WangTileSet {
     fn tile_torus(&self, period: (u32, u32), cover: (u32, u32), seed: u64) -> Tiling {
         WangTileSet::tile_torus(self, period, cover, seed)
     }
+    fn unit(&self) -> u32 {
+        self.geometry.t as u32
+    }
+    /// A tile's last column (row): locked to the E (S) diamond, which the next tile's first
+    /// column continues, so leaving it out steps one pixel inside that diamond.
+    fn fit_slots(&self) -> super::fit::Slots {
+        super::fit::Slots { step: self.geometry.t as u32, phase: self.geometry.t as u32 - 1 }
+    }
 }

@@ -22,7 +22,7 @@ use super::common::{
 };
 use super::export::export_wang;
 use super::interior;
-use super::wang::{EdgeSet, TileSet, Tiling, TilingOrder};
+use super::wang::{EdgeSet, TileSet, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
@@ -44,7 +44,7 @@ const PARAMS: &[ParamSpec] = &[
         name: "tile",
         kind: ParamKind::IntOr { min: 8, max: 4096, word: "auto" },
         default: Default::Str("auto"),
-        doc: "T: side of the square tiles (even); the diamonds span T + overlap pixels. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it; the choice recorded as diagnostics.tile_choice",
+        doc: "T: side of the square tiles (even); the diamonds span T + overlap pixels. auto (default): when the tiles are aligned to a lattice, the size from 32 that misses it least (diagnostics.align.suggested_tiles, texsyn advise) and leaves a lattice cell to spare in the sample; 64 otherwise; for a tileable output, only sizes that divide it, or when none does the sizes that fit it leaving out or repeating the fewest columns and rows (diagnostics.tileable_fit); the choice recorded as diagnostics.tile_choice",
     },
     ParamSpec {
         name: "overlap",
@@ -735,7 +735,7 @@ impl Method for WangTiles {
         match cfg.tile {
             Some(t) => common::tileable(self.name(), t, cfg.export_tiles, output),
             // The size is chosen with the sample's pixels ([`align::auto_tile`] keeps the sizes
-            // that divide the output); `fill` checks it again, naming the size it chose.
+            // that divide the output, else fits it); `fill` checks it again, naming the size it chose.
             None => common::tileable_export(self.name(), cfg.export_tiles)
                 .and_then(|()| align::auto_tileable(self.name(), sample, sizes(cfg.overlap), patch(cfg.overlap), output)),
         }
@@ -784,7 +784,7 @@ impl WangTiles {
 
     /// Everything of a synthesis but rendering the output: the tile set, the tiling, and the
     /// synthesis record with a 0×0 image.
-    fn fill(&self, req: &Request) -> Result<(Synthesis, WangTileSet, Tiling), SynthError> {
+    fn fill(&self, req: &Request) -> Result<common::Filled<WangTileSet>, SynthError> {
         let cfg = WangTilesConfig::from_params(req.params)?;
         let t0 = Instant::now();
         let lattice = Alignment::for_job(cfg.align, cfg.lattice, req.sample)?;
@@ -827,7 +827,7 @@ impl WangTiles {
         let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let tiling = tiles.tiling(order, req);
+        let (tiling, fit) = tiles.tiling(order, req);
         let fill = t1.elapsed().as_secs_f64();
         let g = tiles.geometry;
         let mut diagnostics = serde_json::json!({
@@ -844,6 +844,10 @@ impl WangTiles {
         if req.tileable {
             // Only then, so that the record of an ordinary fill stays as it was.
             diagnostics["wraps"] = serde_json::Value::Bool(true);
+        }
+        if let Some(f) = &fit {
+            // Only for a size that is not whole tiles: how it was met.
+            diagnostics["tileable_fit"] = f.describe(tiles.unit());
         }
         diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
         if let Some(al) = &align {
@@ -862,13 +866,16 @@ impl WangTiles {
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
-            seams: Some(seam_grid(&g, req.width, req.height)),
+            seams: Some(match &fit {
+                Some(f) => f.seams(&seam_grid(&g, f.period.0, f.period.1)),
+                None => seam_grid(&g, req.width, req.height),
+            }),
             diagnostics,
             phases: vec![("tile_build".into(), build), ("fill".into(), fill)],
             extras: if cfg.export_tiles { export_wang(&tiles, order, req.seed, (req.width, req.height)) } else { Vec::new() },
             placement: None,
         };
-        Ok((synthesis, tiles, tiling))
+        Ok((synthesis, tiles, tiling, fit))
     }
 }
 
