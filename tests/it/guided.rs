@@ -147,7 +147,7 @@ fn bad_masks_are_refused_naming_the_file_and_the_reason() {
         "is black everywhere: it leaves nothing to copy",
         "stripe.toml:2:1: `sample_mask`: sample mask",
         "leaves no whole 50x50 block (params.block) to copy; the largest block it allows is 40",
-        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting",
+        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting, patch-sampling",
         "missing.toml:2:15: `sample_mask`: sample mask",
         "type.toml:2:15: `sample_mask`: expected a string (the mask image's path",
     ] {
@@ -253,7 +253,7 @@ fn bad_guides_are_refused_by_key() {
         "source.toml:6:1: `guide.source`: source guide",
         "is 50x40 but the sample",
         "is 256x256; the source guide must have the sample's size",
-        "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting",
+        "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting, patch-sampling",
         "weight.toml:6:10: `guide.weight`: 1.5 is out of range",
         "passes.toml:6:10: `guide.passes`: 0 is out of range: allowed 1..=8",
         "wrap.toml:4:1: `guide`: a guided output cannot wrap yet",

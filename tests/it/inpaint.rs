@@ -261,7 +261,7 @@ fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
         "missing.toml:5:8: `inpaint.mask`: mask",
         "outsize.toml:8:1: `output.width`: an inpainting job's output has its image's size",
         "is 256x256 but the output asks for 300x256",
-        "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting",
+        "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting, patch-sampling",
         "sample.toml:1:10: `sample`: an [inpaint] job copies from its image",
     ] {
         assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
@@ -290,4 +290,56 @@ fn the_report_shows_the_mask_between_the_image_and_the_output() {
     let src = figure.split("src=\"").nth(1).unwrap().split('"').next().unwrap();
     assert_eq!(rgb(&d.join("report").join(src)), rgb(&repo().join(MASK)), "the mask's own pixels");
     assert!(input < html.find("<figure data-group=").unwrap(), "the mask comes before the output");
+}
+
+/// A hole many blocks wide (pebbles enlarged 2×, a 200×150 hole, blocks of 40) shows no block
+/// grid: inside the hole, no column or row of neighbour steps stands out from the others, as a
+/// straight seam along a block's edge would (the image's own worst line is about 1.6× the
+/// median line; blocks whose filled rim pixels were free to change took their whole window,
+/// leaving straight seams at 4–10×). And the steps across the hole's border stay near the
+/// image's own.
+#[test]
+fn a_large_hole_shows_no_block_grid_and_no_outline() {
+    let d = scratch("inpaint-grid");
+    let sample = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
+    let image = enlarged(&sample, 2, 512, 512);
+    let (x0, y0, x1, y1) = (150u32, 170u32, 350u32, 320u32);
+    let hole = |x: u32, y: u32| (x0..x1).contains(&x) && (y0..y1).contains(&y);
+    write_png(&d.join("image.png"), &image);
+    write_png(&d.join("mask.png"), &texsyn::RgbImage::from_fn(512, 512, |x, y| if hole(x, y) { [255; 3] } else { [0; 3] }));
+    let mask_line = format!("mask = \"{}\"", d.join("mask.png").display());
+    job(&d.join("jobs"), "h.toml", &d.join("image.png").display().to_string(), &mask_line, "", "block = 40\n");
+    let text = std::fs::read_to_string(d.join("jobs/h.toml")).unwrap().replace("block = 32\n", "");
+    std::fs::write(d.join("jobs/h.toml"), text).unwrap();
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let out = rgb(&d.join("out/h.png"));
+    let gray = |x: u32, y: u32| out.get(x, y).iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
+    let step = |a: (u32, u32), b: (u32, u32)| (gray(a.0, a.1) - gray(b.0, b.1)).abs();
+    // Mean horizontal step per column pair and vertical step per row pair, 3 px inside the hole.
+    let columns: Vec<f64> =
+        (x0 + 3..x1 - 4).map(|x| (y0 + 3..y1 - 3).map(|y| step((x, y), (x + 1, y))).sum::<f64>() / f64::from(y1 - y0 - 6)).collect();
+    let rows: Vec<f64> =
+        (y0 + 3..y1 - 4).map(|y| (x0 + 3..x1 - 3).map(|x| step((x, y), (x, y + 1))).sum::<f64>() / f64::from(x1 - x0 - 6)).collect();
+    let worst = |v: &[f64]| {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        s[s.len() - 1] / s[s.len() / 2]
+    };
+    let (c, r) = (worst(&columns), worst(&rows));
+    assert!(c < 2.6 && r < 2.6, "the worst column / row of steps inside the hole is {c:.2} / {r:.2} × the median: a straight seam");
+    let (mut border, mut known) = (Vec::new(), Vec::new());
+    for y in 0..511 {
+        for x in 0..511 {
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                match (hole(x, y), hole(nx, ny)) {
+                    (true, false) | (false, true) => border.push(step((x, y), (nx, ny))),
+                    (false, false) => known.push(step((x, y), (nx, ny))),
+                    _ => {}
+                }
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (b, k) = (mean(&border), mean(&known));
+    assert!(b < 3.0 * k, "steps across the hole's border {b:.2} against {k:.2} in the known image");
 }
