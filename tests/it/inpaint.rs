@@ -43,30 +43,48 @@ fn outside_the_mask_nothing_changes_and_the_hole_is_filled_from_known_pixels() {
     job(&jobs, "plain.toml", &abs(IMAGE), &mask_line, "source_map = \"plain.map.exr\"", "");
     job(&jobs, "torus.toml", &abs(IMAGE), &mask_line, "source_map = \"torus.map.exr\"\ntileable = true", "");
     job(&jobs, "nocut.toml", &abs(IMAGE), &mask_line, "source_map = \"nocut.map.exr\"", "cut = \"none\"\n");
+    // Patch sampling: its swarm and its exhaustive search, feathered (the default) or cut, and on a torus.
+    for (name, output, params) in [
+        ("ps", "", ""),
+        ("ps_exhaustive", "", "search = \"exhaustive\"\n"),
+        ("ps_cut", "", "blend = \"cut\"\n"),
+        ("ps_torus", "tileable = true\n", "search = \"pso\"\n"),
+    ] {
+        job(&jobs, &format!("{name}.toml"), &abs(IMAGE), &mask_line, &format!("source_map = \"{name}.map.exr\"\n{output}"), params);
+        let text = std::fs::read_to_string(jobs.join(format!("{name}.toml"))).unwrap();
+        std::fs::write(jobs.join(format!("{name}.toml")), text.replace("method = \"quilting\"", "method = \"patch-sampling\"")).unwrap();
+    }
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
     let image = rgb(&repo().join(IMAGE));
     let fill = mask_flags();
     let (w, h) = image.dimensions();
-    for name in ["plain", "torus", "nocut"] {
+    for name in ["plain", "torus", "nocut", "ps", "ps_exhaustive", "ps_cut", "ps_torus"] {
         let out = rgb(&d.join(format!("out/{name}.png")));
         assert_eq!(out.dimensions(), (w, h), "{name}: the image's size");
         let map = source_map::decode(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
-        let mut changed = 0;
+        let (mut changed, mut blended) = (0, 0);
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) as usize;
                 let src = map.sources()[i];
                 if fill[i] {
                     assert!(!fill[src as usize], "{name}: ({x},{y}) copies ({},{}), inside the hole", src % w, src / w);
+                    for b in map.blends_at(x, y) {
+                        assert!(!fill[b.source as usize], "{name}: ({x},{y}) blends in a pixel of the hole");
+                    }
+                    blended += usize::from(!map.blends_at(x, y).is_empty());
                     changed += usize::from(out.get(x, y) != image.get(x, y));
                 } else {
                     assert_eq!(out.get(x, y), image.get(x, y), "{name}: known pixel ({x},{y}) changed");
                     assert_eq!(src as usize, i, "{name}: known pixel ({x},{y}) is its own source");
+                    assert!(map.blends_at(x, y).is_empty(), "{name}: known pixel ({x},{y}) is blended");
                 }
-                assert!(map.blends_at(x, y).is_empty(), "{name}: nothing is blended");
             }
         }
         assert!(changed > 5000, "{name}: the hole was filled ({changed} pixels changed)");
+        // Patch sampling feathers into what earlier blocks filled (the test can tell); the cuts never blend.
+        let feathered = name == "ps" || name == "ps_exhaustive" || name == "ps_torus";
+        assert_eq!(blended > 500, feathered, "{name}: {blended} pixels of the hole blended");
     }
     let m = json(&d.join("out/manifest.json"));
     let plain = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "plain.toml").unwrap();
@@ -109,10 +127,25 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
     )
     .unwrap();
     job(&jobs, "alpha.toml", &abs(HOLES), "channel = \"a\"", "", "");
+    // The same with patch sampling (feathered: its blends come from known pixels too).
+    let ps = text.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"deep.png\"", "path = \"deep_ps.png\"");
+    std::fs::write(
+        jobs.join("deep_ps.toml"),
+        format!("{ps}\n[[companion]]\nsample = \"{}\"\npath = \"deep_ps_normal.png\"\n", d.join("deep_normal.png").display()),
+    )
+    .unwrap();
+    let alpha = std::fs::read_to_string(jobs.join("alpha.toml")).unwrap();
+    std::fs::write(jobs.join("alpha_ps.toml"), alpha.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"alpha.png\"", "path = \"alpha_ps.png\""))
+        .unwrap();
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
     let fill = mask_flags();
     let decode = |p: &Path| texsyn::image::io::decode_output(&std::fs::read(p).unwrap(), Default::default()).unwrap();
-    for (input, output) in [("deep.png", "out/deep.png"), ("deep_normal.png", "out/deep_normal.png")] {
+    for (input, output) in [
+        ("deep.png", "out/deep.png"),
+        ("deep_normal.png", "out/deep_normal.png"),
+        ("deep.png", "out/deep_ps.png"),
+        ("deep_normal.png", "out/deep_ps_normal.png"),
+    ] {
         let (a, b) = (decode(&d.join(input)), decode(&d.join(output)));
         let (texsyn::image::io::Samples::U16(a), texsyn::image::io::Samples::U16(b)) = (&a.samples, &b.samples) else {
             panic!("{output} is 16-bit like its input")
@@ -128,20 +161,24 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
         }
         assert!(same > 50_000 && differ > 5000, "{output}: {same} kept, {differ} filled");
     }
-    let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join("out/alpha.png")));
-    assert_eq!((a.channels, b.channels), (4, 4));
-    let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else { panic!("8-bit RGBA") };
-    let mut holes = 0;
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        if pa[3] < 128 {
-            holes += 1;
-            assert_eq!(pb[3], 255, "a filled pixel is opaque");
-            assert_ne!(&pb[..3], &[255, 0, 255], "no hole colour is copied");
-        } else {
-            assert_eq!(pa, pb, "a known pixel keeps its colour and alpha");
+    for output in ["out/alpha.png", "out/alpha_ps.png"] {
+        let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join(output)));
+        assert_eq!((a.channels, b.channels), (4, 4));
+        let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else {
+            panic!("8-bit RGBA")
+        };
+        let mut holes = 0;
+        for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+            if pa[3] < 128 {
+                holes += 1;
+                assert_eq!(pb[3], 255, "{output}: a filled pixel is opaque");
+                assert_ne!(&pb[..3], &[255, 0, 255], "{output}: no hole colour is copied");
+            } else {
+                assert_eq!(pa, pb, "{output}: a known pixel keeps its colour and alpha");
+            }
         }
+        assert!(holes > 3000, "{output}: {holes}");
     }
-    assert!(holes > 3000, "{holes}");
     run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
 }
 
