@@ -56,7 +56,8 @@ fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
     let atlas = d.join("atlas_mask.png");
     std::fs::create_dir_all(&d).unwrap();
     let base = rgb(&repo().join(MASK));
-    let gutters = texsyn::RgbImage::from_fn(base.width(), base.height(), |x, y| if x % 40 == 39 || y % 40 == 39 { [0; 3] } else { base.get(x, y) });
+    let gutters =
+        texsyn::RgbImage::from_fn(base.width(), base.height(), |x, y| if x % 40 == 39 || y % 40 == 39 { [0; 3] } else { base.get(x, y) });
     texsyn::save_image(&gutters, &atlas).unwrap();
     let atlas_path = atlas.display().to_string();
     for (name, params) in [("atlas_cpso", ""), ("atlas_exhaustive", "search = \"exhaustive\"\n"), ("atlas_quilting", "")] {

@@ -135,8 +135,11 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
     )
     .unwrap();
     let alpha = std::fs::read_to_string(jobs.join("alpha.toml")).unwrap();
-    std::fs::write(jobs.join("alpha_ps.toml"), alpha.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"alpha.png\"", "path = \"alpha_ps.png\""))
-        .unwrap();
+    std::fs::write(
+        jobs.join("alpha_ps.toml"),
+        alpha.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"alpha.png\"", "path = \"alpha_ps.png\""),
+    )
+    .unwrap();
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
     let fill = mask_flags();
     let decode = |p: &Path| texsyn::image::io::decode_output(&std::fs::read(p).unwrap(), Default::default()).unwrap();
@@ -164,9 +167,7 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
     for output in ["out/alpha.png", "out/alpha_ps.png"] {
         let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join(output)));
         assert_eq!((a.channels, b.channels), (4, 4));
-        let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else {
-            panic!("8-bit RGBA")
-        };
+        let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else { panic!("8-bit RGBA") };
         let mut holes = 0;
         for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
             if pa[3] < 128 {

@@ -221,7 +221,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
     if state.contains(&State::Empty) {
         return Err(SynthError::Failed("inpainting left pixels of the hole empty (a bug: the blocks must cover the hole)".into()));
     }
-    let polished = if how.rule == OverlapRule::Cut { polish(req, region, how, &mut canvas, &mut source) } else { (0, 0) };
+    let polished = if how.rule == OverlapRule::Overwrite { (0, 0) } else { polish(req, region, how, &mut canvas, &mut source) };
     let (image, placement) = canvas.finish();
     let diagnostics = serde_json::json!({
         "inpaint": {
@@ -317,7 +317,10 @@ fn polish_side(block: u32, overlap: u32) -> u32 {
 /// pixels of its window next to the hole and cut in where it joins better: a filled pixel next to the known image pays for
 /// keeping its present joint (how far its source, continued one pixel on, is from the known
 /// pixel), so the cut replaces badly joined border pixels and keeps well joined ones; the
-/// window's rim and the known pixels always stay. Returns (patches, pixels replaced).
+/// window's rim and the known pixels always stay. With feathering (patch sampling's join) there
+/// is no cut: the patch takes the border pixels of its window when its own joints with the known
+/// pixels cost less than the present ones, and blends away from them towards the window's rim
+/// (`feather_in`). Returns (patches, pixels replaced).
 fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, source: &mut [(u32, u32)]) -> (u32, u64) {
     let image = req.sample;
     let (w, h) = image.dimensions();
@@ -388,6 +391,8 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
         let mut sides = Vec::with_capacity(n);
         let mut error = Vec::with_capacity(n);
         let mut keep_cost = vec![0u64; n];
+        // The patch's own joints with the known pixels (its pixel continued onto each known neighbour).
+        let mut joint_new = 0u64;
         for j in 0..q {
             for i in 0..q {
                 let (x, y) = pos(i, j);
@@ -409,8 +414,42 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
                     if (0..i64::from(w)).contains(&ax) && (0..i64::from(h)).contains(&ay) {
                         keep_cost[(j * q + i) as usize] += 2 * u64::from(pixel_error(image.get(nx, ny), image.get(ax as u32, ay as u32)));
                     }
+                    joint_new += 2 * u64::from(pixel_error(image.get(nx, ny), image.get(sx + ni, sy + nj)));
                 }
             }
+        }
+        if how.rule == OverlapRule::Feather {
+            // Feathered: the patch replaces the border pixels of its window only if it joins the
+            // known ones better than what is there, and blends away from them towards the rim.
+            if joint_new >= keep_cost.iter().sum::<u64>() {
+                continue;
+            }
+            let ring = |i: u32, j: u32| {
+                let (x, y) = pos(i, j);
+                let rim = i == 0 || j == 0 || i == q - 1 || j == q - 1;
+                !rim && region.fills(x, y) && neighbours(x, y).into_iter().flatten().any(|(nx, ny)| !region.fills(nx, ny))
+            };
+            let state = |i: u32, j: u32| {
+                let (x, y) = pos(i, j);
+                if !region.fills(x, y) {
+                    State::Known
+                } else if ring(i, j) {
+                    State::Empty
+                } else {
+                    State::Filled
+                }
+            };
+            feather_in(canvas, image, (sx, sy), q, q, state, pos);
+            for j in 0..q {
+                for i in 0..q {
+                    if ring(i, j) {
+                        let (x, y) = pos(i, j);
+                        source[(y * w + x) as usize] = (sx + i, sy + j);
+                        replaced += 1;
+                    }
+                }
+            }
+            continue;
         }
         let take = min_cut_with_keep_costs(qu, qu, &sides, &error, &keep_cost);
         for j in 0..q {
