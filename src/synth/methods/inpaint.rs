@@ -258,11 +258,11 @@ fn feather_in(
         let mut d = vec![u32::MAX; b * b];
         let mut queue = std::collections::VecDeque::new();
         for p in 0..b * b {
-            if st[p] == State::Filled {
-                if let Some(v) = seed(p) {
-                    d[p] = v;
-                    queue.push_back(p);
-                }
+            if st[p] == State::Filled
+                && let Some(v) = seed(p)
+            {
+                d[p] = v;
+                queue.push_back(p);
             }
         }
         while let Some(p) = queue.pop_front() {

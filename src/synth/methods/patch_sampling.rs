@@ -893,10 +893,7 @@ impl PatchSampling {
             let shrink = (2.0f64 / 3.0).powi(pass as i32);
             let block = ((f64::from(cfg.block) * shrink).round() as u32).max(6).min(cfg.block);
             let overlap = ((f64::from(cfg.overlap_or_derived()) * shrink).round() as u32).clamp(1, block / 2);
-            settings.allowed = match &copyable {
-                Some(mask) => Some(Allowed::new(mask.block_positions(block, block), sample.width() - block + 1)),
-                None => None,
-            };
+            settings.allowed = copyable.as_ref().map(|mask| Allowed::new(mask.block_positions(block, block), sample.width() - block + 1));
             if settings.allowed.as_ref().is_some_and(|a| !a.flags.contains(&true)) {
                 return Err(SynthError::param("block", format!("the sample mask leaves no whole {block}x{block} block to copy")));
             }
