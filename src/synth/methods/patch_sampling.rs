@@ -41,6 +41,17 @@
 //! tolerance is relative to the zone's intensity, so on bright low-contrast samples it admits almost
 //! every patch), `polish_radius` (a local exhaustive search around the swarm's best).
 //!
+//! **Constraints** (issue #28). *Sample mask*: blocks are copied only from positions whose every
+//! pixel the mask allows (so feathered blends, which mix two such blocks, do too); the swarms
+//! move over every position but score and place each as its nearest allowed one ([`Allowed`]),
+//! the exhaustive searches restrict their candidates, the first block is drawn among allowed
+//! positions. *Inpainting*: `methods::inpaint`'s driver (blocks over the hole, known pixels never
+//! written) with this method's search and join: patches are feathered into pixels filled earlier
+//! (or cut, with `blend = "cut"`), and the border polish feathers its patches in from the known
+//! border. *Guide*: Efros–Freeman's weighed error ([`GuideTerm`]) is the swarm's fitness and the
+//! exhaustive search's criterion (`methods::guide`), with quilting's shrinking passes. Their
+//! streams carry an `inpaint/` or `guided/…` prefix; plain syntheses keep their labels and pixels.
+//!
 //! **Threads.** A block depends only on blocks earlier in raster order that overlap its zone, so
 //! the blocks with the same `2·bi + bj` ("waves") never touch each other's pixels and the swarm
 //! searches of a wave run in parallel; every random draw comes from the block's own labelled
