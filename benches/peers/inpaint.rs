@@ -5,7 +5,7 @@
 //!
 //! Each bundled sample gets a round hole (radius 40 px, off centre) painted magenta, so that
 //! neither program can copy what was there. texsyn runs quilting with its defaults on an
-//! `[inpaint]` job (`-j 1`); Embark runs `--inpaint KEEP --sample-masks KEEP -t 1` (its masks are
+//! `[inpaint]` job (`-j 1`), and patch sampling with its defaults on the same (a second row); Embark runs `--inpaint KEEP --sample-masks KEEP -t 1` (its masks are
 //! white = keep), both as whole processes. Quality is paper 003's four measures (lower is better)
 //! between the intact sample and the 48 × 48 square at the hole's centre, which both programs
 //! filled: how much the filled texture is the sample's. The table prints both and their ratios;
@@ -38,7 +38,7 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
         "sample", "texsyn s", "Embark s", "speed", "kl_gray t/E", "kl_orient t/E", "acf_gray t/E", "acf_orient t/E"
     );
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let (mut better, mut compared) = (0, 0);
+    let (mut better, mut compared) = ([0; 2], 0);
     for s in SAMPLES {
         let dir = work.join(format!("inpaint-{s}"));
         std::fs::create_dir_all(&dir).expect("bench dir");
@@ -53,22 +53,25 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
             .expect("write");
         texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [0; 3] } else { [255; 3] }), dir.join("keep.png"))
             .expect("write");
-        let jobs = dir.join("jobs");
-        std::fs::create_dir_all(&jobs).expect("jobs dir");
-        std::fs::write(
-            jobs.join("h.toml"),
-            format!(
-                "method = \"quilting\"\nseed = 1\n[inpaint]\nimage = \"{}\"\nmask = \"{}\"\n[output]\npath = \"h.png\"\n",
-                dir.join("damaged.png").display(),
-                dir.join("fill.png").display()
-            ),
-        )
-        .expect("job file");
-        let texsyn_t = time(reps, &mut || {
-            let mut c = Command::new(env!("CARGO_BIN_EXE_texsyn"));
-            c.arg("run").arg(&jobs).arg("-o").arg(dir.join("out")).args(["-j", "1", "-q", "--force"]);
-            c
-        });
+        let mut texsyn_t = Vec::new();
+        for method in ["quilting", "patch-sampling"] {
+            let jobs = dir.join(format!("jobs-{method}"));
+            std::fs::create_dir_all(&jobs).expect("jobs dir");
+            std::fs::write(
+                jobs.join("h.toml"),
+                format!(
+                    "method = \"{method}\"\nseed = 1\n[inpaint]\nimage = \"{}\"\nmask = \"{}\"\n[output]\npath = \"h.png\"\n",
+                    dir.join("damaged.png").display(),
+                    dir.join("fill.png").display()
+                ),
+            )
+            .expect("job file");
+            texsyn_t.push(time(reps, &mut || {
+                let mut c = Command::new(env!("CARGO_BIN_EXE_texsyn"));
+                c.arg("run").arg(&jobs).arg("-o").arg(dir.join(format!("out-{method}"))).args(["-j", "1", "-q", "--force"]);
+                c
+            }));
+        }
         let embark_out = dir.join("embark.png");
         let embark_t = embark.and_then(|e| {
             time(reps, &mut || {
@@ -85,30 +88,34 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
                 c
             })
         });
-        let Some(tt) = texsyn_t else {
-            println!("{s:<20} texsyn failed");
-            continue;
-        };
-        let ours = quality(&sample, &texsyn::load_image(dir.join("out/h.png")).expect("texsyn output"), centre);
         let theirs = embark_t.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|img| quality(&sample, &img, centre));
-        let cell = |i: usize| match theirs {
-            Some(t) => format!("{:.3}/{:.3} {:>5.2}", ours[i], t[i], ours[i] / t[i]),
-            None => format!("{:.3}/—", ours[i]),
-        };
-        let speed = embark_t.map(|e| format!("{:.1}×", e / tt)).unwrap_or_else(|| "—".into());
-        let et = embark_t.map(|e| format!("{e:.3}")).unwrap_or_else(|| "—".into());
-        println!("{s:<20} {tt:>9.3} {et:>9} {speed:>8}   {:>22} {:>22} {:>22} {:>22}", cell(0), cell(1), cell(2), cell(3));
-        if let Some(t) = theirs {
-            compared += 1;
-            let score: f64 = (0..4).map(|i| ours[i] / t[i]).sum();
-            if score <= 4.0 {
-                better += 1;
+        compared += usize::from(theirs.is_some());
+        for (k, (method, tt)) in ["quilting", "patch-sampling"].into_iter().zip(texsyn_t).enumerate() {
+            let row = if k == 0 { s.to_string() } else { "  patch-sampling".to_string() };
+            let Some(tt) = tt else {
+                println!("{row:<20} texsyn failed");
+                continue;
+            };
+            let ours = quality(&sample, &texsyn::load_image(dir.join(format!("out-{method}/h.png"))).expect("texsyn output"), centre);
+            let cell = |i: usize| match theirs {
+                Some(t) => format!("{:.3}/{:.3} {:>5.2}", ours[i], t[i], ours[i] / t[i]),
+                None => format!("{:.3}/—", ours[i]),
+            };
+            let speed = embark_t.map(|e| format!("{:.1}×", e / tt)).unwrap_or_else(|| "—".into());
+            let et = embark_t.map(|e| format!("{e:.3}")).unwrap_or_else(|| "—".into());
+            println!("{row:<20} {tt:>9.3} {et:>9} {speed:>8}   {:>22} {:>22} {:>22} {:>22}", cell(0), cell(1), cell(2), cell(3));
+            if let Some(t) = theirs {
+                let score: f64 = (0..4).map(|i| ours[i] / t[i]).sum();
+                if score <= 4.0 {
+                    better[k] += 1;
+                }
             }
         }
     }
     if compared > 0 {
         println!(
-            "\ntexsyn's hole is as close to the sample as Embark's or closer (summed measure ratios ≤ 4) on {better} of {compared} samples"
+            "\ntexsyn's hole is as close to the sample as Embark's or closer (summed measure ratios ≤ 4) on {} of {compared} samples with quilting, {} with patch-sampling",
+            better[0], better[1]
         );
     }
 }

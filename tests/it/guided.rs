@@ -48,6 +48,33 @@ fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
         ),
     )
     .unwrap();
+    // Patch sampling, every search and engine, feathered (its default) and cut, and on a torus.
+    let patch_sampling = [
+        ("ps_cpso", "", "block = 32\n"),
+        ("ps_pso", "", "block = 32\nsearch = \"pso\"\ncontinuations = true\n"),
+        ("ps_exhaustive", "", "block = 32\nsearch = \"exhaustive\"\n"),
+        ("ps_near_best", "", "block = 32\nsearch = \"exhaustive\"\ncandidates = \"near-best\"\nengine = \"direct\"\n"),
+        ("ps_pyramid", "", "block = 32\nsearch = \"exhaustive\"\nengine = \"pyramid\"\ntolerance = 0.0\n"),
+        ("ps_cut", "", "block = 32\nblend = \"cut\"\npolish_radius = 2\n"),
+        ("ps_torus", "tileable = true\n", "block = 32\n"),
+        ("ps_torus_exhaustive", "tileable = true\n", "block = 32\nsearch = \"exhaustive\"\n"),
+    ];
+    for (name, output, params) in patch_sampling {
+        job(&d.join("jobs"), &format!("{name}.toml"), "patch-sampling", &mask_path, &format!("{output}[params]\n{params}"));
+    }
+    // An atlas: the mask's forbidden pixels plus 1-px forbidden gutters every 40 px, which no
+    // block may straddle (a blend of two sides of a gutter would show a pixel of neither).
+    let atlas = d.join("atlas_mask.png");
+    std::fs::create_dir_all(&d).unwrap();
+    let base = rgb(&repo().join(MASK));
+    let gutters =
+        texsyn::RgbImage::from_fn(base.width(), base.height(), |x, y| if x % 40 == 39 || y % 40 == 39 { [0; 3] } else { base.get(x, y) });
+    texsyn::save_image(&gutters, &atlas).unwrap();
+    let atlas_path = atlas.display().to_string();
+    for (name, params) in [("atlas_cpso", ""), ("atlas_exhaustive", "search = \"exhaustive\"\n"), ("atlas_quilting", "")] {
+        let method = if name == "atlas_quilting" { "quilting" } else { "patch-sampling" };
+        job(&d.join("jobs"), &format!("{name}.toml"), method, &atlas_path, &format!("[params]\nblock = 32\n{params}"));
+    }
     std::fs::write(
         d.join("jobs/unmasked.toml"),
         format!(
@@ -57,8 +84,27 @@ fn every_output_pixel_comes_from_a_pixel_the_mask_allows() {
     )
     .unwrap();
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let atlas_mask = SampleMask::from_image(&rgb(&atlas));
+    let forbidden_by = |mask: &SampleMask, name: &str| -> usize {
+        let w = mask.dimensions().0;
+        let p = source_map::decode(&std::fs::read(d.join("out").join(name)).unwrap()).unwrap();
+        let mut used: Vec<u32> = p.sources().to_vec();
+        let (pw, ph) = p.dimensions();
+        for y in 0..ph {
+            for x in 0..pw {
+                used.extend(p.blends_at(x, y).iter().map(|b| b.source));
+            }
+        }
+        used.iter().filter(|&&i| !mask.allows(i % w, i / w)).count()
+    };
+    for name in ["atlas_cpso", "atlas_exhaustive", "atlas_quilting"] {
+        assert_eq!(forbidden_by(&atlas_mask, &format!("{name}.map.exr")), 0, "{name}: a gutter or the watermark is copied");
+    }
     let mask = mask_image();
     let (w, _) = mask.dimensions();
+    for (name, _, _) in patch_sampling {
+        assert_eq!(forbidden_by(&mask, &format!("{name}.map.exr")), 0, "{name}");
+    }
     let forbidden = |name: &str| -> usize {
         let p = source_map::decode(&std::fs::read(d.join("out").join(name)).unwrap()).unwrap();
         // Base sources and every blend source.
@@ -159,7 +205,7 @@ fn bad_masks_are_refused_naming_the_file_and_the_reason() {
         "is black everywhere: it leaves nothing to copy",
         "stripe.toml:2:1: `sample_mask`: sample mask",
         "leaves no whole 50x50 block (params.block) to copy; the largest block it allows is 40",
-        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting, double-seam",
+        "method.toml:2:15: `sample_mask`: wang-tiles does not honour a sample mask; methods that do: quilting, double-seam, patch-sampling",
         "missing.toml:2:15: `sample_mask`: sample mask",
         "type.toml:2:15: `sample_mask`: expected a string (the mask image's path",
     ] {
@@ -184,6 +230,14 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     std::fs::write(jobs.join("guided.toml"), &text).unwrap();
     std::fs::write(jobs.join("unguided.toml"), text.replace("weight = 0.5", "weight = 0.0").replace("transfer_rings.png", "unguided.png"))
         .unwrap();
+    // Patch sampling: its swarm and its exhaustive search, guided and at weight 0.
+    let ps = text.replace("method = \"quilting\"", "method = \"patch-sampling\"");
+    for (name, weight, params) in
+        [("ps_guided", "0.5", ""), ("ps_unguided", "0.0", ""), ("ps_exhaustive", "0.5", "search = \"exhaustive\"\n")]
+    {
+        let t = ps.replace("weight = 0.5", &format!("weight = {weight}")).replace("transfer_rings.png", &format!("{name}.png"));
+        std::fs::write(jobs.join(format!("{name}.toml")), format!("{t}{params}")).unwrap();
+    }
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
     let target = rgb(&repo().join("jobs/samples/guided/target_rings.png"));
     let cells = |img: &texsyn::RgbImage| -> Vec<f64> {
@@ -216,6 +270,10 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     let (cg, cu) = (correlation(&cells(&guided), &t), correlation(&cells(&unguided), &t));
     assert!(cg > 0.6, "the guided output follows the target: correlation {cg:.2}");
     assert!(cu.abs() < 0.3, "weight 0 ignores the target: correlation {cu:.2}");
+    let ps = |name: &str| correlation(&cells(&rgb(&d.join(format!("out/guided/{name}.png")))), &t);
+    let (pg, pe, pu) = (ps("ps_guided"), ps("ps_exhaustive"), ps("ps_unguided"));
+    assert!(pg > 0.6 && pe > 0.6, "patch sampling follows the target: correlation {pg:.2} (cpso), {pe:.2} (exhaustive)");
+    assert!(pu.abs() < 0.3, "patch sampling at weight 0 ignores the target: correlation {pu:.2}");
     let sample = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
     let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
     assert!(guided.as_raw().chunks_exact(3).all(|p| colours.contains(&[p[0], p[1], p[2]])), "every pixel is a sample pixel");
@@ -265,7 +323,7 @@ fn bad_guides_are_refused_by_key() {
         "source.toml:6:1: `guide.source`: source guide",
         "is 50x40 but the sample",
         "is 256x256; the source guide must have the sample's size",
-        "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting",
+        "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting, patch-sampling",
         "weight.toml:6:10: `guide.weight`: 1.5 is out of range",
         "passes.toml:6:10: `guide.passes`: 0 is out of range: allowed 1..=8",
         "wrap.toml:4:1: `guide`: a guided output cannot wrap yet",

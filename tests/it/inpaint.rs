@@ -43,30 +43,48 @@ fn outside_the_mask_nothing_changes_and_the_hole_is_filled_from_known_pixels() {
     job(&jobs, "plain.toml", &abs(IMAGE), &mask_line, "source_map = \"plain.map.exr\"", "");
     job(&jobs, "torus.toml", &abs(IMAGE), &mask_line, "source_map = \"torus.map.exr\"\ntileable = true", "");
     job(&jobs, "nocut.toml", &abs(IMAGE), &mask_line, "source_map = \"nocut.map.exr\"", "cut = \"none\"\n");
+    // Patch sampling: its swarm and its exhaustive search, feathered (the default) or cut, and on a torus.
+    for (name, output, params) in [
+        ("ps", "", ""),
+        ("ps_exhaustive", "", "search = \"exhaustive\"\n"),
+        ("ps_cut", "", "blend = \"cut\"\n"),
+        ("ps_torus", "tileable = true\n", "search = \"pso\"\n"),
+    ] {
+        job(&jobs, &format!("{name}.toml"), &abs(IMAGE), &mask_line, &format!("source_map = \"{name}.map.exr\"\n{output}"), params);
+        let text = std::fs::read_to_string(jobs.join(format!("{name}.toml"))).unwrap();
+        std::fs::write(jobs.join(format!("{name}.toml")), text.replace("method = \"quilting\"", "method = \"patch-sampling\"")).unwrap();
+    }
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
     let image = rgb(&repo().join(IMAGE));
     let fill = mask_flags();
     let (w, h) = image.dimensions();
-    for name in ["plain", "torus", "nocut"] {
+    for name in ["plain", "torus", "nocut", "ps", "ps_exhaustive", "ps_cut", "ps_torus"] {
         let out = rgb(&d.join(format!("out/{name}.png")));
         assert_eq!(out.dimensions(), (w, h), "{name}: the image's size");
         let map = source_map::decode(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
-        let mut changed = 0;
+        let (mut changed, mut blended) = (0, 0);
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) as usize;
                 let src = map.sources()[i];
                 if fill[i] {
                     assert!(!fill[src as usize], "{name}: ({x},{y}) copies ({},{}), inside the hole", src % w, src / w);
+                    for b in map.blends_at(x, y) {
+                        assert!(!fill[b.source as usize], "{name}: ({x},{y}) blends in a pixel of the hole");
+                    }
+                    blended += usize::from(!map.blends_at(x, y).is_empty());
                     changed += usize::from(out.get(x, y) != image.get(x, y));
                 } else {
                     assert_eq!(out.get(x, y), image.get(x, y), "{name}: known pixel ({x},{y}) changed");
                     assert_eq!(src as usize, i, "{name}: known pixel ({x},{y}) is its own source");
+                    assert!(map.blends_at(x, y).is_empty(), "{name}: known pixel ({x},{y}) is blended");
                 }
-                assert!(map.blends_at(x, y).is_empty(), "{name}: nothing is blended");
             }
         }
         assert!(changed > 5000, "{name}: the hole was filled ({changed} pixels changed)");
+        // Patch sampling feathers into what earlier blocks filled (the test can tell); the cuts never blend.
+        let feathered = name == "ps" || name == "ps_exhaustive" || name == "ps_torus";
+        assert_eq!(blended > 500, feathered, "{name}: {blended} pixels of the hole blended");
     }
     let m = json(&d.join("out/manifest.json"));
     let plain = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "plain.toml").unwrap();
@@ -109,10 +127,28 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
     )
     .unwrap();
     job(&jobs, "alpha.toml", &abs(HOLES), "channel = \"a\"", "", "");
+    // The same with patch sampling (feathered: its blends come from known pixels too).
+    let ps = text.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"deep.png\"", "path = \"deep_ps.png\"");
+    std::fs::write(
+        jobs.join("deep_ps.toml"),
+        format!("{ps}\n[[companion]]\nsample = \"{}\"\npath = \"deep_ps_normal.png\"\n", d.join("deep_normal.png").display()),
+    )
+    .unwrap();
+    let alpha = std::fs::read_to_string(jobs.join("alpha.toml")).unwrap();
+    std::fs::write(
+        jobs.join("alpha_ps.toml"),
+        alpha.replace("method = \"quilting\"", "method = \"patch-sampling\"").replace("path = \"alpha.png\"", "path = \"alpha_ps.png\""),
+    )
+    .unwrap();
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
     let fill = mask_flags();
     let decode = |p: &Path| texsyn::image::io::decode_output(&std::fs::read(p).unwrap(), Default::default()).unwrap();
-    for (input, output) in [("deep.png", "out/deep.png"), ("deep_normal.png", "out/deep_normal.png")] {
+    for (input, output) in [
+        ("deep.png", "out/deep.png"),
+        ("deep_normal.png", "out/deep_normal.png"),
+        ("deep.png", "out/deep_ps.png"),
+        ("deep_normal.png", "out/deep_ps_normal.png"),
+    ] {
         let (a, b) = (decode(&d.join(input)), decode(&d.join(output)));
         let (texsyn::image::io::Samples::U16(a), texsyn::image::io::Samples::U16(b)) = (&a.samples, &b.samples) else {
             panic!("{output} is 16-bit like its input")
@@ -128,20 +164,22 @@ fn known_pixels_stay_bit_for_bit_at_16_bit_in_companions_and_with_alpha() {
         }
         assert!(same > 50_000 && differ > 5000, "{output}: {same} kept, {differ} filled");
     }
-    let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join("out/alpha.png")));
-    assert_eq!((a.channels, b.channels), (4, 4));
-    let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else { panic!("8-bit RGBA") };
-    let mut holes = 0;
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        if pa[3] < 128 {
-            holes += 1;
-            assert_eq!(pb[3], 255, "a filled pixel is opaque");
-            assert_ne!(&pb[..3], &[255, 0, 255], "no hole colour is copied");
-        } else {
-            assert_eq!(pa, pb, "a known pixel keeps its colour and alpha");
+    for output in ["out/alpha.png", "out/alpha_ps.png"] {
+        let (a, b) = (decode(&repo().join(HOLES)), decode(&d.join(output)));
+        assert_eq!((a.channels, b.channels), (4, 4));
+        let (texsyn::image::io::Samples::U8(a), texsyn::image::io::Samples::U8(b)) = (&a.samples, &b.samples) else { panic!("8-bit RGBA") };
+        let mut holes = 0;
+        for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+            if pa[3] < 128 {
+                holes += 1;
+                assert_eq!(pb[3], 255, "{output}: a filled pixel is opaque");
+                assert_ne!(&pb[..3], &[255, 0, 255], "{output}: no hole colour is copied");
+            } else {
+                assert_eq!(pa, pb, "{output}: a known pixel keeps its colour and alpha");
+            }
         }
+        assert!(holes > 3000, "{output}: {holes}");
     }
-    assert!(holes > 3000, "{holes}");
     run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
 }
 
@@ -261,7 +299,7 @@ fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
         "missing.toml:5:8: `inpaint.mask`: mask",
         "outsize.toml:8:1: `output.width`: an inpainting job's output has its image's size",
         "is 256x256 but the output asks for 300x256",
-        "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting",
+        "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting, patch-sampling",
         "sample.toml:1:10: `sample`: an [inpaint] job copies from its image",
     ] {
         assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
@@ -290,4 +328,56 @@ fn the_report_shows_the_mask_between_the_image_and_the_output() {
     let src = figure.split("src=\"").nth(1).unwrap().split('"').next().unwrap();
     assert_eq!(rgb(&d.join("report").join(src)), rgb(&repo().join(MASK)), "the mask's own pixels");
     assert!(input < html.find("<figure data-group=").unwrap(), "the mask comes before the output");
+}
+
+/// A hole many blocks wide (pebbles enlarged 2×, a 200×150 hole, blocks of 40) shows no block
+/// grid: inside the hole, no column or row of neighbour steps stands out from the others, as a
+/// straight seam along a block's edge would (the image's own worst line is about 1.6× the
+/// median line; blocks whose filled rim pixels were free to change took their whole window,
+/// leaving straight seams at 4–10×). And the steps across the hole's border stay near the
+/// image's own.
+#[test]
+fn a_large_hole_shows_no_block_grid_and_no_outline() {
+    let d = scratch("inpaint-grid");
+    let sample = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
+    let image = enlarged(&sample, 2, 512, 512);
+    let (x0, y0, x1, y1) = (150u32, 170u32, 350u32, 320u32);
+    let hole = |x: u32, y: u32| (x0..x1).contains(&x) && (y0..y1).contains(&y);
+    write_png(&d.join("image.png"), &image);
+    write_png(&d.join("mask.png"), &texsyn::RgbImage::from_fn(512, 512, |x, y| if hole(x, y) { [255; 3] } else { [0; 3] }));
+    let mask_line = format!("mask = \"{}\"", d.join("mask.png").display());
+    job(&d.join("jobs"), "h.toml", &d.join("image.png").display().to_string(), &mask_line, "", "block = 40\n");
+    let text = std::fs::read_to_string(d.join("jobs/h.toml")).unwrap().replace("block = 32\n", "");
+    std::fs::write(d.join("jobs/h.toml"), text).unwrap();
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(d.join("jobs")));
+    let out = rgb(&d.join("out/h.png"));
+    let gray = |x: u32, y: u32| out.get(x, y).iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
+    let step = |a: (u32, u32), b: (u32, u32)| (gray(a.0, a.1) - gray(b.0, b.1)).abs();
+    // Mean horizontal step per column pair and vertical step per row pair, 3 px inside the hole.
+    let columns: Vec<f64> =
+        (x0 + 3..x1 - 4).map(|x| (y0 + 3..y1 - 3).map(|y| step((x, y), (x + 1, y))).sum::<f64>() / f64::from(y1 - y0 - 6)).collect();
+    let rows: Vec<f64> =
+        (y0 + 3..y1 - 4).map(|y| (x0 + 3..x1 - 3).map(|x| step((x, y), (x, y + 1))).sum::<f64>() / f64::from(x1 - x0 - 6)).collect();
+    let worst = |v: &[f64]| {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        s[s.len() - 1] / s[s.len() / 2]
+    };
+    let (c, r) = (worst(&columns), worst(&rows));
+    assert!(c < 2.6 && r < 2.6, "the worst column / row of steps inside the hole is {c:.2} / {r:.2} × the median: a straight seam");
+    let (mut border, mut known) = (Vec::new(), Vec::new());
+    for y in 0..511 {
+        for x in 0..511 {
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                match (hole(x, y), hole(nx, ny)) {
+                    (true, false) | (false, true) => border.push(step((x, y), (nx, ny))),
+                    (false, false) => known.push(step((x, y), (nx, ny))),
+                    _ => {}
+                }
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (b, k) = (mean(&border), mean(&known));
+    assert!(b < 3.0 * k, "steps across the hole's border {b:.2} against {k:.2} in the known image");
 }

@@ -41,8 +41,17 @@ fn every_pixel_comes_from_one_sample_and_transform_inside_its_mask() {
     write(&jobs.join("plain.toml"), &body("plain", ""));
     write(&jobs.join("tileable.toml"), &body("tileable", "tileable = true\n"));
     write(&jobs.join("feather.toml"), &body("feather", "").replace("block = 32\n", "block = 32\ncut = \"none\"\nblend = \"feather\"\n"));
+    // The other methods that learn from several samples: double-seam pastes blocks verbatim,
+    // patch-sampling feathers them (its swarm and its exhaustive search).
+    write(&jobs.join("seam.toml"), &body("seam", "").replace("quilting", "double-seam"));
+    write(&jobs.join("seam_tileable.toml"), &body("seam_tileable", "tileable = true\n").replace("quilting", "double-seam"));
+    write(&jobs.join("ps.toml"), &body("ps", "").replace("quilting", "patch-sampling"));
+    write(
+        &jobs.join("ps_exhaustive.toml"),
+        &body("ps_exhaustive", "").replace("quilting", "patch-sampling").replace("block = 32\n", "block = 32\nsearch = \"exhaustive\"\n"),
+    );
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
-    for name in ["plain", "tileable", "feather"] {
+    for name in ["plain", "tileable", "feather", "seam", "seam_tileable", "ps", "ps_exhaustive"] {
         let map = source_map::decode_map(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
         let atlas = map.atlas.as_ref().expect("a version 2 map");
         assert_eq!(map.sample_sizes(), vec![(128, 256), (128, 256)]);
@@ -170,7 +179,7 @@ fn bad_sample_lists_are_refused_by_key() {
         "masks.toml:4:15: `sample_mask`: lists 1 masks for 2 samples",
         "onemask.toml:4:15: `sample_mask`: with 2 samples, give `sample_mask` as a list parallel to `samples`",
         "both.toml:2:11: `samples`: both `sample` and `samples` are given",
-        "method.toml:1:11: `samples`: tes learns from one sample; methods that take several: quilting",
+        "method.toml:1:11: `samples`: tes learns from one sample; methods that take several: quilting, double-seam, patch-sampling",
         "method.toml:4:11: `augment`: tes cannot search transformed copies",
         "empty.toml:1:11: `samples`: samples is empty",
         "missing.toml:1:",

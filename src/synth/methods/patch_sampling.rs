@@ -41,6 +41,17 @@
 //! tolerance is relative to the zone's intensity, so on bright low-contrast samples it admits almost
 //! every patch), `polish_radius` (a local exhaustive search around the swarm's best).
 //!
+//! **Constraints** (issue #28). *Sample mask*: blocks are copied only from positions whose every
+//! pixel the mask allows (so feathered blends, which mix two such blocks, do too); the swarms
+//! move over every position but score and place each as its nearest allowed one ([`Allowed`]),
+//! the exhaustive searches restrict their candidates, the first block is drawn among allowed
+//! positions. *Inpainting*: `methods::inpaint`'s driver (blocks over the hole, known pixels never
+//! written) with this method's search and join: patches are feathered into pixels filled earlier
+//! (or cut, with `blend = "cut"`), and the border polish feathers its patches in from the known
+//! border. *Guide*: Efros–Freeman's weighed error ([`GuideTerm`]) is the swarm's fitness and the
+//! exhaustive search's criterion (`methods::guide`), with quilting's shrinking passes. Their
+//! streams carry an `inpaint/` or `guided/…` prefix; plain syntheses keep their labels and pixels.
+//!
 //! **Threads.** A block depends only on blocks earlier in raster order that overlap its zone, so
 //! the blocks with the same `2·bi + bj` ("waves") never touch each other's pixels and the swarm
 //! searches of a wave run in parallel; every random draw comes from the block's own labelled
@@ -584,6 +595,78 @@ struct Settings {
     first: Option<(u32, u32)>,
     per_block: bool,
     optimum: bool,
+    /// The positions blocks may be copied from, when a sample mask or an inpainted image's hole
+    /// rules some out.
+    allowed: Option<Allowed>,
+    /// Prefixed to every stream label, so that inpainting's and each guided pass's draws are
+    /// their own ("" for a plain synthesis, whose labels predate it).
+    label: String,
+}
+
+/// The block positions a search may copy from, when not every one: the flags (row-major over
+/// the `nx`-wide grid of positions) and, for the swarms, which move over every position, the
+/// allowed position each one stands for: the nearest in 4-connected steps, ties to the one a
+/// breadth-first search from the allowed positions (started in row-major order) reaches first.
+/// So a swarm is scored and placed only at allowed positions, and its draws stay those of its
+/// streams.
+struct Allowed {
+    flags: Vec<bool>,
+    nearest: Vec<u32>,
+    nx: u32,
+}
+
+impl Allowed {
+    fn new(flags: Vec<bool>, nx: u32) -> Allowed {
+        let n = flags.len();
+        let nxu = nx as usize;
+        let mut nearest = vec![u32::MAX; n];
+        let mut queue = std::collections::VecDeque::new();
+        for (i, _) in flags.iter().enumerate().filter(|(_, a)| **a) {
+            nearest[i] = i as u32;
+            queue.push_back(i);
+        }
+        while let Some(p) = queue.pop_front() {
+            let (x, y) = (p % nxu, p / nxu);
+            for q in [(x > 0).then(|| p - 1), (x + 1 < nxu).then(|| p + 1), (y > 0).then(|| p - nxu), (p + nxu < n).then(|| p + nxu)]
+                .into_iter()
+                .flatten()
+            {
+                if nearest[q] == u32::MAX {
+                    nearest[q] = nearest[p];
+                    queue.push_back(q);
+                }
+            }
+        }
+        Allowed { flags, nearest, nx }
+    }
+
+    fn allows(&self, (x, y): (u32, u32)) -> bool {
+        self.flags[(y * self.nx + x) as usize]
+    }
+
+    fn nearest(&self, (x, y): (u32, u32)) -> (u32, u32) {
+        let i = self.nearest[(y * self.nx + x) as usize];
+        (i % self.nx, i / self.nx)
+    }
+}
+
+/// The guide of a guided synthesis, as the searches use it (Efros–Freeman's error: the zone's
+/// SSD per pixel and channel weighed by `1 − weight` against the guide's over the whole block
+/// by `weight`, the guide read from `target` at the block's place; see `methods::guide`).
+struct GuideTerm<'g> {
+    source: &'g RgbImage,
+    lines: SampleLines,
+    /// The target guide over the whole canvas (the edge repeated past the output).
+    target: RgbImage,
+    weight: f64,
+}
+
+impl GuideTerm<'_> {
+    /// The weights of the zone's and the guide's SSD for a zone of `area` pixels.
+    fn weights(&self, area: u64, block: u32) -> (f64, f64) {
+        let k_texture = if area == 0 { 0.0 } else { (1.0 - self.weight) / (3.0 * area as f64) };
+        (k_texture, self.weight / (3.0 * f64::from(block) * f64::from(block)))
+    }
 }
 
 impl Settings {
@@ -602,6 +685,8 @@ impl Settings {
             first: cfg.first_x.zip(cfg.first_y),
             per_block: cfg.diagnostics || cfg.record_optimum,
             optimum: cfg.record_optimum,
+            allowed: None,
+            label: String::new(),
         }
     }
 }
@@ -701,8 +786,164 @@ impl Method for PatchSampling {
         if overlap * 2 > block || overlap == 0 {
             return Err(SynthError::Failed(format!("overlap {overlap} must be in 1..={}", block / 2)));
         }
-        let settings = Settings::of(&cfg);
+        let mut settings = Settings::of(&cfg);
+        if let Some(guide) = req.constraints.guide {
+            if req.constraints.fill.is_some() || req.tileable {
+                return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
+            }
+            return self.synthesize_guided(req, &cfg, settings, guide);
+        }
+        if let Some(region) = req.constraints.fill {
+            return self.inpaint(req, &cfg, settings, region);
+        }
+        settings.allowed = allowed_positions(req, block)?;
+        self.grid(req, &settings, block, overlap, None, None)
+    }
+
+    fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
+        let cfg = PatchSamplingConfig::from_params(p).map_err(|e| e.to_string())?;
+        torus_of(&cfg, sample, output).map(|_| ())
+    }
+
+    fn honours_sample_mask(&self) -> bool {
+        true
+    }
+
+    fn honours_inpaint(&self) -> bool {
+        true
+    }
+
+    fn honours_guide(&self) -> bool {
+        true
+    }
+}
+
+/// The block positions the request's sample mask (and, when inpainting, the pixels outside the
+/// hole) allow, or `None` when every position may be copied; an error naming the block and the
+/// largest one that fits when none is allowed.
+fn allowed_positions(req: &Request, block: u32) -> Result<Option<Allowed>, SynthError> {
+    let Some(mask) = req.constraints.copyable() else { return Ok(None) };
+    let flags = mask.block_positions(block, block);
+    if !flags.contains(&true) {
+        let what = if req.constraints.fill.is_some() { "the image outside the inpaint mask" } else { "the sample mask" };
+        return Err(SynthError::param(
+            "block",
+            format!("{what} leaves no whole {block}x{block} block to copy; the largest block it allows is {}", mask.largest_block()),
+        ));
+    }
+    Ok(Some(Allowed::new(flags, req.sample.width() - block + 1)))
+}
+
+impl PatchSampling {
+    /// Inpainting (`methods::inpaint`'s driver) with patch sampling's own search (the swarm, or
+    /// the exhaustive search and its candidate rule) over the positions outside the hole, and its
+    /// own join: feathered into pixels filled earlier (never into known ones), or cut.
+    fn inpaint(
+        &self,
+        req: &Request,
+        cfg: &PatchSamplingConfig,
+        mut settings: Settings,
+        region: &crate::synth::constraints::FillRegion,
+    ) -> Result<Synthesis, SynthError> {
+        let (block, overlap, sample) = (cfg.block, cfg.overlap_or_derived(), req.sample);
+        let allowed = allowed_positions(req, block)?.expect("a fill region always restricts the positions");
+        let copyable = req.constraints.copyable().expect("a fill region always restricts the pixels");
+        settings.label = "inpaint/".into();
+        let flags = allowed.flags.clone();
+        settings.allowed = Some(allowed);
+        let mut search =
+            (settings.search == Search::Exhaustive).then(|| BlockSearch::within(settings.engine, sample, block, Some(flags.clone())));
+        let lines = (settings.search != Search::Exhaustive).then(|| SampleLines::new(sample));
+        let how = super::inpaint::Fill {
+            block,
+            overlap,
+            // The border polish (with `blend = "cut"`) picks among the patches within quilting's
+            // default tolerance of the best.
+            tolerance: 0.1,
+            rule: settings.blend,
+            allowed: &flags,
+            copyable: &copyable,
+            engine: settings.engine,
+            label: "cpso",
+        };
+        let settings = &settings;
+        let mut pick = |window: &RgbImage, regions: &[Rect], (bi, bj): (u32, u32)| {
+            let zone = Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: regions.to_vec(), block, sides: Sides::default() };
+            let r = match (&mut search, &lines) {
+                (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed),
+                (None, Some(lines)) => swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], None),
+                (None, None) => unreachable!("a search is prepared"),
+            };
+            (r.pos, r.candidates)
+        };
+        let mut synthesis = super::inpaint::fill(req, region, &how, &mut pick)?;
+        synthesis.diagnostics["search"] = json!(settings.search.name());
+        Ok(synthesis)
+    }
+
+    /// Guided synthesis (texture transfer, Efros & Freeman 2001 §3): each block minimises its
+    /// zone error weighed against its guide error ([`GuideTerm`]), with the method's own search;
+    /// then, as quilting does, `passes − 1` more passes with blocks a third smaller (never below
+    /// 6 px), each matched over the whole block against the previous pass, at the same weight.
+    fn synthesize_guided(
+        &self,
+        req: &Request,
+        cfg: &PatchSamplingConfig,
+        mut settings: Settings,
+        guide: &crate::synth::constraints::Guide,
+    ) -> Result<Synthesis, SynthError> {
+        let sample = req.sample;
+        if guide.target.dimensions() != (req.width, req.height) || guide.source.dimensions() != sample.dimensions() {
+            return Err(SynthError::Failed("the guides must have the output's and the sample's sizes".into()));
+        }
+        let copyable = req.constraints.copyable();
+        let mut previous: Option<RgbImage> = None;
+        let mut passes = Vec::new();
+        let mut last = None;
+        for pass in 0..guide.passes.max(1) {
+            let shrink = (2.0f64 / 3.0).powi(pass as i32);
+            let block = ((f64::from(cfg.block) * shrink).round() as u32).max(6).min(cfg.block);
+            let overlap = ((f64::from(cfg.overlap_or_derived()) * shrink).round() as u32).clamp(1, block / 2);
+            settings.allowed = copyable.as_ref().map(|mask| Allowed::new(mask.block_positions(block, block), sample.width() - block + 1));
+            if settings.allowed.as_ref().is_some_and(|a| !a.flags.contains(&true)) {
+                return Err(SynthError::param("block", format!("the sample mask leaves no whole {block}x{block} block to copy")));
+            }
+            settings.label = if pass == 0 { "guided/".into() } else { format!("guided/pass={pass}/") };
+            let layout = BlockGrid::new(block, overlap, req.width, req.height);
+            let (cw, ch) = layout.canvas();
+            let term = GuideTerm {
+                source: &guide.source,
+                lines: SampleLines::new(&guide.source),
+                target: RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1))),
+                weight: guide.weight,
+            };
+            let mut synthesis = self.grid(req, &settings, block, overlap, previous.as_ref(), Some(&term))?;
+            passes.push(json!({ "block": block, "overlap": overlap, "weight": guide.weight, "mean_rms_error": synthesis.diagnostics["mean_rms_error"].clone() }));
+            previous = Some(synthesis.image.clone());
+            synthesis.diagnostics["guided"] = json!({ "weight": guide.weight });
+            last = Some(synthesis);
+        }
+        let mut synthesis = last.expect("at least one pass");
+        synthesis.diagnostics["guided"] = json!({ "weight": guide.weight, "passes": passes });
+        Ok(synthesis)
+    }
+
+    /// Patch sampling over the output's grid (or its torus): the paper's synthesis. With
+    /// `previous` (a guided pass after the first) the canvas starts as that image and every block,
+    /// the first included, is matched over its whole area against it; with `guide` every block's
+    /// error weighs the guide's too, and the first block is searched as well.
+    fn grid(
+        &self,
+        req: &Request,
+        settings: &Settings,
+        block: u32,
+        overlap: u32,
+        previous: Option<&RgbImage>,
+        guide: Option<&GuideTerm>,
+    ) -> Result<Synthesis, SynthError> {
+        let sample = req.sample;
         let torus = if req.tileable {
+            let cfg = PatchSamplingConfig::from_params(req.params)?;
             Some(torus_of(&cfg, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?)
         } else {
             None
@@ -710,25 +951,55 @@ impl Method for PatchSampling {
         let layout = BlockGrid::new(block, overlap, req.width, req.height);
         let (cw, ch) = torus.as_ref().map_or(layout.canvas(), |t| t.size());
         let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
+        if let Some(prev) = previous {
+            // Every pixel is written again by this pass's blocks: the previous pass is only what
+            // the blocks are matched against where this pass has not been yet.
+            canvas.image = RgbImage::from_fn(cw, ch, |x, y| prev.get(x.min(prev.width() - 1), y.min(prev.height() - 1)));
+        }
         let (nx, ny) = (sample.width() - block + 1, sample.height() - block + 1);
         let first = match settings.first {
             Some((x, y)) => {
                 if x >= nx || y >= ny {
                     return Err(SynthError::Failed(format!("the first block ({x}, {y}) does not fit in the sample")));
                 }
+                if settings.allowed.as_ref().is_some_and(|a| !a.allows((x, y))) {
+                    return Err(SynthError::param("first_x", format!("the first block ({x}, {y}) is not wholly inside the sample mask")));
+                }
                 (x, y)
             }
             None => {
-                let mut s = Stream::new(req.seed, "cpso/first");
-                let x = s.below(nx as u64) as u32;
-                let y = s.below(ny as u64) as u32;
-                (x, y)
+                let mut s = Stream::new(req.seed, &format!("{}cpso/first", settings.label));
+                match &settings.allowed {
+                    Some(a) => {
+                        let count = a.flags.iter().filter(|&&f| f).count() as u64;
+                        crate::synth::constraints::nth_allowed(&a.flags, nx, s.below(count)).expect("an allowed position")
+                    }
+                    None => {
+                        let x = s.below(nx as u64) as u32;
+                        let y = s.below(ny as u64) as u32;
+                        (x, y)
+                    }
+                }
             }
         };
-        let mut search = (settings.search == Search::Exhaustive).then(|| BlockSearch::new(settings.engine, sample, block));
+        let flags = settings.allowed.as_ref().map(|a| a.flags.clone());
+        let mut search = (settings.search == Search::Exhaustive && guide.is_none())
+            .then(|| BlockSearch::within(settings.engine, sample, block, flags.clone()));
+        let mut guided = match guide {
+            Some(g) if settings.search == Search::Exhaustive => {
+                Some(super::guide::GuidedSearch::new(sample, g.source, &g.target, block, g.weight, flags.clone()))
+            }
+            _ => None,
+        };
         // The recorded optimum is the exact one whatever the engine: an exact search's, else its own.
         let shares = matches!(search, Some(BlockSearch::Exact(..)));
-        let mut exact = (settings.optimum && !shares).then(|| OverlapSearch::new(sample, block, block));
+        let mut exact = (settings.optimum && !shares).then(|| {
+            let mut s = OverlapSearch::new(sample, block, block);
+            if let Some(f) = &flags {
+                s.restrict_to(f.clone());
+            }
+            s
+        });
         let lines = (settings.search != Search::Exhaustive).then(|| SampleLines::new(sample));
         let (cols, rows) = torus.as_ref().map_or((layout.cols, layout.rows), |t| (t.cols, t.rows));
         let mut results: Vec<BlockResult> = Vec::with_capacity((rows * cols) as usize);
@@ -758,7 +1029,7 @@ impl Method for PatchSampling {
                     None => Zone {
                         target: Cow::Borrowed(&canvas.image),
                         origin: layout.origin(bi, bj),
-                        regions: layout.overlap_regions(bi, bj),
+                        regions: if previous.is_some() { vec![Rect::new(0, 0, block, block)] } else { layout.overlap_regions(bi, bj) },
                         block,
                         sides: Sides { left: bj > 0, top: bi > 0, ..Sides::default() },
                     },
@@ -788,10 +1059,11 @@ impl Method for PatchSampling {
                         .zip([(steps[0], 0), (0, steps[1])])
                         .filter_map(|(n, (dx, dy))| n.and_then(|(ni, nj)| placed[(ni * cols + nj) as usize]).map(|p| (p.0 + dx, p.1 + dy)))
                         .filter(|&(x, y)| x < nx && y < ny)
+                        .filter(|&p| settings.allowed.as_ref().is_none_or(|a| a.allows(p)))
                         .collect()
                 })
                 .collect();
-            let mut found: Vec<BlockResult> = if wave == [(0, 0)] {
+            let mut found: Vec<BlockResult> = if wave == [(0, 0)] && guide.is_none() && previous.is_none() {
                 vec![BlockResult {
                     bi: 0,
                     bj: 0,
@@ -803,16 +1075,17 @@ impl Method for PatchSampling {
                     optimum: None,
                     near_optimum: None,
                 }]
+            } else if let Some(g) = guided.as_mut() {
+                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| guided_block(g, sample, zone, bi, bj, settings, req.seed)).collect()
             } else if settings.search == Search::Exhaustive {
                 let s = search.as_mut().expect("exhaustive search prepared");
-                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| exhaustive_block(s, sample, zone, bi, bj, &settings, req.seed)).collect()
+                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| exhaustive_block(s, sample, zone, bi, bj, settings, req.seed)).collect()
             } else {
-                let settings = &settings;
                 let lines = lines.as_ref().expect("sample lines prepared");
                 wave.par_iter()
                     .zip(zones.par_iter().zip(hints.par_iter()))
                     .with_max_len(1)
-                    .map(|(&(bi, bj), (zone, hints))| swarm_block(sample, lines, zone, bi, bj, settings, req.seed, hints))
+                    .map(|(&(bi, bj), (zone, hints))| swarm_block(sample, lines, zone, bi, bj, settings, req.seed, hints, guide))
                     .collect()
             };
             if settings.optimum {
@@ -853,17 +1126,12 @@ impl Method for PatchSampling {
                 (image, placement, layout.seam_grid(req.width, req.height))
             }
         };
-        let mut diagnostics = diagnostics((cols, rows), &settings, &results);
+        let mut diagnostics = diagnostics((cols, rows), settings, &results);
         if let Some(t) = &torus {
             diagnostics["tileable"] = json!(true);
             t.record_fit(&mut diagnostics);
         }
         Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
-    }
-
-    fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
-        let cfg = PatchSamplingConfig::from_params(p).map_err(|e| e.to_string())?;
-        torus_of(&cfg, sample, output).map(|_| ())
     }
 }
 
@@ -874,7 +1142,6 @@ fn torus_of(cfg: &PatchSamplingConfig, sample: (u32, u32), output: (u32, u32)) -
 
 /// `SSD(sample block at (x, y), output block, Ω)` (eq. 7), rectangle by rectangle: the reference
 /// the swarms' packed evaluation ([`PackedZone::ssd`]) is checked against.
-#[cfg(test)]
 fn zone_error(sample: &RgbImage, canvas: &RgbImage, (x, y): (u32, u32), origin: (u32, u32), regions: &[Rect]) -> u64 {
     regions.iter().map(|r| rect_ssd(sample, x + r.x, y + r.y, canvas, origin.0 + r.x, origin.1 + r.y, r.w, r.h)).sum()
 }
@@ -901,12 +1168,13 @@ fn swarm_block(
     settings: &Settings,
     seed: u64,
     hints: &[(u32, u32)],
+    guide: Option<&GuideTerm>,
 ) -> BlockResult {
     // A thread searches one block at a time and the search starts no parallel work, so the
     // thread's memo is never borrowed twice; should that change, a fresh memo is still correct.
     MEMO.with(|m| match m.try_borrow_mut() {
-        Ok(mut memo) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, &mut memo),
-        Err(_) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, &mut Memo::default()),
+        Ok(mut memo) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, &mut memo),
+        Err(_) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, &mut Memo::default()),
     })
 }
 
@@ -919,6 +1187,7 @@ fn swarm_search(
     settings: &Settings,
     seed: u64,
     hints: &[(u32, u32)],
+    guide: Option<&GuideTerm>,
     memo: &mut Memo,
 ) -> BlockResult {
     let packed = PackedZone::new(&zone.target, zone.origin, &zone.regions);
@@ -926,18 +1195,33 @@ fn swarm_search(
     let (nx, ny) = (sample.width() - zone.block + 1, sample.height() - zone.block + 1);
     let hi = [(nx - 1) as f64, (ny - 1) as f64];
     let mut params = settings.swarm;
-    if settings.delta_rms > 0.0 {
+    if settings.delta_rms > 0.0 && guide.is_none() {
         params.stop_below = Some(zone_pixels as f64 * 3.0 * settings.delta_rms * settings.delta_rms);
     }
+    // Guided: the guide's SSD over the whole block where it goes, weighed against the zone's.
+    let guide_zone = guide.map(|g| (g, PackedZone::new(&g.target, zone.origin, &[Rect::new(0, 0, zone.block, zone.block)])));
+    let (k_texture, k_guide) = guide.map_or((1.0, 0.0), |g| g.weights(zone_pixels, zone.block));
+    // A position stands for its nearest allowed one when a mask rules some out.
+    let at = |pos: (u32, u32)| settings.allowed.as_ref().map_or(pos, |a| a.nearest(pos));
+    let value = |pos: (u32, u32)| {
+        let pos = at(pos);
+        match &guide_zone {
+            None => packed.ssd(lines, pos) as f64,
+            Some((g, gz)) => k_texture * packed.ssd(lines, pos) as f64 + k_guide * gz.ssd(&g.lines, pos) as f64,
+        }
+    };
     // The fitness at a position is a pure function of the rounded position: memoise it. This
     // changes nothing but the time (the swarm often revisits positions once it has converged).
+    // (An SSD is an integer below 2^53: exact as an f64, so plain searches order as before.)
     memo.start(nx as usize * ny as usize);
-    let mut error_at = |pos: (u32, u32)| memo.get_or_insert(pos.1 as usize * nx as usize + pos.0 as usize, || packed.ssd(lines, pos));
-    let mut swarm = Stream::new(seed, &format!("cpso/swarm/bi={bi}/bj={bj}"));
-    let mut chaos = Stream::new(seed, &format!("cpso/chaos/bi={bi}/bj={bj}"));
-    let outcome = pso::optimise(&[0.0, 0.0], &hi, &params, &mut swarm, &mut chaos, |x| error_at(round_position(x, hi)) as f64);
+    let mut fitness_at =
+        |pos: (u32, u32)| f64::from_bits(memo.get_or_insert(pos.1 as usize * nx as usize + pos.0 as usize, || value(pos).to_bits()));
+    let label = &settings.label;
+    let mut swarm = Stream::new(seed, &format!("{label}cpso/swarm/bi={bi}/bj={bj}"));
+    let mut chaos = Stream::new(seed, &format!("{label}cpso/chaos/bi={bi}/bj={bj}"));
+    let outcome = pso::optimise(&[0.0, 0.0], &hi, &params, &mut swarm, &mut chaos, |x| fitness_at(round_position(x, hi)));
     let mut pos = round_position(&outcome.best, hi);
-    let mut error = outcome.best_fitness as u64;
+    let mut best = outcome.best_fitness;
     let r = settings.polish_radius;
     if r > 0 {
         // Row-major over the window; strictly better only, so ties keep the swarm's choice.
@@ -945,9 +1229,9 @@ fn swarm_search(
         let (x1, y1) = ((pos.0 + r).min(nx - 1), (pos.1 + r).min(ny - 1));
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let e = error_at((x, y));
-                if e < error {
-                    error = e;
+                let e = fitness_at((x, y));
+                if e < best {
+                    best = e;
                     pos = (x, y);
                 }
             }
@@ -955,13 +1239,40 @@ fn swarm_search(
     }
     // In the given order, strictly better only, so ties keep the swarm's (or polish's) choice.
     for &h in hints {
-        let e = error_at(h);
-        if e < error {
-            error = e;
+        let e = fitness_at(h);
+        if e < best {
+            best = e;
             pos = h;
         }
     }
+    let pos = at(pos);
+    let error = if guide.is_none() { best as u64 } else { packed.ssd(lines, pos) };
     BlockResult { bi, bj, pos, error, zone_pixels, swarm: Some(outcome), candidates: None, optimum: None, near_optimum: None }
+}
+
+/// The exhaustive search of one block of a guided synthesis ([`super::guide::GuidedSearch`], exact
+/// over the allowed positions): the best weighted error (row-major first on ties) with `tolerance
+/// = 0`, else uniform among the positions within `(1 + tolerance)` of it (Efros–Freeman's rule:
+/// Liang's threshold is relative to the zone's intensity, which a guided error does not have).
+fn guided_block(
+    search: &mut super::guide::GuidedSearch,
+    sample: &RgbImage,
+    zone: &Zone,
+    bi: u32,
+    bj: u32,
+    settings: &Settings,
+    seed: u64,
+) -> BlockResult {
+    let members = search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, settings.tolerance.max(0.0));
+    let pos = if settings.tolerance <= 0.0 || members.len() == 1 {
+        members[0]
+    } else {
+        let mut s = Stream::new(seed, &format!("{}liang/pick/bi={bi}/bj={bj}", settings.label));
+        members[s.below_usize(members.len())]
+    };
+    let zone_pixels: u64 = zone.regions.iter().map(|r| r.area()).sum();
+    let error = zone_error(sample, &zone.target, pos, zone.origin, &zone.regions);
+    BlockResult { bi, bj, pos, error, zone_pixels, swarm: None, candidates: Some(members.len()), optimum: None, near_optimum: None }
 }
 
 thread_local! {
@@ -1032,6 +1343,7 @@ fn exhaustive_block(
     seed: u64,
 ) -> BlockResult {
     let (canvas, origin, regions) = (&*zone.target, zone.origin, zone.regions.clone());
+    let allows = |m: &(u32, u32, u64)| settings.allowed.as_ref().is_none_or(|a| a.allows((m.0, m.1)));
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
     let mut result =
         BlockResult { bi, bj, pos: (0, 0), error: 0, zone_pixels, swarm: None, candidates: Some(0), optimum: None, near_optimum: None };
@@ -1062,15 +1374,17 @@ fn exhaustive_block(
             // every position the pyramid re-scored).
             match search {
                 BlockSearch::Pyramid(p, _) => {
-                    p.rescored(canvas, origin, &regions, &[]).into_iter().filter(|m| (m.2 as f64) < threshold).collect()
+                    p.rescored(canvas, origin, &regions, &[]).into_iter().filter(|m| (m.2 as f64) < threshold && allows(m)).collect()
                 }
-                BlockSearch::Exact(..) => members_below(sample, canvas, origin, &regions, zone.block, threshold),
+                BlockSearch::Exact(..) => {
+                    members_below(sample, canvas, origin, &regions, zone.block, threshold).into_iter().filter(allows).collect()
+                }
             }
         } else {
             // A superset of the bound (the margin covers rounding of threshold / min), then the exact rule.
             let tol = (threshold / min as f64 - 1.0) * (1.0 + 1e-9) + 1e-9;
             let c = search.candidates(canvas, origin, &regions, tol);
-            c.members.into_iter().filter(|m| (m.2 as f64) < threshold).collect()
+            c.members.into_iter().filter(|m| (m.2 as f64) < threshold && allows(m)).collect()
         }
     };
     if members.is_empty() {
@@ -1084,7 +1398,7 @@ fn exhaustive_block(
         }
         return result;
     }
-    let mut s = Stream::new(seed, &format!("liang/pick/bi={bi}/bj={bj}"));
+    let mut s = Stream::new(seed, &format!("{}liang/pick/bi={bi}/bj={bj}", settings.label));
     let pick = members[s.below_usize(members.len())];
     result.pos = (pick.0, pick.1);
     result.error = pick.2;

@@ -222,7 +222,8 @@ impl Method for Quilting {
                 engine: cfg.search,
                 label: "quilt",
             };
-            let mut synthesis = inpaint::fill(req, region, &how, &mut search)?;
+            let mut synthesis =
+                inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(&mut search, tolerance, req.seed, "quilt"))?;
             if let Some(level) = search.coarse_level() {
                 synthesis.diagnostics["pyramid_level"] = serde_json::json!(level);
             }
