@@ -56,6 +56,8 @@ fn record(k: usize) -> JobRecord {
         inpaint_mask: None,
         guide_target: None,
         guide_source: None,
+        samples: Vec::new(),
+        sample_masks: Vec::new(),
         diagnostics: serde_json::json!({"blocks": {"cols": 13, "rows": 13}, "mean_candidates": 1.5}),
         metrics: None,
         timing: Some(Timing {

@@ -96,7 +96,7 @@ fn every_pixel_comes_from_one_sample_and_transform_inside_its_mask() {
     }
     // A changed mask of the second sample re-runs the job, and diff says so.
     std::fs::copy(d.join("out/manifest.json"), d.join("before.json")).unwrap();
-    texsyn::save_image(&texsyn::RgbImage::from_fn(128, 256, |_, y| if y >= 200 { [0; 3] } else { [255; 3] }), &d.join("right_mask.png"))
+    texsyn::save_image(&texsyn::RgbImage::from_fn(128, 256, |_, y| if y >= 200 { [0; 3] } else { [255; 3] }), d.join("right_mask.png"))
         .unwrap();
     let again = text(&run_ok(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(jobs.join("plain.toml"))));
     assert!(again.contains("ran 1"), "{again}");
