@@ -159,7 +159,12 @@ impl JobInputs<'_> {
             seed: self.seed,
             placement: self.needs_placement(),
             tileable: self.output.tileable,
-            constraints: Constraints { sample_mask: self.sample_mask, fill: self.fill, guide: self.guide },
+            constraints: Constraints {
+                sample_mask: self.sample_mask,
+                fill: self.fill,
+                guide: self.guide,
+                atlas: self.atlas.map(|a| a.atlas),
+            },
         }
     }
 }

@@ -72,7 +72,7 @@ pub fn fill_region(
         return Err(format!("{what}: the whole image would be filled and nothing is left to copy from (white = fill)"));
     }
     if let Some(block) = block {
-        let copyable = crate::synth::constraints::Constraints { sample_mask, fill: Some(&region), guide: None }
+        let copyable = crate::synth::constraints::Constraints { sample_mask, fill: Some(&region), guide: None, atlas: None }
             .copyable()
             .expect("a fill region restricts");
         let largest = copyable.largest_block();

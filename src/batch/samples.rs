@@ -90,7 +90,8 @@ pub fn assemble(
     }
     let sizes: Vec<(u32, u32)> = samples.iter().map(|(_, s)| s.image.dimensions()).collect();
     let atlas = Atlas::layout(&sizes, augment);
-    let mask = atlas.mask(&sample_masks.iter().map(Option::as_ref).collect::<Vec<_>>());
+    let (w, h) = atlas.dimensions();
+    let mask = SampleMask::new(w, h, atlas.allowed(|s, x, y| sample_masks[s].as_ref().is_none_or(|m| m.allows(x, y))));
     if mask.allowed_pixels() == 0 {
         return Err(("sample_mask", "the sample masks are black everywhere: they leave nothing to copy (white = may be copied)".into()));
     }

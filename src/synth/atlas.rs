@@ -15,7 +15,6 @@
 //! the samples rebuilds the same atlas.
 
 use crate::image::io::{NativeImage, Samples};
-use crate::synth::constraints::SampleMask;
 use crate::synth::placement::MapKind;
 
 crate::choice! {
@@ -212,17 +211,41 @@ impl Atlas {
         Some((p.x + u, p.y + v))
     }
 
-    /// Which atlas pixels may be copied: the pieces', less what each sample's own mask (given
-    /// per sample, `None` = all of it) forbids.
-    pub fn mask(&self, sample_masks: &[Option<&SampleMask>]) -> SampleMask {
-        let allowed = (0..self.height)
+    /// Which atlas pixels may be copied (row-major flags): the pieces', less what
+    /// `allows(sample, x, y)` forbids in each sample's own pixels (its sample mask).
+    pub fn allowed(&self, allows: impl Fn(usize, u32, u32) -> bool) -> Vec<bool> {
+        (0..self.height)
             .flat_map(|y| (0..self.width).map(move |x| (x, y)))
             .map(|(x, y)| match self.locate(x, y) {
                 None => false,
-                Some((p, (sx, sy))) => sample_masks.get(p.sample).copied().flatten().is_none_or(|m| m.allows(sx, sy)),
+                Some((p, (sx, sy))) => allows(p.sample, sx, sy),
             })
-            .collect();
-        SampleMask::new(self.width, self.height, allowed)
+            .collect()
+    }
+
+    /// The rectangle `[x0, x1) × [y0, y1)` of its own sample that a `block × block` block at
+    /// atlas position `(ax, ay)` shows, with its piece; `None` when the block is not wholly in
+    /// one piece.
+    fn source_rect(&self, ax: u32, ay: u32, block: u32) -> Option<(&Piece, (u32, u32, u32, u32))> {
+        let (p, a) = self.locate(ax, ay)?;
+        let (q, b) = self.locate(ax + block - 1, ay + block - 1)?;
+        (p == q).then_some((p, (a.0.min(b.0), a.1.min(b.1), a.0.max(b.0) + 1, a.1.max(b.1) + 1)))
+    }
+
+    /// Whether two blocks at atlas positions `a` and `b` show overlapping pixels of one sample
+    /// under different transforms: a block next to such a twin continues its neighbour's mirror
+    /// image or turned copy, which shows as a symmetric motif. (The same transform is plain
+    /// continuation, and fine.)
+    pub fn twins(&self, a: (u32, u32), b: (u32, u32), block: u32) -> bool {
+        let (Some((p, ra)), Some((q, rb))) = (self.source_rect(a.0, a.1, block), self.source_rect(b.0, b.1, block)) else {
+            return false;
+        };
+        p.sample == q.sample && p.transform != q.transform && ra.0 < rb.2 && rb.0 < ra.2 && ra.1 < rb.3 && rb.1 < ra.3
+    }
+
+    /// Whether any piece is a transformed copy (only then can blocks be twins).
+    pub fn has_copies(&self) -> bool {
+        self.pieces.iter().any(|p| p.transform.is_some())
     }
 
     /// The atlas of `images` (one per sample, each of its sample's size and all of one channel
@@ -360,31 +383,43 @@ mod tests {
         let atlas = Atlas::layout(&[(40, 30), (25, 50)], &[Augment::Rot90, Augment::FlipH]);
         assert_eq!(atlas.pieces().len(), 6);
         assert_eq!(atlas.samples(), 2);
-        let mask = atlas.mask(&[None, None]);
         let (w, h) = atlas.dimensions();
-        let mut covered = 0u64;
+        let allowed = atlas.allowed(|_, _, _| true);
+        let at = |x: u32, y: u32| allowed[(y * w + x) as usize];
         for y in 0..h {
             for x in 0..w {
                 let inside: Vec<_> = atlas.pieces().iter().filter(|p| p.contains(x, y)).collect();
                 assert!(inside.len() <= 1);
-                assert_eq!(mask.allows(x, y), inside.len() == 1);
-                covered += inside.len() as u64;
+                assert_eq!(at(x, y), inside.len() == 1);
             }
         }
-        assert_eq!(covered, mask.allowed_pixels());
-        // No allowed 2x2 block straddles two pieces.
-        let blocks = mask.block_positions(2, 2);
+        // No 2x2 block of allowed pixels straddles two pieces: a gutter lies between any two.
         for y in 0..h - 1 {
             for x in 0..w - 1 {
-                if blocks[(y * (w - 1) + x) as usize] {
-                    let a = atlas.locate(x, y).unwrap().0;
-                    let b = atlas.locate(x + 1, y + 1).unwrap().0;
-                    assert_eq!(a, b);
+                if at(x, y) && at(x + 1, y) && at(x, y + 1) && at(x + 1, y + 1) {
+                    assert_eq!(atlas.locate(x, y).unwrap().0, atlas.locate(x + 1, y + 1).unwrap().0);
                 }
             }
         }
         // Roughly square, not one long row.
         assert!(w < 3 * h && h < 3 * w, "{w}x{h}");
+    }
+
+    #[test]
+    fn twins_are_overlapping_pixels_of_one_sample_under_two_transforms() {
+        let atlas = Atlas::layout(&[(40, 30), (40, 30)], &[Augment::FlipH]);
+        let at = |s, t, x, y| atlas.position(s, t, x, y).unwrap();
+        // A 10-px block over pixels 5..15 of the sample, and its mirror image: the copy's
+        // top-left pixel shows pixel 14.
+        let a = at(0, None, 5, 5);
+        let mirrored = at(0, Some(Augment::FlipH), 14, 5);
+        assert!(atlas.twins(a, mirrored, 10));
+        // The mirror image of pixels 30..40: no longer twins.
+        assert!(!atlas.twins(a, at(0, Some(Augment::FlipH), 39, 5), 10));
+        // The same transform (continuation) and another sample are never twins.
+        assert!(!atlas.twins(a, at(0, None, 8, 5), 10));
+        assert!(!atlas.twins(a, at(1, Some(Augment::FlipH), 14, 5), 10));
+        assert!(atlas.has_copies() && !Atlas::layout(&[(4, 4), (4, 4)], &[]).has_copies());
     }
 
     #[test]
@@ -429,13 +464,10 @@ mod tests {
 
     #[test]
     fn per_sample_masks_carry_into_their_pieces() {
-        let mut allowed = vec![true; 12];
-        allowed[0] = false; // (0, 0) of a 4x3 sample
-        let m = SampleMask::new(4, 3, allowed);
         let atlas = Atlas::layout(&[(4, 3)], &[Augment::Rot180]);
-        let mask = atlas.mask(&[Some(&m)]);
+        let allowed = atlas.allowed(|_, x, y| (x, y) != (0, 0));
         let (x, y) = atlas.position(0, Some(Augment::Rot180), 0, 0).unwrap();
-        assert!(!mask.allows(x, y));
-        assert_eq!(mask.allowed_pixels(), 2 * 11);
+        assert!(!allowed[(y * atlas.dimensions().0 + x) as usize]);
+        assert_eq!(allowed.iter().filter(|&&a| a).count(), 2 * 11);
     }
 }

@@ -211,9 +211,22 @@ pub struct Constraints<'a> {
     /// Guided synthesis: blocks are chosen for how well they continue the texture and how well
     /// the sample's guide under them matches the target guide under their place.
     pub guide: Option<&'a Guide>,
+    /// Several samples or turned copies packed into the sample: a method keeps a block from
+    /// continuing its neighbour with a turned or mirrored copy of the same pixels
+    /// ([`Atlas::twins`]).
+    pub atlas: Option<&'a crate::synth::atlas::Atlas>,
 }
 
 impl Constraints<'_> {
+    /// `members` (block positions) less those that are twins of a neighbour's block
+    /// (`neighbours`, positions of `block`-sized blocks); `None` when every one is.
+    pub fn without_twins(&self, members: &[(u32, u32, u64)], neighbours: &[(u32, u32)], block: u32) -> Option<Vec<(u32, u32, u64)>> {
+        let Some(atlas) = self.atlas.filter(|a| a.has_copies() && !neighbours.is_empty()) else { return Some(members.to_vec()) };
+        let kept: Vec<(u32, u32, u64)> =
+            members.iter().copied().filter(|&(x, y, _)| !neighbours.iter().any(|&n| atlas.twins((x, y), n, block))).collect();
+        (!kept.is_empty()).then_some(kept)
+    }
+
     /// The block positions a `block_w × block_h` block may be copied from
     /// ([`SampleMask::block_positions`]), or `None` when every position may be.
     pub fn block_positions(&self, block_w: u32, block_h: u32) -> Option<Vec<bool>> {

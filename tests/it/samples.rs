@@ -217,3 +217,64 @@ fn the_one_off_command_takes_several_samples_and_augment() {
     let bad = run_expect(texsyn().arg("synth").arg(abs(LEFT)).args(["--augment", "rot45", "-o"]).arg(&out), 2);
     assert!(text(&bad).contains("unknown transform `rot45`"), "{}", text(&bad));
 }
+
+/// A block never continues its neighbour with a turned or mirrored copy of the same pixels: such
+/// a "twin" shows as a symmetric motif (pairs of nearby output pixels that are one sample pixel
+/// under two transforms). Quilting and double-seam, plain and tileable.
+#[test]
+fn augmented_copies_do_not_meet_their_own_mirror_image() {
+    let d = scratch("samples-twins");
+    let jobs = d.join("jobs");
+    for (name, method, extra) in [
+        ("q", "quilting", ""),
+        ("q_tileable", "quilting", "tileable = true\n"),
+        ("seam", "double-seam", ""),
+        ("seam_tileable", "double-seam", "tileable = true\n"),
+    ] {
+        write(
+            &jobs.join(format!("{name}.toml")),
+            &format!(
+                "samples = [\"{}\", \"{}\"]\naugment = [\"rot90\", \"flip_h\"]\nmethod = \"{method}\"\nseed = 5\n\
+                 [output]\npath = \"{name}.png\"\nwidth = 320\nheight = 320\nsource_map = \"{name}.map.exr\"\n{extra}[params]\nblock = 32\n",
+                abs(LEFT),
+                abs(RIGHT)
+            ),
+        );
+    }
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
+    for name in ["q", "q_tileable", "seam", "seam_tileable"] {
+        let map = source_map::decode_map(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
+        let atlas = map.atlas.as_ref().unwrap();
+        let p = &map.placement;
+        let (aw, _) = p.sample_size();
+        let (w, h) = p.dimensions();
+        let at = |x: u32, y: u32| {
+            let s = p.source(x, y);
+            atlas.locate(s % aw, s / aw).map(|(piece, xy)| (piece.sample, piece.transform, xy))
+        };
+        let (mut twins, mut pairs) = (0u64, 0u64);
+        for y in 0..h {
+            for x in 0..w {
+                let a = at(x, y);
+                for k in 1..=24 {
+                    for (qx, qy) in [(x + k, y), (x, y + k)] {
+                        if qx >= w || qy >= h {
+                            continue;
+                        }
+                        pairs += 1;
+                        let b = at(qx, qy);
+                        if let (Some(a), Some(b)) = (a, b)
+                            && a.0 == b.0
+                            && a.1 != b.1
+                            && a.2 == b.2
+                        {
+                            twins += 1;
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!("{name}: {twins} twin pairs of {pairs}");
+        assert!(twins * 20_000 < pairs, "{name}: {twins} pairs of nearby pixels are one sample pixel under two transforms");
+    }
+}

@@ -693,8 +693,17 @@ impl Method for DoubleSeam {
                         hints.push((px, py + stride as i32));
                     }
                     let origin = (ox as i32, oy as i32);
-                    let allowed = |x: i32, y: i32| mask.allows(x, y);
-                    let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() { Some(&allowed) } else { None };
+                    // Never the turned or mirrored copy of a neighbour's own pixels (several
+                    // samples' atlas with `augment`): it would paste a symmetric motif.
+                    let (i, j, n) = (i64::from(bi), i64::from(bj), i64::from(cols));
+                    let neighbours: Vec<(i32, i32)> = [(i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)]
+                        .into_iter()
+                        .filter(|&(i, j)| i >= 0 && j >= 0 && j < n)
+                        .map(|(i, j)| picks[(i * n + j) as usize])
+                        .collect();
+                    let allowed = |x: i32, y: i32| mask.allows(x, y) && !twin_of(req, (x, y), &neighbours, s.block as u32);
+                    let twins_possible = req.constraints.atlas.is_some_and(|a| a.has_copies());
+                    let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || twins_possible { Some(&allowed) } else { None };
                     let (pick, size, f_max) = choose(&prep, &s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict)?;
                     set_sizes.push(size);
                     f_max_sum += f_max;
@@ -851,10 +860,20 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
                 }
             }
             let origin = (ox as i32, oy as i32);
+            let neighbours: Vec<(i32, i32)> = [r - 1, 0, 1]
+                .into_iter()
+                .flat_map(|di| [c - 1, 0, 1].into_iter().map(move |dj| ((bi + di) % r, (bj + dj) % c)))
+                .filter(|&(ni, nj)| (ni, nj) != (bi, bj) && done[torus.index(ni, nj)])
+                .map(|(ni, nj)| picks[torus.index(ni, nj)])
+                .collect();
             let allowed = |x: i32, y: i32| {
-                mask.allows(x, y) && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
+                mask.allows(x, y)
+                    && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
+                    && !twin_of(req, (x, y), &neighbours, s.block as u32)
             };
-            let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || phase.is_some() { Some(&allowed) } else { None };
+            let twins_possible = req.constraints.atlas.is_some_and(|a| a.has_copies());
+            let restrict: Option<&Allowed<'_>> =
+                if mask.positions.is_some() || phase.is_some() || twins_possible { Some(&allowed) } else { None };
             let masked = |x: i32, y: i32| mask.allows(x, y);
             let mask_only: Option<&Allowed<'_>> = if mask.positions.is_some() { Some(&masked) } else { None };
             let (pick, size, f_max) = match choose(prep, s, shape, &out, origin, &hints, (req.seed, bi, bj), restrict) {
@@ -1228,6 +1247,15 @@ const LANES: usize = 4;
 /// whose copied pixels the sample mask allows, and on a tileable output that keeps a lattice, those
 /// in the first block's lattice phase.
 type Allowed<'a> = dyn Fn(i32, i32) -> bool + Sync + 'a;
+
+/// Whether a block at `at` would show a turned or mirrored copy of a neighbour's pixels
+/// ([`crate::synth::atlas::Atlas::twins`]).
+fn twin_of(req: &Request, at: (i32, i32), neighbours: &[(i32, i32)], block: u32) -> bool {
+    let Some(atlas) = req.constraints.atlas.filter(|a| a.has_copies()) else { return false };
+    let as_u32 = |(x, y): (i32, i32)| (x >= 0 && y >= 0).then_some((x as u32, y as u32));
+    let Some(at) = as_u32(at) else { return false };
+    neighbours.iter().filter_map(|&n| as_u32(n)).any(|n| atlas.twins(at, n, block))
+}
 
 #[allow(clippy::too_many_arguments)]
 fn choose(

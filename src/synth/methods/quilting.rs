@@ -266,7 +266,26 @@ impl Method for Quilting {
                     } else {
                         let c = found.next().expect("one candidate set per searched block");
                         candidate_counts.push(c.members.len());
-                        pick(req.seed, bi, bj, &c.members)
+                        // The blocks already placed around it: left, and the three above.
+                        let (i, j, n) = (i64::from(bi), i64::from(bj), i64::from(layout.cols));
+                        let neighbours: Vec<(u32, u32)> = [(i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)]
+                            .into_iter()
+                            .filter(|&(i, j)| i >= 0 && j >= 0 && j < n)
+                            .filter_map(|(i, j)| sources[(i * n + j) as usize])
+                            .collect();
+                        let origin = layout.origin(bi, bj);
+                        let members = untwinned(
+                            req,
+                            &mut search,
+                            &canvas.image,
+                            origin,
+                            &layout.overlap_regions(bi, bj),
+                            tolerance,
+                            c.members,
+                            &neighbours,
+                            block,
+                        );
+                        pick(req.seed, bi, bj, &members)
                     };
                     ((bi, bj), src)
                 })
@@ -345,6 +364,34 @@ fn allowed_positions(req: &Request, block: u32) -> Result<Option<Vec<bool>>, Syn
         ));
     }
     Ok(Some(allowed))
+}
+
+/// A block's tolerance set without the turned or mirrored copies of its neighbours' pixels
+/// (several samples' atlas with `augment`: [`crate::synth::atlas::Atlas::twins`]); when every
+/// member is one, the search is asked again with the tolerance widened by 0.25, 1 and 4, and
+/// only when that finds no other position does the block keep its set.
+#[allow(clippy::too_many_arguments)]
+fn untwinned(
+    req: &Request,
+    search: &mut BlockSearch,
+    target: &RgbImage,
+    origin: (u32, u32),
+    regions: &[Rect],
+    tolerance: f64,
+    members: Vec<(u32, u32, u64)>,
+    neighbours: &[(u32, u32)],
+    block: u32,
+) -> Vec<(u32, u32, u64)> {
+    if let Some(kept) = req.constraints.without_twins(&members, neighbours, block) {
+        return kept;
+    }
+    for wider in [0.25, 1.0, 4.0] {
+        let c = search.candidates(target, origin, regions, tolerance + wider);
+        if let Some(kept) = req.constraints.without_twins(&c.members, neighbours, block) {
+            return kept;
+        }
+    }
+    members
 }
 
 /// Block `(bi, bj)`'s pick among its tolerance set (stream `quilt/pick/bi=…/bj=…`).
@@ -454,6 +501,7 @@ impl Quilting {
         let first = first_block(req.seed, sample, block, allowed.as_deref());
         let mut search = BlockSearch::within(cfg.search, sample, block, allowed);
         let mut done = vec![false; (torus.rows * torus.cols) as usize];
+        let mut sources: Vec<Option<(u32, u32)>> = vec![None; done.len()];
         let mut candidate_counts = Vec::with_capacity(done.len());
         for (bi, bj) in torus.raster() {
             let sides = torus.sides(&done, bi, bj);
@@ -463,8 +511,28 @@ impl Quilting {
                 let window = torus.window(&canvas.image, bi, bj);
                 let c = search.candidates(&window, (0, 0), &torus.regions(bi, bj, sides), cfg.tolerance);
                 candidate_counts.push(c.members.len());
-                pick(req.seed, bi, bj, &c.members)
+                let (rows, cols) = (torus.rows, torus.cols);
+                // Every block already placed around it, through the wrap too.
+                let neighbours: Vec<(u32, u32)> = [rows - 1, 0, 1]
+                    .into_iter()
+                    .flat_map(|di| [cols - 1, 0, 1].into_iter().map(move |dj| ((bi + di) % rows, (bj + dj) % cols)))
+                    .filter(|&n| n != (bi, bj))
+                    .filter_map(|(i, j)| sources[(i * cols + j) as usize])
+                    .collect();
+                let members = untwinned(
+                    req,
+                    &mut search,
+                    &window,
+                    (0, 0),
+                    &torus.regions(bi, bj, sides),
+                    cfg.tolerance,
+                    c.members,
+                    &neighbours,
+                    block,
+                );
+                pick(req.seed, bi, bj, &members)
             };
+            sources[(bi * torus.cols + bj) as usize] = Some((sx, sy));
             torus.paste(&mut canvas, sample, (sx, sy), bi, bj, sides, rule);
             done[torus.index(bi, bj)] = true;
         }
