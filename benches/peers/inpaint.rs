@@ -22,12 +22,17 @@ const RADIUS: i64 = 40;
 const CROP: u32 = 48;
 
 fn quality(sample: &RgbImage, filled: &RgbImage, centre: (u32, u32)) -> [f64; 4] {
-    let crop = filled.crop(centre.0 - CROP / 2, centre.1 - CROP / 2, CROP, CROP);
-    let m = texsyn::metrics::kl_gray(sample, &crop).unwrap_or(f64::NAN);
-    let o = texsyn::metrics::kl_orientation(sample, &crop).unwrap_or(f64::NAN);
-    let ag = texsyn::metrics::acf_gray(sample, &crop).unwrap_or(f64::NAN);
-    let ao = texsyn::metrics::acf_orientation(sample, &crop).unwrap_or(f64::NAN);
-    [m, o, ag, ao]
+    measures(sample, &filled.crop(centre.0 - CROP / 2, centre.1 - CROP / 2, CROP, CROP))
+}
+
+/// Paper 003's four measures of `image` against `sample` (NaN where undefined).
+pub fn measures(sample: &RgbImage, image: &RgbImage) -> [f64; 4] {
+    [
+        texsyn::metrics::kl_gray(sample, image).unwrap_or(f64::NAN),
+        texsyn::metrics::kl_orientation(sample, image).unwrap_or(f64::NAN),
+        texsyn::metrics::acf_gray(sample, image).unwrap_or(f64::NAN),
+        texsyn::metrics::acf_orientation(sample, image).unwrap_or(f64::NAN),
+    ]
 }
 
 pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>) {

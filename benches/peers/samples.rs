@@ -9,19 +9,11 @@
 //! quilting with its defaults. Quality: paper 003's four measures of each output against the
 //! first sample (lower is better), with ratios texsyn / Embark.
 
+use super::inpaint::measures;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const SIZE: u32 = 256;
-
-fn measures(sample: &texsyn::RgbImage, out: &texsyn::RgbImage) -> [f64; 4] {
-    [
-        texsyn::metrics::kl_gray(sample, out).unwrap_or(f64::NAN),
-        texsyn::metrics::kl_orientation(sample, out).unwrap_or(f64::NAN),
-        texsyn::metrics::acf_gray(sample, out).unwrap_or(f64::NAN),
-        texsyn::metrics::acf_orientation(sample, out).unwrap_or(f64::NAN),
-    ]
-}
 
 pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>) {
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));

@@ -81,12 +81,8 @@ pub fn encode(p: &Placement, atlas: Option<&Atlas>) -> std::result::Result<Vec<u
     let info = match atlas {
         None => format!("1 sample={sw}x{sh}"),
         Some(a) => {
-            let mut sizes: Vec<(u32, u32)> = vec![(0, 0); a.samples()];
-            for piece in a.pieces() {
-                sizes[piece.sample] = piece.sample_size;
-            }
-            let sizes: Vec<String> = sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
-            let augment: Vec<&str> = a.pieces().iter().filter(|p| p.sample == 0).filter_map(|p| p.transform.map(Augment::name)).collect();
+            let sizes: Vec<String> = a.sample_sizes().iter().map(|(w, h)| format!("{w}x{h}")).collect();
+            let augment: Vec<&str> = a.augment().into_iter().map(Augment::name).collect();
             format!("2 samples={} augment={}", sizes.join(","), augment.join(","))
         }
     };
@@ -109,13 +105,7 @@ impl SourceMap {
     pub fn sample_sizes(&self) -> Vec<(u32, u32)> {
         match &self.atlas {
             None => vec![self.placement.sample_size()],
-            Some(a) => {
-                let mut sizes = vec![(0, 0); a.samples()];
-                for piece in a.pieces() {
-                    sizes[piece.sample] = piece.sample_size;
-                }
-                sizes
-            }
+            Some(a) => a.sample_sizes(),
         }
     }
 }

@@ -186,6 +186,20 @@ impl Atlas {
         self.pieces.iter().map(|p| p.sample + 1).max().unwrap_or(0)
     }
 
+    /// The size of each sample it was made from, in order.
+    pub fn sample_sizes(&self) -> Vec<(u32, u32)> {
+        let mut sizes = vec![(0, 0); self.samples()];
+        for p in &self.pieces {
+            sizes[p.sample] = p.sample_size;
+        }
+        sizes
+    }
+
+    /// The transforms of every sample's copies, in order (`augment`).
+    pub fn augment(&self) -> Vec<Augment> {
+        self.pieces.iter().filter(|p| p.sample == 0).filter_map(|p| p.transform).collect()
+    }
+
     /// The piece an atlas pixel belongs to and the pixel of the original sample it shows; `None`
     /// in a gutter.
     pub fn locate(&self, ax: u32, ay: u32) -> Option<(&Piece, (u32, u32))> {
@@ -253,66 +267,39 @@ impl Atlas {
     /// vectors turned with it (`kind`). Gutters and unused corners hold the pieces' mean value,
     /// so that a search's coarse levels and a guide's statistics are not pulled by black lines.
     pub fn compose(&self, images: &[&NativeImage], kind: MapKind) -> NativeImage {
+        // Every stored precision is exact in f64: compose there, store back in the first's.
+        let as_f64 = |s: &Samples| -> Vec<f64> {
+            match s {
+                Samples::U8(v) => v.iter().map(|&x| f64::from(x)).collect(),
+                Samples::U16(v) => v.iter().map(|&x| f64::from(x)).collect(),
+                Samples::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
+            }
+        };
         let channels = images[0].channels as usize;
-        let n = self.width as usize * self.height as usize;
-        match &images[0].samples {
-            Samples::U8(_) => {
-                let data = self.compose_with(images, |s| match s {
-                    Samples::U8(v) => v.iter().map(|&x| f64::from(x)).collect(),
-                    _ => unreachable!("checked: one precision"),
-                });
-                let max = 255.0;
-                NativeImage {
-                    width: self.width,
-                    height: self.height,
-                    channels: channels as u32,
-                    samples: Samples::U8(self.finish(data, n, channels, kind, max).into_iter().map(|v| v as u8).collect()),
-                }
-            }
-            Samples::U16(_) => {
-                let data = self.compose_with(images, |s| match s {
-                    Samples::U16(v) => v.iter().map(|&x| f64::from(x)).collect(),
-                    _ => unreachable!("checked: one precision"),
-                });
-                NativeImage {
-                    width: self.width,
-                    height: self.height,
-                    channels: channels as u32,
-                    samples: Samples::U16(self.finish(data, n, channels, kind, 65535.0).into_iter().map(|v| v as u16).collect()),
-                }
-            }
-            Samples::F32(_) => {
-                let data = self.compose_with(images, |s| match s {
-                    Samples::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
-                    _ => unreachable!("checked: one precision"),
-                });
-                NativeImage {
-                    width: self.width,
-                    height: self.height,
-                    channels: channels as u32,
-                    samples: Samples::F32(self.finish(data, n, channels, kind, 1.0).into_iter().map(|v| v as f32).collect()),
-                }
-            }
-        }
-    }
-
-    /// The pieces' values (as f64, exact for every stored precision), `None` outside pieces.
-    fn compose_with(&self, images: &[&NativeImage], values: impl Fn(&Samples) -> Vec<f64>) -> Vec<Option<f64>> {
-        let channels = images[0].channels as usize;
-        let per_sample: Vec<Vec<f64>> = images.iter().map(|i| values(&i.samples)).collect();
-        let mut out = vec![None; self.width as usize * self.height as usize * channels];
+        let max = match images[0].samples {
+            Samples::U8(_) => 255.0,
+            Samples::U16(_) => 65535.0,
+            Samples::F32(_) => 1.0,
+        };
+        let per_sample: Vec<Vec<f64>> = images.iter().map(|i| as_f64(&i.samples)).collect();
+        let mut data = vec![None; self.width as usize * self.height as usize * channels];
         for y in 0..self.height {
             for x in 0..self.width {
                 let Some((p, (sx, sy))) = self.locate(x, y) else { continue };
-                let src = &per_sample[p.sample];
                 let from = (sy as usize * p.sample_size.0 as usize + sx as usize) * channels;
                 let to = (y as usize * self.width as usize + x as usize) * channels;
                 for c in 0..channels {
-                    out[to + c] = Some(src[from + c]);
+                    data[to + c] = Some(per_sample[p.sample][from + c]);
                 }
             }
         }
-        out
+        let values = self.finish(data, self.width as usize * self.height as usize, channels, kind, max);
+        let samples = match images[0].samples {
+            Samples::U8(_) => Samples::U8(values.into_iter().map(|v| v as u8).collect()),
+            Samples::U16(_) => Samples::U16(values.into_iter().map(|v| v as u16).collect()),
+            Samples::F32(_) => Samples::F32(values.into_iter().map(|v| v as f32).collect()),
+        };
+        NativeImage { width: self.width, height: self.height, channels: channels as u32, samples }
     }
 
     /// Turns normals with their pieces, then fills gutters with the pieces' mean.

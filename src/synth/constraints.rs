@@ -221,10 +221,14 @@ impl Constraints<'_> {
     /// `members` (block positions) less those that are twins of a neighbour's block
     /// (`neighbours`, positions of `block`-sized blocks); `None` when every one is.
     pub fn without_twins(&self, members: &[(u32, u32, u64)], neighbours: &[(u32, u32)], block: u32) -> Option<Vec<(u32, u32, u64)>> {
-        let Some(atlas) = self.atlas.filter(|a| a.has_copies() && !neighbours.is_empty()) else { return Some(members.to_vec()) };
-        let kept: Vec<(u32, u32, u64)> =
-            members.iter().copied().filter(|&(x, y, _)| !neighbours.iter().any(|&n| atlas.twins((x, y), n, block))).collect();
+        let kept: Vec<(u32, u32, u64)> = members.iter().copied().filter(|&(x, y, _)| !self.is_twin((x, y), neighbours, block)).collect();
         (!kept.is_empty()).then_some(kept)
+    }
+
+    /// Whether a `block`-sized block at `at` would show a turned or mirrored copy of the pixels
+    /// of a neighbour's block ([`crate::synth::atlas::Atlas::twins`]); never without copies.
+    pub fn is_twin(&self, at: (u32, u32), neighbours: &[(u32, u32)], block: u32) -> bool {
+        self.atlas.filter(|a| a.has_copies()).is_some_and(|a| neighbours.iter().any(|&n| a.twins(at, n, block)))
     }
 
     /// The block positions a `block_w × block_h` block may be copied from

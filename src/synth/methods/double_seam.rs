@@ -696,11 +696,12 @@ impl Method for DoubleSeam {
                     // Never the turned or mirrored copy of a neighbour's own pixels (several
                     // samples' atlas with `augment`): it would paste a symmetric motif.
                     let (i, j, n) = (i64::from(bi), i64::from(bj), i64::from(cols));
-                    let neighbours: Vec<(i32, i32)> = [(i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)]
-                        .into_iter()
-                        .filter(|&(i, j)| i >= 0 && j >= 0 && j < n)
-                        .map(|(i, j)| picks[(i * n + j) as usize])
-                        .collect();
+                    let neighbours = non_negative(
+                        [(i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)]
+                            .into_iter()
+                            .filter(|&(i, j)| i >= 0 && j >= 0 && j < n)
+                            .map(|(i, j)| picks[(i * n + j) as usize]),
+                    );
                     let allowed = |x: i32, y: i32| mask.allows(x, y) && !twin_of(req, (x, y), &neighbours, s.block as u32);
                     let twins_possible = req.constraints.atlas.is_some_and(|a| a.has_copies());
                     let restrict: Option<&Allowed<'_>> = if mask.positions.is_some() || twins_possible { Some(&allowed) } else { None };
@@ -860,12 +861,13 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
                 }
             }
             let origin = (ox as i32, oy as i32);
-            let neighbours: Vec<(i32, i32)> = [r - 1, 0, 1]
-                .into_iter()
-                .flat_map(|di| [c - 1, 0, 1].into_iter().map(move |dj| ((bi + di) % r, (bj + dj) % c)))
-                .filter(|&(ni, nj)| (ni, nj) != (bi, bj) && done[torus.index(ni, nj)])
-                .map(|(ni, nj)| picks[torus.index(ni, nj)])
-                .collect();
+            let neighbours = non_negative(
+                [r - 1, 0, 1]
+                    .into_iter()
+                    .flat_map(|di| [c - 1, 0, 1].into_iter().map(move |dj| ((bi + di) % r, (bj + dj) % c)))
+                    .filter(|&(ni, nj)| (ni, nj) != (bi, bj) && done[torus.index(ni, nj)])
+                    .map(|(ni, nj)| picks[torus.index(ni, nj)]),
+            );
             let allowed = |x: i32, y: i32| {
                 mask.allows(x, y)
                     && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
@@ -1250,11 +1252,13 @@ type Allowed<'a> = dyn Fn(i32, i32) -> bool + Sync + 'a;
 
 /// Whether a block at `at` would show a turned or mirrored copy of a neighbour's pixels
 /// ([`crate::synth::atlas::Atlas::twins`]).
-fn twin_of(req: &Request, at: (i32, i32), neighbours: &[(i32, i32)], block: u32) -> bool {
-    let Some(atlas) = req.constraints.atlas.filter(|a| a.has_copies()) else { return false };
-    let as_u32 = |(x, y): (i32, i32)| (x >= 0 && y >= 0).then_some((x as u32, y as u32));
-    let Some(at) = as_u32(at) else { return false };
-    neighbours.iter().filter_map(|&n| as_u32(n)).any(|n| atlas.twins(at, n, block))
+fn twin_of(req: &Request, (x, y): (i32, i32), neighbours: &[(u32, u32)], block: u32) -> bool {
+    x >= 0 && y >= 0 && req.constraints.is_twin((x as u32, y as u32), neighbours, block)
+}
+
+/// Picks (sample positions) as the twin test takes them.
+fn non_negative(picks: impl Iterator<Item = (i32, i32)>) -> Vec<(u32, u32)> {
+    picks.filter(|&(x, y)| x >= 0 && y >= 0).map(|(x, y)| (x as u32, y as u32)).collect()
 }
 
 #[allow(clippy::too_many_arguments)]
