@@ -183,13 +183,14 @@ fn placement_to_py(py: Python<'_>, p: &texsyn::synth::placement::Placement) -> P
 /// The everyday jobs take keyword arguments named like the job file's keys: `sample` may be a
 /// list (several samples), `augment` a list of transforms, `sample_mask` a mask (or a list, one
 /// per sample, `None` for none), `inpaint` the mask of pixels to fill in `sample` (an image, white
-/// = fill, or a channel name such as "a"), `guide` a target guide with `guide_source`,
+/// = fill, or a channel name such as "a") with `inpaint_from` the samples the fill copies from
+/// (default: `sample` itself), `guide` a target guide with `guide_source`,
 /// `guide_weight` and `guide_passes`. These run through the job file they stand for (as
 /// `texsyn synth` does), so they are validated with the same messages and give the same pixels.
 #[pyfunction]
 #[pyo3(signature = (
     sample, method="quilting", *, seed=0, size=None, tileable=false, full=false, augment=None, sample_mask=None,
-    inpaint=None, guide=None, guide_source=None, guide_weight=None, guide_passes=None, **params
+    inpaint=None, inpaint_from=None, guide=None, guide_source=None, guide_weight=None, guide_passes=None, **params
 ))]
 #[allow(clippy::too_many_arguments)]
 fn synthesize(
@@ -203,6 +204,7 @@ fn synthesize(
     augment: Option<Vec<String>>,
     sample_mask: Option<&Bound<'_, PyAny>>,
     inpaint: Option<&Bound<'_, PyAny>>,
+    inpaint_from: Option<&Bound<'_, PyAny>>,
     guide: Option<&Bound<'_, PyAny>>,
     guide_source: Option<&Bound<'_, PyAny>>,
     guide_weight: Option<f64>,
@@ -220,12 +222,16 @@ fn synthesize(
             augment,
             sample_mask,
             inpaint,
+            inpaint_from,
             guide,
             guide_source,
             guide_weight,
             guide_passes,
         };
         return job.run(py, sample, params);
+    }
+    if inpaint_from.is_some() {
+        return Err(PyValueError::new_err("inpaint_from goes with inpaint=MASK"));
     }
     if guide_source.is_some() || guide_weight.is_some() || guide_passes.is_some() {
         return Err(PyValueError::new_err("guide_source, guide_weight and guide_passes go with guide=TARGET"));
@@ -255,6 +261,7 @@ struct EverydayJob<'a, 'py> {
     augment: Option<Vec<String>>,
     sample_mask: Option<&'a Bound<'py, PyAny>>,
     inpaint: Option<&'a Bound<'py, PyAny>>,
+    inpaint_from: Option<&'a Bound<'py, PyAny>>,
     guide: Option<&'a Bound<'py, PyAny>>,
     guide_source: Option<&'a Bound<'py, PyAny>>,
     guide_weight: Option<f64>,
@@ -327,6 +334,22 @@ impl EverydayJob<'_, '_> {
                 _ => Some(single::OneOffMask::File(file(m, "inpaint")?)),
             },
         };
+        let inpaint_from: Vec<PathBuf> = match self.inpaint_from {
+            None => Vec::new(),
+            Some(_) if inpaint.is_none() => return Err(PyValueError::new_err("inpaint_from goes with inpaint=MASK")),
+            Some(f) => match list(f) {
+                Some(items) if items.is_empty() => return Err(PyValueError::new_err("inpaint_from: the list of samples is empty")),
+                Some(items) => {
+                    items.iter().enumerate().map(|(i, s)| file(s, &format!("inpaint_from {}", i + 1))).collect::<PyResult<_>>()?
+                }
+                None => vec![file(f, "inpaint_from")?],
+            },
+        };
+        if inpaint.is_some() && samples.len() > 1 {
+            return Err(PyValueError::new_err(
+                "with inpaint, `sample` is the one image to repair; pass the samples to copy from as inpaint_from=[...]",
+            ));
+        }
         let guide = self.guide.map(|g| file(g, "guide")).transpose()?;
         let guide_source = self.guide_source.map(|g| file(g, "guide_source")).transpose()?;
         if guide.is_none() && (guide_source.is_some() || self.guide_weight.is_some() || self.guide_passes.is_some()) {
@@ -347,6 +370,7 @@ impl EverydayJob<'_, '_> {
             augment: self.augment.unwrap_or_default(),
             sample_masks,
             inpaint,
+            inpaint_from,
             guide,
             guide_source,
             guide_weight: self.guide_weight,

@@ -43,6 +43,7 @@ def synthesize(
     augment: Optional[Sequence[str]] = None,
     sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
     inpaint: Union[Sample, str, None] = None,
+    inpaint_from: Union[Sample, Sequence[Sample], None] = None,
     guide: Optional[Sample] = None,
     guide_source: Optional[Sample] = None,
     guide_weight: Optional[float] = None,
@@ -61,6 +62,7 @@ def synthesize(
     augment: Optional[Sequence[str]] = None,
     sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
     inpaint: Union[Sample, str, None] = None,
+    inpaint_from: Union[Sample, Sequence[Sample], None] = None,
     guide: Optional[Sample] = None,
     guide_source: Optional[Sample] = None,
     guide_weight: Optional[float] = None,
@@ -78,6 +80,7 @@ def synthesize(
     augment: Optional[Sequence[str]] = None,
     sample_mask: Union[Sample, Sequence[Optional[Sample]], None] = None,
     inpaint: Union[Sample, str, None] = None,
+    inpaint_from: Union[Sample, Sequence[Sample], None] = None,
     guide: Optional[Sample] = None,
     guide_source: Optional[Sample] = None,
     guide_weight: Optional[float] = None,
@@ -94,7 +97,9 @@ def synthesize(
     The everyday jobs take the job file's keys: ``sample`` may be a list of samples, ``augment``
     a list of transforms (rot90, rot180, rot270, flip_h, flip_v), ``sample_mask`` a mask (white =
     may be copied) or one per sample (``None`` for none), ``inpaint`` the pixels of ``sample`` to
-    fill (a mask, white = fill, or a channel name like "a"), ``guide`` a target guide (texture
+    fill (a mask, white = fill, or a channel name like "a") with ``inpaint_from`` the samples the
+    fill copies from (default: ``sample`` itself; list ``sample`` among them to copy from it too),
+    ``guide`` a target guide (texture
     transfer) with ``guide_source``, ``guide_weight`` and ``guide_passes``. They run through the
     job file they stand for, with its messages and its pixels; with several samples or
     ``augment`` the placement also has ``sample`` and ``transform`` arrays."""

@@ -225,7 +225,21 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
-        let atlas = match atlas_of(&job, &sample, &loaded) {
+        // An inpainting job with other samples or copies: its hole is known before the atlas is
+        // made, since no piece may copy from it (neither the image nor its turned copies).
+        let early_fill = if job.inpaint.is_some() && job.uses_atlas() {
+            match fill_of(&job, &sample, &loaded, None, None) {
+                Ok(f) => f,
+                Err(errors) => {
+                    invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
+                    continue;
+                }
+            }
+        } else {
+            None
+        };
+        let image_copyable = early_fill.as_ref().zip(job.inpaint.as_ref()).map(|((_, region), i)| image_copyable(region, i.copy_from_image));
+        let atlas = match atlas_of(&job, &sample, &loaded, image_copyable.as_ref()) {
             Ok(a) => a,
             Err(errors) => {
                 invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
@@ -240,8 +254,8 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors: vec![job.error(Some(key), message)] });
             continue;
         }
-        if job.inpaint.is_some() && (job.output.width, job.output.height) != sample.image.dimensions() {
-            let (w, h) = sample.image.dimensions();
+        if job.inpaint.is_some() && (job.output.width, job.output.height) != first.image.dimensions() {
+            let (w, h) = first.image.dimensions();
             let errors = vec![job.error(
                 Some("output.width"),
                 format!(
@@ -279,7 +293,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
-        let fill = match fill_of(&job, &sample, &loaded, sample_mask.as_ref().map(|(_, m)| m)) {
+        let fill = match early_fill.map_or_else(
+            || fill_of(&job, &sample, &loaded, sample_mask.as_ref().map(|(_, m)| m), job.params.int("block").ok()),
+            |f| Ok(Some(f)),
+        ) {
             Ok(f) => f,
             Err(errors) => {
                 invalid.push(InvalidJob { id: job.id.clone(), file: job.file.clone(), errors });
@@ -412,6 +429,7 @@ fn atlas_of(
     job: &Job,
     first: &Arc<LoadedSample>,
     loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
+    image_copyable: Option<&SampleMask>,
 ) -> Result<Option<AtlasSamples>, Vec<JobError>> {
     if !job.uses_atlas() {
         return Ok(None);
@@ -434,7 +452,18 @@ fn atlas_of(
     let samples: Vec<(&Path, Arc<LoadedSample>)> =
         all.iter().enumerate().map(|(i, (p, s, _))| (p.as_path(), if i == 0 { first.clone() } else { s.clone() })).collect();
     let masks: Vec<Option<(&Path, &LoadedSample)>> = all.iter().map(|(_, _, m)| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
-    assemble(&samples, &masks, &job.augment).map(Some).map_err(|(key, message)| vec![job.error(Some(key), message)])
+    assemble(&samples, &masks, &job.augment, image_copyable).map(Some).map_err(|(key, message)| vec![job.error(Some(key), message)])
+}
+
+/// Which pixels of an inpainting job's image its fill may copy: those outside the hole, or none
+/// when the job lists other samples without the image.
+pub fn image_copyable(region: &FillRegion, copy_from_image: bool) -> SampleMask {
+    let known = region.known();
+    if copy_from_image {
+        return known;
+    }
+    let (w, h) = known.dimensions();
+    SampleMask::new(w, h, vec![false; w as usize * h as usize])
 }
 
 /// The job's fill region when it inpaints, from its mask image or one of its image's channels,
@@ -444,6 +473,7 @@ fn fill_of(
     sample: &LoadedSample,
     loaded: &BTreeMap<PathBuf, Result<Arc<LoadedSample>, Error>>,
     sample_mask: Option<&SampleMask>,
+    block: Option<i64>,
 ) -> Result<Option<(Option<Arc<LoadedSample>>, FillRegion)>, Vec<JobError>> {
     let Some(inpaint) = &job.inpaint else { return Ok(None) };
     let mask_file = match &inpaint.mask {
@@ -454,7 +484,7 @@ fn fill_of(
         InpaintMask::Channel(_) => None,
     };
     let source = inpaint_source(&inpaint.mask, mask_file.as_deref());
-    match fill_region(sample, &job.sample, &source, job.params.int("block").ok(), sample_mask) {
+    match fill_region(sample, &job.sample, &source, block, sample_mask) {
         Ok(region) => Ok(Some((mask_file, region))),
         Err(message) => Err(vec![job.error(Some(source.key()), message)]),
     }
@@ -726,6 +756,10 @@ fn base_record(
     if let Some(source) = &masks.inpaint {
         // Which pixels are filled decides the output: part of the content key.
         output_json["inpaint"] = source.spec();
+        if job.inpaint.as_ref().is_some_and(|i| !i.copy_from_image) {
+            // Only the other samples are copied from (left out when the image is, as before).
+            output_json["inpaint"]["copy_from_image"] = false.into();
+        }
     }
     if let Some(g) = &masks.guide {
         // Where the output is to be dark or light, and how much that weighs: part of the content key.

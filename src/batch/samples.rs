@@ -42,7 +42,9 @@ impl AtlasSamples {
 /// A problem with a job's samples: the key it concerns and the message.
 pub type SampleProblem = (&'static str, String);
 
-/// Packs `samples` (each with its path and optional mask) and their `augment` copies. Checks
+/// Packs `samples` (each with its path and optional mask) and their `augment` copies;
+/// `image_copyable` further restricts the first sample when it is an inpainting job's image (its
+/// hole, or all of it when only other samples are copied from: [`crate::batch::plan::image_copyable`]). Checks
 /// that they share channels and precision, that each mask has its sample's size, and that the
 /// masks leave something to copy ([`AtlasSamples::check_block`] checks the method's block once
 /// its parameters are resolved for the atlas).
@@ -50,6 +52,7 @@ pub fn assemble(
     samples: &[(&Path, std::sync::Arc<LoadedSample>)],
     masks: &[Option<(&Path, &LoadedSample)>],
     augment: &[Augment],
+    image_copyable: Option<&SampleMask>,
 ) -> Result<AtlasSamples, SampleProblem> {
     let (first_path, first) = &samples[0];
     for (path, s) in &samples[1..] {
@@ -91,7 +94,13 @@ pub fn assemble(
     let sizes: Vec<(u32, u32)> = samples.iter().map(|(_, s)| s.image.dimensions()).collect();
     let atlas = Atlas::layout(&sizes, augment);
     let (w, h) = atlas.dimensions();
-    let mask = SampleMask::new(w, h, atlas.allowed(|s, x, y| sample_masks[s].as_ref().is_none_or(|m| m.allows(x, y))));
+    let mask = SampleMask::new(
+        w,
+        h,
+        atlas.allowed(|s, x, y| {
+            sample_masks[s].as_ref().is_none_or(|m| m.allows(x, y)) && (s != 0 || image_copyable.is_none_or(|m| m.allows(x, y)))
+        }),
+    );
     if mask.allowed_pixels() == 0 {
         return Err(("sample_mask", "the sample masks are black everywhere: they leave nothing to copy (white = may be copied)".into()));
     }

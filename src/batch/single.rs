@@ -146,6 +146,9 @@ pub struct OneOff {
     pub source_map: bool,
     /// Inpaint `sample` instead of making a new image from it: which pixels to fill.
     pub inpaint: Option<OneOffMask>,
+    /// With `inpaint`: the samples the fill copies from (`samples = [...]`; list `sample` among
+    /// them to copy from it too); empty: the image itself. `sample_masks` and `augment` go with them.
+    pub inpaint_from: Vec<PathBuf>,
     /// Texture transfer: the target guide (the output's size).
     pub guide: Option<PathBuf>,
     /// The image to write (.png or .exr); its manifest goes beside it as `{stem}.manifest.json`.
@@ -215,11 +218,7 @@ impl OneOff {
                         std::iter::once(&self.sample).chain(&self.more_samples).map(|p| q(&p.to_string_lossy())).collect();
                     format!("samples = [{}]", all.join(", "))
                 };
-                let augment = if self.augment.is_empty() {
-                    String::new()
-                } else {
-                    format!("augment = [{}]\n", self.augment.iter().map(|a| q(a)).collect::<Vec<_>>().join(", "))
-                } + &self.mask_line();
+                let augment = self.augment_line() + &self.mask_line();
                 t += &format!(
                     "{sample}\n{augment}method = {}\nseed = {}\n\n[output]\npath = {}\nwidth = {}\nheight = {}\n",
                     q(&self.method),
@@ -235,8 +234,14 @@ impl OneOff {
                     OneOffMask::File(p) => format!("mask = {}", q(&p.to_string_lossy())),
                     OneOffMask::Channel(c) => format!("channel = {}", q(c)),
                 };
+                let samples = match self.inpaint_from.as_slice() {
+                    [] => String::new(),
+                    [one] => format!("sample = {}\n", q(&one.to_string_lossy())),
+                    all => format!("samples = [{}]\n", all.iter().map(|p| q(&p.to_string_lossy())).collect::<Vec<_>>().join(", ")),
+                };
                 t += &format!(
-                    "{}method = {}\nseed = {}\n\n[inpaint]\nimage = {}\n{mask}\n\n[output]\npath = {}\n",
+                    "{samples}{}{}method = {}\nseed = {}\n\n[inpaint]\nimage = {}\n{mask}\n\n[output]\npath = {}\n",
+                    self.augment_line(),
                     self.mask_line(),
                     q(&self.method),
                     self.seed,
@@ -273,14 +278,28 @@ impl OneOff {
         t
     }
 
+    /// The `augment = [...]` line, when there are transforms.
+    fn augment_line(&self) -> String {
+        let q = |s: &str| toml::Value::String(s.to_string()).to_string();
+        if self.augment.is_empty() {
+            return String::new();
+        }
+        format!("augment = [{}]\n", self.augment.iter().map(|a| q(a)).collect::<Vec<_>>().join(", "))
+    }
+
     /// The `sample_mask = …` line, when there are masks: a string for one sample, else a list
     /// parallel to the samples (`""` for a sample without a mask).
     fn mask_line(&self) -> String {
         let q = |s: &str| toml::Value::String(s.to_string()).to_string();
         let path = |m: &Option<PathBuf>| q(&m.as_ref().map(|p| p.to_string_lossy().into_owned()).unwrap_or_default());
+        let one_sample = if self.inpaint.is_some() && !self.inpaint_from.is_empty() {
+            self.inpaint_from.len() == 1
+        } else {
+            self.more_samples.is_empty()
+        };
         match self.sample_masks.as_slice() {
             [] => String::new(),
-            [one] if self.more_samples.is_empty() => format!("sample_mask = {}\n", path(one)),
+            [one] if one_sample => format!("sample_mask = {}\n", path(one)),
             all => format!("sample_mask = [{}]\n", all.iter().map(path).collect::<Vec<_>>().join(", ")),
         }
     }
@@ -317,7 +336,8 @@ impl OneOff {
         let absolute = |p: &PathBuf| std::path::absolute(p).map_err(|e| Error::io(p, "resolve", e));
         let sample_masks = self.sample_masks.iter().map(|m| m.as_ref().map(absolute).transpose()).collect::<Result<Vec<_>, _>>()?;
         let guide_source = self.guide_source.as_ref().map(absolute).transpose()?;
-        let this = OneOff { sample, more_samples, sample_masks, guide_source, inpaint, ..self.clone() };
+        let inpaint_from = self.inpaint_from.iter().map(absolute).collect::<Result<Vec<_>, _>>()?;
+        let this = OneOff { sample, more_samples, sample_masks, guide_source, inpaint, inpaint_from, ..self.clone() };
         let text = this.job_text(this.size()?);
         static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let scratch = std::env::temp_dir().join(format!(

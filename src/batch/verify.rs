@@ -175,56 +175,6 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         return Outcome::Mismatch(vec![format!("sample `{}` no longer has the recorded pixels", sample.path)]);
     }
     let loaded = std::sync::Arc::new(loaded);
-    // Several samples or `augment`: the atlas the job searched, from the recorded files.
-    let atlas = match atlas_of_record(rec, spec, dir, &loaded) {
-        Ok(a) => a,
-        Err(e) => return Outcome::Mismatch(vec![e]),
-    };
-    let searched: &LoadedSample = atlas.as_ref().map_or(&*loaded, |a| &*a.search);
-    // The method's own checks, as for a job file: a manifest may have been edited into
-    // parameters no job file would pass (a block larger than the sample).
-    let size = searched.image.dimensions();
-    if let Some(Err((key, e))) = atlas.as_ref().map(|a| a.check_block(params.int("block").ok())) {
-        return Outcome::Mismatch(vec![format!("recorded `{key}`: {e}")]);
-    }
-    let issues = method.check(&params, size, (output.width, output.height));
-    if !issues.is_empty() {
-        return Outcome::Mismatch(issues.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
-    }
-    if output.tileable
-        && let Err(why) = method.tileable(&params, size, (output.width, output.height))
-    {
-        return Outcome::Mismatch(vec![format!("recorded `output_spec.tileable`: {why}")]);
-    }
-    let key = crate::batch::manifest::content_key(method_name, version, params_json, seed, &sample.pixel_digest, spec);
-    if rec.content_key.as_ref() != Some(&key) {
-        problems.push("content_key does not match the recorded inputs".into());
-    }
-    // Companions: their samples must still have the recorded pixels.
-    let wanted: Vec<serde_json::Value> = spec.get("companions").and_then(|c| c.as_array()).cloned().unwrap_or_default();
-    if wanted.len() != rec.companions.len() {
-        return Outcome::Mismatch(vec!["the record's companions do not match its output spec".into()]);
-    }
-    let mut companions = Vec::new();
-    for (w, c) in wanted.iter().zip(&rec.companions) {
-        let loaded = match load_sample(&dir.join(&c.path)) {
-            Ok(s) => s,
-            Err(e) => return Outcome::Mismatch(vec![format!("companion sample {e}")]),
-        };
-        if loaded.pixel_digest != c.pixel_digest {
-            return Outcome::Mismatch(vec![format!("companion sample `{}` no longer has the recorded pixels", c.path)]);
-        }
-        let spec = match companion_spec(w, &dir.join(&c.path)) {
-            Ok(s) => s,
-            Err(e) => return Outcome::Mismatch(vec![e]),
-        };
-        // Packed like the samples when the job searched an atlas of transformed copies.
-        let loaded = match &atlas {
-            Some(a) => crate::batch::samples::pack_map(&a.atlas, &[&loaded], spec.kind),
-            None => loaded,
-        };
-        companions.push((spec, loaded));
-    }
     // The sample mask: still the recorded pixels, of the sample's size.
     let sample_mask = match (spec.get("sample_mask"), &rec.sample_mask) {
         (None, None) => None,
@@ -273,13 +223,69 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
                 (None, Some(c)) => crate::batch::inpaint::MaskSource::Channel(c),
                 _ => return Outcome::Mismatch(vec!["the record's inpaint mask does not match its output spec".into()]),
             };
-            match crate::batch::inpaint::fill_region(&loaded, &sample_path, &source, params.int("block").ok(), sample_mask.as_ref()) {
+            // With other samples or copies, the atlas's own check covers the block.
+            let block = if spec.get("samples").is_some() { None } else { params.int("block").ok() };
+            match crate::batch::inpaint::fill_region(&loaded, &sample_path, &source, block, sample_mask.as_ref()) {
                 Ok(region) => Some(region),
                 Err(e) => return Outcome::Mismatch(vec![format!("recorded `{}`: {e}", source.key())]),
             }
         }
         (None, Some(_)) => return Outcome::Mismatch(vec!["the record's inpaint mask does not match its output spec".into()]),
     };
+    // Several samples or `augment`: the atlas the job searched, from the recorded files.
+    let image_copyable = fill.as_ref().map(|r| {
+        let copy = spec.pointer("/inpaint/copy_from_image").and_then(|c| c.as_bool()).unwrap_or(true);
+        crate::batch::plan::image_copyable(r, copy)
+    });
+    let atlas = match atlas_of_record(rec, spec, dir, &loaded, image_copyable.as_ref()) {
+        Ok(a) => a,
+        Err(e) => return Outcome::Mismatch(vec![e]),
+    };
+    let searched: &LoadedSample = atlas.as_ref().map_or(&*loaded, |a| &*a.search);
+    // The method's own checks, as for a job file: a manifest may have been edited into
+    // parameters no job file would pass (a block larger than the sample).
+    let size = searched.image.dimensions();
+    if let Some(Err((key, e))) = atlas.as_ref().map(|a| a.check_block(params.int("block").ok())) {
+        return Outcome::Mismatch(vec![format!("recorded `{key}`: {e}")]);
+    }
+    let issues = method.check(&params, size, (output.width, output.height));
+    if !issues.is_empty() {
+        return Outcome::Mismatch(issues.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
+    }
+    if output.tileable
+        && let Err(why) = method.tileable(&params, size, (output.width, output.height))
+    {
+        return Outcome::Mismatch(vec![format!("recorded `output_spec.tileable`: {why}")]);
+    }
+    let key = crate::batch::manifest::content_key(method_name, version, params_json, seed, &sample.pixel_digest, spec);
+    if rec.content_key.as_ref() != Some(&key) {
+        problems.push("content_key does not match the recorded inputs".into());
+    }
+    // Companions: their samples must still have the recorded pixels.
+    let wanted: Vec<serde_json::Value> = spec.get("companions").and_then(|c| c.as_array()).cloned().unwrap_or_default();
+    if wanted.len() != rec.companions.len() {
+        return Outcome::Mismatch(vec!["the record's companions do not match its output spec".into()]);
+    }
+    let mut companions = Vec::new();
+    for (w, c) in wanted.iter().zip(&rec.companions) {
+        let loaded = match load_sample(&dir.join(&c.path)) {
+            Ok(s) => s,
+            Err(e) => return Outcome::Mismatch(vec![format!("companion sample {e}")]),
+        };
+        if loaded.pixel_digest != c.pixel_digest {
+            return Outcome::Mismatch(vec![format!("companion sample `{}` no longer has the recorded pixels", c.path)]);
+        }
+        let spec = match companion_spec(w, &dir.join(&c.path)) {
+            Ok(s) => s,
+            Err(e) => return Outcome::Mismatch(vec![e]),
+        };
+        // Packed like the samples when the job searched an atlas of transformed copies.
+        let loaded = match &atlas {
+            Some(a) => crate::batch::samples::pack_map(&a.atlas, &[&loaded], spec.kind),
+            None => loaded,
+        };
+        companions.push((spec, loaded));
+    }
     // Guided: both guides still have the recorded pixels and the recorded weight.
     let guide = match (spec.get("guide"), &rec.guide_target) {
         (None, None) => None,
@@ -332,7 +338,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         }
         _ => return Outcome::Mismatch(vec!["the record's guides do not match its output spec".into()]),
     };
-    if fill.is_some() && (output.width, output.height) != size {
+    if fill.is_some() && (output.width, output.height) != loaded.image.dimensions() {
         return Outcome::Mismatch(vec!["recorded `inpaint`: the output is not the image's size".into()]);
     }
     let inputs = JobInputs {
@@ -447,6 +453,7 @@ fn atlas_of_record(
     spec: &serde_json::Value,
     dir: &Path,
     first: &std::sync::Arc<LoadedSample>,
+    image_copyable: Option<&SampleMask>,
 ) -> Result<Option<crate::batch::samples::AtlasSamples>, String> {
     use crate::synth::params::Choice;
     let Some(wanted) = spec.get("samples") else {
@@ -497,5 +504,5 @@ fn atlas_of_record(
     }
     let samples_ref: Vec<(&Path, std::sync::Arc<LoadedSample>)> = samples.iter().map(|(p, s)| (p.as_path(), s.clone())).collect();
     let masks_ref: Vec<Option<(&Path, &LoadedSample)>> = masks.iter().map(|m| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
-    crate::batch::samples::assemble(&samples_ref, &masks_ref, &augment).map(Some).map_err(|(key, e)| format!("recorded `{key}`: {e}"))
+    crate::batch::samples::assemble(&samples_ref, &masks_ref, &augment, image_copyable).map(Some).map_err(|(key, e)| format!("recorded `{key}`: {e}"))
 }

@@ -14,9 +14,10 @@ running it, so that a one-off can join a job directory.";
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The sample image (PNG 8/16-bit, JPEG, EXR), or several to learn from together; leave it
-    /// out with --inpaint.
-    #[arg(required_unless_present = "inpaint", conflicts_with = "inpaint", num_args = 1..)]
+    /// The sample image (PNG 8/16-bit, JPEG, EXR), or several to learn from together. With
+    /// --inpaint, the samples the fill copies from (default: IMAGE itself; name IMAGE among
+    /// them to copy from it too).
+    #[arg(required_unless_present = "inpaint", num_args = 1..)]
     sample: Vec<PathBuf>,
     /// Also search turned or mirrored copies of the samples: any of rot90, rot180, rot270,
     /// flip_h, flip_v, comma-separated.
@@ -98,8 +99,13 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     if inpaint.is_some() && args.size.is_some() {
         return Err(Error::Usage("--inpaint makes an output of the image's size: leave --size out".into()));
     }
-    let mut samples = args.sample.into_iter();
-    let sample = args.inpaint.or(samples.next()).expect("clap requires a sample or --inpaint");
+    let (sample, more_samples, inpaint_from) = match args.inpaint {
+        Some(image) => (image, Vec::new(), args.sample),
+        None => {
+            let mut samples = args.sample.into_iter();
+            (samples.next().expect("clap requires a sample or --inpaint"), samples.collect(), Vec::new())
+        }
+    };
     let guide = args.guide.map(|t| std::path::absolute(&t).unwrap_or(t));
     let size = match (&args.size, &guide) {
         (Some(s), _) => Some(parse_size(s)?),
@@ -108,7 +114,8 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
     };
     let one = OneOff {
         sample,
-        more_samples: samples.collect(),
+        more_samples,
+        inpaint_from,
         augment: args.augment,
         sample_masks: args.sample_mask.into_iter().map(|m| (m != "none").then(|| PathBuf::from(m))).collect(),
         guide_source: args.guide_source,

@@ -207,6 +207,8 @@ pub struct Constraints<'a> {
     pub sample_mask: Option<&'a SampleMask>,
     /// Inpainting: the sample is the image to repair, the output has its size, and only these
     /// pixels are made; every other output pixel is the image's own (its placement is itself).
+    /// With an `atlas` the image is its first piece, at (0, 0) and untransformed, and the sample
+    /// mask (the atlas's) already forbids the hole in it and in its turned copies.
     pub fill: Option<&'a FillRegion>,
     /// Guided synthesis: blocks are chosen for how well they continue the texture and how well
     /// the sample's guide under them matches the target guide under their place.
@@ -238,8 +240,11 @@ impl Constraints<'_> {
     }
 
     /// Which sample pixels may be copied: those the sample mask allows and, when inpainting,
-    /// that are not to be filled. `None` when every pixel may be.
+    /// that are not to be filled (an atlas's mask says both). `None` when every pixel may be.
     pub fn copyable(&self) -> Option<SampleMask> {
+        if self.atlas.is_some() {
+            return self.sample_mask.cloned();
+        }
         match (self.sample_mask, self.fill) {
             (None, None) => None,
             (Some(m), None) => Some(m.clone()),

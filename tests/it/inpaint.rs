@@ -99,6 +99,104 @@ fn outside_the_mask_nothing_changes_and_the_hole_is_filled_from_known_pixels() {
     }
 }
 
+/// `sample`/`samples` beside `[inpaint]`: the fill copies from them (and their turned copies),
+/// the image's known pixels stay its own, and the image is a source only when listed, never
+/// through its hole, not even turned. Checked through the version 2 source map, for quilting
+/// and patch-sampling, with `verify`, `-j 1` and the one-off command.
+#[test]
+fn an_inpainting_job_copies_from_other_samples_never_from_the_hole() {
+    let d = scratch("inpaint-samples");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let (left, right) = (abs("jobs/samples/guided/gravel_gray_left.png"), abs("jobs/samples/guided/gravel_gray_right.png"));
+    let (w, h) = (128u32, 256u32);
+    let hole = |x: u32, y: u32| {
+        let (dx, dy) = ((f64::from(x) - 64.0) / 30.0, (f64::from(y) - 120.0) / 50.0);
+        dx * dx + dy * dy <= 1.0 || (x < 30 && (200..240).contains(&y))
+    };
+    let mask = d.join("hole.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(w, h, |x, y| if hole(x, y) { [255; 3] } else { [0; 3] }), &mask).unwrap();
+    let body = |name: &str, method: &str, samples: &str| {
+        format!(
+            "{samples}\nmethod = \"{method}\"\nseed = 5\n[inpaint]\nimage = \"{left}\"\nmask = \"{}\"\n[output]\npath = \"{name}.png\"\n\
+             source_map = \"{name}.map.exr\"\n[params]\nblock = 24\n",
+            mask.display()
+        )
+    };
+    write(&jobs.join("other.toml"), &body("other", "quilting", &format!("sample = \"{right}\"")));
+    let both = format!("samples = [\"{right}\", \"{left}\"]\naugment = [\"flip_h\", \"rot90\"]");
+    write(&jobs.join("both.toml"), &body("both", "quilting", &both));
+    write(&jobs.join("ps_both.toml"), &body("ps_both", "patch-sampling", &both));
+    write(&jobs.join("own.toml"), &body("own", "quilting", "augment = [\"rot180\", \"flip_v\"]"));
+    run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
+    let image = rgb(Path::new(&left));
+    for (name, image_used, other_used) in [("other", false, true), ("both", true, true), ("ps_both", true, true), ("own", true, false)] {
+        let out = rgb(&d.join(format!("out/{name}.png")));
+        let map = source_map::decode_map(&std::fs::read(d.join(format!("out/{name}.map.exr"))).unwrap()).unwrap();
+        let atlas = map.atlas.as_ref().expect("a version 2 map");
+        let p = &map.placement;
+        let (aw, _) = p.sample_size();
+        let mut used = std::collections::BTreeMap::new();
+        for y in 0..h {
+            for x in 0..w {
+                let at = |s: u32| atlas.locate(s % aw, s / aw).unwrap_or_else(|| panic!("{name}: ({x}, {y}) copies a gutter"));
+                if !hole(x, y) {
+                    assert_eq!(out.get(x, y), image.get(x, y), "{name}: known pixel ({x}, {y}) changed");
+                    let (piece, src) = at(p.source(x, y));
+                    assert_eq!((piece.sample, piece.transform, src), (0, None, (x, y)), "{name}: known ({x}, {y}) is its own source");
+                    continue;
+                }
+                let blends = p.blends_at(x, y);
+                for s in std::iter::once(p.source(x, y)).chain(blends.iter().map(|b| b.source)) {
+                    let (piece, (sx, sy)) = at(s);
+                    if piece.sample == 0 {
+                        assert!(!hole(sx, sy), "{name}: ({x}, {y}) copies ({sx}, {sy}) of the image, inside its hole");
+                    }
+                    *used.entry((piece.sample, piece.transform.is_some())).or_insert(0u32) += 1;
+                }
+            }
+        }
+        assert_eq!(used.keys().any(|k| k.0 == 0), image_used, "{name}: {used:?}");
+        assert_eq!(used.keys().any(|k| k.0 == 1), other_used, "{name}: {used:?}");
+        if name != "other" {
+            assert!(used.keys().any(|k| k.1), "{name}: a turned copy is used: {used:?}");
+        }
+    }
+    let m = manifest(&d.join("out"));
+    let other = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "other.toml").unwrap();
+    assert_eq!(other["output_spec"]["inpaint"]["copy_from_image"], false, "{other}");
+    assert!(other["samples"][0]["path"].as_str().unwrap().ends_with("gravel_gray_left.png"), "the image is sample 0: {other}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
+    let one = manifest(&d.join("one"));
+    for (a, b) in m["jobs"].as_array().unwrap().iter().zip(one["jobs"].as_array().unwrap()) {
+        assert_eq!(a["outputs"][0]["pixel_digest"], b["outputs"][0]["pixel_digest"], "{}: -j 1 = -j 2", a["id"]);
+    }
+    // The one-off command writes the same job: `synth --inpaint IMAGE --mask M SAMPLE…`.
+    let printed = text(&run_ok(texsyn().args(["synth", "--inpaint", &left, "--mask"]).arg(&mask).args([
+        &right,
+        "--seed",
+        "5",
+        "--set",
+        "block=24",
+        "-o",
+        "x.png",
+        "--print-job",
+    ])));
+    assert!(printed.contains(&format!("sample = \"{right}\"")) && printed.contains("[inpaint]"), "{printed}");
+    let synth_out = d.join("synth/other.png");
+    run_ok(texsyn().args(["synth", "--inpaint", &left, "--mask"]).arg(&mask).args([&right, "--seed", "5", "--set", "block=24", "--source-map", "-o"]).arg(&synth_out));
+    assert_eq!(pixels(&synth_out), pixels(&d.join("out/other.png")), "synth = the job file");
+    // Companions come from one sample's maps: refused with another sample, by key.
+    write(
+        &jobs.join("companion.toml"),
+        &(body("companion", "quilting", &format!("sample = \"{right}\""))
+            + &format!("[[companion]]\nsample = \"{left}\"\npath = \"companion_n.png\"\n")),
+    );
+    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad")).arg(jobs.join("companion.toml"))));
+    assert!(said.contains("`companion`: companions are rendered from one sample's maps; with samples other than the [inpaint] image"), "{said}");
+}
+
 /// A 16-bit image with a companion map: outside the mask both outputs hold the inputs' exact
 /// 16-bit samples; an RGBA image whose holes are its transparent pixels keeps every other pixel,
 /// alpha included, and its holes become opaque.
@@ -278,8 +376,6 @@ fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
         text_of(&jobs.join("method.toml")).replace("quilting", "wang-tiles").replace("block = 32", ""),
     )
     .unwrap();
-    job(&jobs, "sample.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
-    std::fs::write(jobs.join("sample.toml"), format!("sample = \"{}\"\n{}", abs(IMAGE), text_of(&jobs.join("sample.toml")))).unwrap();
     job(&jobs, "good.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
     let started = std::time::Instant::now();
     let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(&jobs)));
@@ -300,7 +396,6 @@ fn bad_inpaint_jobs_are_refused_by_key_and_an_empty_mask_only_warns() {
         "outsize.toml:8:1: `output.width`: an inpainting job's output has its image's size",
         "is 256x256 but the output asks for 300x256",
         "method.toml:3:1: `inpaint`: wang-tiles cannot inpaint; methods that can: quilting, patch-sampling",
-        "sample.toml:1:10: `sample`: an [inpaint] job copies from its image",
     ] {
         assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
     }

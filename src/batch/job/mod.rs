@@ -147,12 +147,16 @@ impl OutputSpec {
     }
 }
 
-/// `[inpaint]`: repair an image instead of making a new one. The image is the job's sample (it
-/// is what is copied from, outside the mask) and the output has its size.
+/// `[inpaint]`: repair an image instead of making a new one. The image is the job's first sample
+/// ([`Job::sample`]) and the output has its size. With no `sample`/`samples` in the job file the
+/// fill copies from the image itself (outside the mask); with them it copies from those, and
+/// from the image too only when they list it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Inpaint {
     /// Which pixels to fill.
     pub mask: InpaintMask,
+    /// Whether the fill may copy from the image (outside the mask, inside its sample mask).
+    pub copy_from_image: bool,
 }
 
 /// Where an inpainting job's fill region comes from.
@@ -261,7 +265,7 @@ impl Job {
     /// The inpaint mask image, when the job inpaints with one (decoded with the samples).
     pub fn inpaint_mask_file(&self) -> Option<PathBuf> {
         match &self.inpaint {
-            Some(Inpaint { mask: InpaintMask::File(p) }) => Some(p.clone()),
+            Some(Inpaint { mask: InpaintMask::File(p), .. }) => Some(p.clone()),
             _ => None,
         }
     }

@@ -301,25 +301,46 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             );
         }
     }
-    if sample_count > 1 && !raw.companions.is_empty() {
-        ctx.err(
-            None,
-            Some("companion"),
-            "companions are rendered from one sample's maps; with several `samples` they are not supported yet (`augment` with one sample works)",
-        );
-    }
-    let more_samples: Vec<super::MoreSample> =
+    let mut more_samples: Vec<super::MoreSample> =
         more_paths.into_iter().zip(more_masks).filter_map(|(p, mask)| p.map(|path| super::MoreSample { path, mask })).collect();
     let inpaint = match raw.inpaint.take() {
-        Some(r) => check_inpaint(ctx, r, &raw, method, &mut sample_path).map(|(inpaint, size)| {
+        Some(r) => check_inpaint(ctx, r, &raw, method).map(|(mask, size, image)| {
             if let Some((w, h)) = size {
                 raw.width.get_or_insert(w);
                 raw.height.get_or_insert(h);
             }
-            inpaint
+            // The image is the first sample (its known pixels are the output's). Samples the
+            // file lists are what the fill copies from; the image is one of them only when
+            // listed (with the mask listed for it), or when none are given.
+            let listed = raw.sample.is_some() || raw.samples.is_some();
+            let given: Vec<super::MoreSample> = sample_path
+                .take()
+                .map(|path| super::MoreSample { path, mask: sample_mask.take() })
+                .into_iter()
+                .chain(std::mem::take(&mut more_samples))
+                .collect();
+            let same = |p: &Path| p == image || std::fs::canonicalize(p).ok().zip(std::fs::canonicalize(&image).ok()).is_some_and(|(a, b)| a == b);
+            let own = given.iter().find(|s| same(&s.path)).map(|s| s.mask.clone());
+            let copy_from_image = !listed || own.is_some();
+            if listed {
+                sample_mask = own.flatten();
+                more_samples = given.into_iter().filter(|s| !same(&s.path)).collect();
+            } else {
+                sample_mask = given.into_iter().next().and_then(|s| s.mask);
+            }
+            sample_path = Some(image);
+            Inpaint { mask, copy_from_image }
         }),
         None => None,
     };
+    if !more_samples.is_empty() && !raw.companions.is_empty() {
+        let what = if inpaint.is_some() { "with samples other than the [inpaint] image" } else { "with several `samples`" };
+        ctx.err(
+            None,
+            Some("companion"),
+            format!("companions are rendered from one sample's maps; {what} they are not supported yet (`augment` with one sample works)"),
+        );
+    }
     let guide = match raw.guide.take() {
         Some(g) => check_guide(ctx, g, &raw, method),
         None => None,
@@ -590,36 +611,18 @@ fn read_inpaint(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> Raw
     r
 }
 
-/// `[inpaint]` checked against the rest of the file: an image that exists (it becomes the
-/// sample, so `sample` must not be given), exactly one of `mask` and `channel`, a method that
-/// inpaints, and the output's size (the image's, read from its header when the file leaves it out).
+/// `[inpaint]` checked against the rest of the file: an image that exists (it becomes the first
+/// sample), exactly one of `mask` and `channel`, a method that inpaints, and the output's size
+/// (the image's, read from its header when the file leaves it out). Returns the mask, that size
+/// and the image's path.
 fn check_inpaint(
     ctx: &mut Ctx,
     r: RawInpaint,
     raw: &Raw,
     method: Option<&'static dyn crate::synth::method::Method>,
-    sample_path: &mut Option<std::path::PathBuf>,
-) -> Option<(Inpaint, Option<(u32, u32)>)> {
+) -> Option<(InpaintMask, Option<(u32, u32)>, std::path::PathBuf)> {
     let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mut ok = true;
-    if let Some((_, span)) = &raw.sample {
-        ctx.err(
-            Some(span.clone()),
-            Some("sample"),
-            "an [inpaint] job copies from its image (outside the mask): leave `sample` out (a separate sample for inpainting is not supported yet)",
-        );
-        ok = false;
-    }
-    for (key, span) in [("samples", raw.samples.as_ref().map(|(_, s)| s)), ("augment", raw.augment.as_ref().map(|(_, s)| s))] {
-        if let Some(span) = span {
-            ctx.err(
-                Some(span.clone()),
-                Some(key),
-                format!("an [inpaint] job copies from its image (outside the mask): leave `{key}` out (other samples for inpainting are not supported yet)"),
-            );
-            ok = false;
-        }
-    }
     if let Some(m) = method.filter(|m| !m.honours_inpaint()) {
         let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_inpaint()).map(|m| m.name()).collect();
         ctx.err(Some(r.span.clone()), Some("inpaint"), format!("{} cannot inpaint; methods that can: {}", m.name(), can.join(", ")));
@@ -698,8 +701,7 @@ fn check_inpaint(
             }
         }
     }
-    *sample_path = Some(image);
-    Some((Inpaint { mask }, size))
+    Some((mask, size, image))
 }
 
 /// `metrics = true` (all but `repetition`: [`crate::metrics::DEFAULT_METRICS`]), `false` (none)

@@ -75,48 +75,62 @@ pub(crate) struct Fill<'a> {
 
 /// A method's choice of the sample position of one block of the hole: `window` is the block's
 /// window of the image as it stands, `regions` the parts of it to match (window coordinates,
-/// never empty), `(bi, bj)` the block's index (for its random streams). It returns the position
-/// (one `how.allowed` flags) and, for the diagnostics, how many candidates it chose among.
-pub(crate) type Pick<'p> = dyn FnMut(&RgbImage, &[Rect], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p;
+/// never empty), `neighbours` the sample positions of the blocks its content came from (so that,
+/// with turned copies in an atlas, the block is not their mirror image:
+/// [`crate::synth::constraints::Constraints::is_twin`]), `(bi, bj)` the block's index (for its
+/// random streams). It returns the position (one of `how.allowed` flags) and, for the
+/// diagnostics, how many candidates it chose among.
+pub(crate) type Pick<'p> = dyn FnMut(&RgbImage, &[Rect], &[(u32, u32)], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p;
 
-/// Quilting's choice: uniform among the search's tolerance set (stream `{label}/inpaint/pick/…`).
+/// Quilting's choice: uniform among the search's tolerance set less its neighbours' twins
+/// ([`super::untwinned`]; stream `{label}/inpaint/pick/…`).
 pub(crate) fn pick_among_candidates<'p>(
+    req: &'p Request,
     search: &'p mut BlockSearch,
     tolerance: f64,
-    seed: u64,
+    block: u32,
     label: &'static str,
-) -> impl FnMut(&RgbImage, &[Rect], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p {
-    move |window, regions, (bi, bj)| {
+) -> impl FnMut(&RgbImage, &[Rect], &[(u32, u32)], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p {
+    move |window, regions, neighbours, (bi, bj)| {
         let c = search.candidates(window, (0, 0), regions, tolerance);
-        let mut s = Stream::new(seed, &format!("{label}/inpaint/pick/bi={bi}/bj={bj}"));
-        let p = c.members[s.below_usize(c.members.len())];
-        ((p.0, p.1), Some(c.members.len()))
+        let members = super::untwinned(req, search, window, (0, 0), regions, tolerance, c.members, neighbours, block);
+        let mut s = Stream::new(req.seed, &format!("{label}/inpaint/pick/bi={bi}/bj={bj}"));
+        let p = members[s.below_usize(members.len())];
+        ((p.0, p.1), Some(members.len()))
     }
 }
 
-/// Fills `region` of the request's sample (the image) and returns the whole image.
+/// Fills `region` of the image and returns the whole image. The image is the request's sample
+/// or, with other samples or turned copies, the first piece of its atlas (at (0, 0), as it is):
+/// either way its pixel (x, y) is sample pixel (x, y), which is where the blocks are copied from.
 pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pick) -> Result<Synthesis, SynthError> {
-    let image = req.sample;
-    let (w, h) = image.dimensions();
-    if region.dimensions() != (w, h) || (req.width, req.height) != (w, h) {
+    let sample = req.sample;
+    let (w, h) = region.dimensions();
+    let fits = if req.constraints.atlas.is_some() {
+        sample.width() >= w && sample.height() >= h
+    } else {
+        sample.dimensions() == (w, h)
+    };
+    if !fits || (req.width, req.height) != (w, h) {
         return Err(SynthError::Failed(format!(
-            "inpainting makes an output of the image's size ({w}x{h}); asked for {}x{} with a {}x{} mask",
+            "inpainting makes an output of the image's size ({w}x{h}, the mask's); asked for {}x{} from a {}x{} sample",
             req.width,
             req.height,
-            region.dimensions().0,
-            region.dimensions().1
+            sample.width(),
+            sample.height()
         )));
     }
     let block = how.block;
     if block > w || block > h {
         return Err(SynthError::param("block", format!("block {block} does not fit in the {w}x{h} image")));
     }
-    let mut canvas = Canvas::new(w, h, (w, h), req.placement);
+    let mut canvas = Canvas::new(w, h, sample.dimensions(), req.placement);
     for y in 0..h {
         for x in 0..w {
-            canvas.copy(x, y, image, x, y);
+            canvas.copy(x, y, sample, x, y);
         }
     }
+    let twins_matter = req.constraints.atlas.is_some_and(|a| a.has_copies());
     // Where each pixel comes from (the image itself until filled), for the border polish.
     let mut source: Vec<(u32, u32)> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect();
     let mut state: Vec<State> = (0..h)
@@ -132,7 +146,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
     let xs = origins(x0, x1, w, block, how.overlap, stride, req.tileable);
     let ys = origins(y0, y1, h, block, how.overlap, stride, req.tileable);
     let at = |ox: u32, i: u32, size: u32| (ox + i) % size;
-    let positions_x = w - block + 1;
+    let positions_x = sample.width() - block + 1;
     let mut blocks = 0u32;
     let mut candidate_counts = Vec::new();
     for (bi, &oy) in ys.iter().enumerate() {
@@ -152,6 +166,20 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                 State::Filled => near[(j * block + i) as usize],
                 State::Known => near_known[(j * block + i) as usize],
             });
+            // Where the window's content was copied from, as block positions (a known pixel is
+            // its own source): the blocks a new one must not mirror.
+            let mut neighbours = std::collections::BTreeSet::new();
+            if twins_matter {
+                for r in &regions {
+                    for i in r.x..r.x + r.w {
+                        let (fx, fy) = source[index(i, r.y)];
+                        if let (Some(nx), Some(ny)) = (fx.checked_sub(i), fy.checked_sub(r.y)) {
+                            neighbours.insert((nx, ny));
+                        }
+                    }
+                }
+            }
+            let neighbours: Vec<(u32, u32)> = neighbours.into_iter().collect();
             let (sx, sy) = if regions.is_empty() {
                 // Nothing to match (a hole that swallows a whole block at the image's corner):
                 // any allowed position, as quilting's first block.
@@ -159,14 +187,14 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                 let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
                 nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
             } else {
-                let (p, count) = pick(&window, &regions, (bi as u32, bj as u32));
+                let (p, count) = pick(&window, &regions, &neighbours, (bi as u32, bj as u32));
                 candidate_counts.extend(count);
                 p
             };
             if how.rule == OverlapRule::Feather {
                 feather_in(
                     &mut canvas,
-                    image,
+                    sample,
                     (sx, sy),
                     block,
                     how.overlap,
@@ -202,7 +230,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                         (State::Filled, _) if rim => Side::Keep,
                         (State::Filled, _) => Side::Free,
                     });
-                    error.push(if st == State::Empty { 0 } else { u64::from(pixel_error(window.get(i, j), image.get(sx + i, sy + j))) });
+                    error.push(if st == State::Empty { 0 } else { u64::from(pixel_error(window.get(i, j), sample.get(sx + i, sy + j))) });
                 }
             }
             let take = min_cut(bu, bu, &sides, &error);
@@ -210,7 +238,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                 for i in 0..block {
                     if take[(j * block + i) as usize] {
                         let (x, y) = (at(ox, i, w), at(oy, j, h));
-                        canvas.copy(x, y, image, sx + i, sy + j);
+                        canvas.copy(x, y, sample, sx + i, sy + j);
                         state[(y * w + x) as usize] = State::Filled;
                         source[(y * w + x) as usize] = (sx + i, sy + j);
                     }
@@ -322,8 +350,10 @@ fn polish_side(block: u32, overlap: u32) -> u32 {
 /// pixels cost less than the present ones, and blends away from them towards the window's rim
 /// (`feather_in`). Returns (patches, pixels replaced).
 fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, source: &mut [(u32, u32)]) -> (u32, u64) {
+    // The image is the sample's top-left corner (see [`fill`]): image pixels are sample pixels.
     let image = req.sample;
-    let (w, h) = image.dimensions();
+    let (w, h) = region.dimensions();
+    let (sw, sh) = image.dimensions();
     let q = polish_side(how.block, how.overlap);
     let allowed = how.copyable.block_positions(q, q);
     if !allowed.contains(&true) {
@@ -411,7 +441,7 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
                         continue;
                     }
                     let (ax, ay) = (i64::from(fx) + di, i64::from(fy) + dj);
-                    if (0..i64::from(w)).contains(&ax) && (0..i64::from(h)).contains(&ay) {
+                    if (0..i64::from(sw)).contains(&ax) && (0..i64::from(sh)).contains(&ay) {
                         keep_cost[(j * q + i) as usize] += 2 * u64::from(pixel_error(image.get(nx, ny), image.get(ax as u32, ay as u32)));
                     }
                     joint_new += 2 * u64::from(pixel_error(image.get(nx, ny), image.get(sx + ni, sy + nj)));

@@ -276,3 +276,31 @@ pub fn find(name: &str) -> Option<&'static dyn Method> {
 pub fn names() -> Vec<&'static str> {
     registry().iter().map(|m| m.name()).collect()
 }
+
+/// A block's tolerance set without the turned or mirrored copies of its neighbours' pixels
+/// (several samples' atlas with `augment`: [`crate::synth::atlas::Atlas::twins`]); when every
+/// member is one, the search is asked again with the tolerance widened by 0.25, 1 and 4, and
+/// only when that finds no other position does the block keep its set.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn untwinned(
+    req: &crate::synth::method::Request,
+    search: &mut BlockSearch,
+    target: &crate::image::RgbImage,
+    origin: (u32, u32),
+    regions: &[crate::synth::primitives::overlap::Rect],
+    tolerance: f64,
+    members: Vec<(u32, u32, u64)>,
+    neighbours: &[(u32, u32)],
+    block: u32,
+) -> Vec<(u32, u32, u64)> {
+    if let Some(kept) = req.constraints.without_twins(&members, neighbours, block) {
+        return kept;
+    }
+    for wider in [0.25, 1.0, 4.0] {
+        let c = search.candidates(target, origin, regions, tolerance + wider);
+        if let Some(kept) = req.constraints.without_twins(&c.members, neighbours, block) {
+            return kept;
+        }
+    }
+    members
+}

@@ -867,7 +867,7 @@ impl PatchSampling {
             label: "cpso",
         };
         let settings = &settings;
-        let mut pick = |window: &RgbImage, regions: &[Rect], (bi, bj): (u32, u32)| {
+        let mut pick = |window: &RgbImage, regions: &[Rect], _neighbours: &[(u32, u32)], (bi, bj): (u32, u32)| {
             let zone = Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: regions.to_vec(), block, sides: Sides::default() };
             let r = match (&mut search, &lines) {
                 (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed),

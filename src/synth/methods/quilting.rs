@@ -8,7 +8,7 @@
 //! cut through the overlap (B3). The output is the top-left `width × height` of the quilt, so the
 //! last row and column of blocks are cropped.
 
-use super::{BlockSearch, Engine, inpaint};
+use super::{BlockSearch, Engine, inpaint, untwinned};
 use crate::image::RgbImage;
 use crate::synth::constraints::nth_allowed;
 use crate::synth::error::SynthError;
@@ -223,7 +223,7 @@ impl Method for Quilting {
                 label: "quilt",
             };
             let mut synthesis =
-                inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(&mut search, tolerance, req.seed, "quilt"))?;
+                inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, "quilt"))?;
             if let Some(level) = search.coarse_level() {
                 synthesis.diagnostics["pyramid_level"] = serde_json::json!(level);
             }
@@ -364,34 +364,6 @@ fn allowed_positions(req: &Request, block: u32) -> Result<Option<Vec<bool>>, Syn
         ));
     }
     Ok(Some(allowed))
-}
-
-/// A block's tolerance set without the turned or mirrored copies of its neighbours' pixels
-/// (several samples' atlas with `augment`: [`crate::synth::atlas::Atlas::twins`]); when every
-/// member is one, the search is asked again with the tolerance widened by 0.25, 1 and 4, and
-/// only when that finds no other position does the block keep its set.
-#[allow(clippy::too_many_arguments)]
-fn untwinned(
-    req: &Request,
-    search: &mut BlockSearch,
-    target: &RgbImage,
-    origin: (u32, u32),
-    regions: &[Rect],
-    tolerance: f64,
-    members: Vec<(u32, u32, u64)>,
-    neighbours: &[(u32, u32)],
-    block: u32,
-) -> Vec<(u32, u32, u64)> {
-    if let Some(kept) = req.constraints.without_twins(&members, neighbours, block) {
-        return kept;
-    }
-    for wider in [0.25, 1.0, 4.0] {
-        let c = search.candidates(target, origin, regions, tolerance + wider);
-        if let Some(kept) = req.constraints.without_twins(&c.members, neighbours, block) {
-            return kept;
-        }
-    }
-    members
 }
 
 /// Block `(bi, bj)`'s pick among its tolerance set (stream `quilt/pick/bi=…/bj=…`).
