@@ -235,6 +235,7 @@ impl<'a> OverlapSearch<'a> {
         self.ifft_col.process_with_scratch(out, fft_scratch);
     }
 
+    #[cfg(test)]
     fn region_sum_sq(&self, x: u32, y: u32, r: &Rect) -> u64 {
         let stride = self.sample.width() as usize + 1;
         let (x0, y0) = ((x + r.x) as usize, (y + r.y) as usize);
@@ -599,11 +600,25 @@ impl<'a> OverlapSearch<'a> {
             return i;
         }
 
+        // Region by region, a whole row of positions at a time: four contiguous slices of the
+        // integral image per row, so the sums vectorise (a hole fill's regions are row runs,
+        // dozens per block, and a per-position loop over them was most of its search time).
         let (nx, ny) = self.positions();
-        let map: Vec<f64> = (0..ny)
-            .flat_map(|y| (0..nx).map(move |x| (x, y)))
-            .map(|(x, y)| regions.iter().map(|r| self.region_sum_sq(x, y, r)).sum::<u64>() as f64)
-            .collect();
+        let (nxu, stride) = (nx as usize, self.sample.width() as usize + 1);
+        let ii = &self.integral_sq;
+        let mut sums = vec![0u64; nxu * ny as usize];
+        for r in regions {
+            let (rw, rh) = (r.w as usize, r.h as usize);
+            for (y, row) in sums.chunks_exact_mut(nxu).enumerate() {
+                let (top, bottom) = ((y + r.y as usize) * stride + r.x as usize, (y + r.y as usize + rh) * stride + r.x as usize);
+                let (a, b) = (&ii[bottom + rw..bottom + rw + nxu], &ii[top..top + nxu]);
+                let (c, d) = (&ii[top + rw..top + rw + nxu], &ii[bottom..bottom + nxu]);
+                for (i, out) in row.iter_mut().enumerate() {
+                    *out += a[i] + b[i] - c[i] - d[i];
+                }
+            }
+        }
+        let map: Vec<f64> = sums.into_iter().map(|v| v as f64).collect();
         self.sum_sq_maps.push((regions.to_vec(), map));
         self.sum_sq_maps.len() - 1
     }
@@ -778,5 +793,21 @@ mod tests {
             .map(|(dx, dy)| img.get(2 + 1 + dx, 1 + 2 + dy).iter().map(|&c| c as u64 * c as u64).sum::<u64>())
             .sum();
         assert_eq!(search.region_sum_sq(2, 1, &r), direct);
+    }
+
+    #[test]
+    fn the_sum_of_squares_map_is_every_positions_sum_over_its_regions() {
+        let img = noise(23, 17, 9);
+        let mut search = OverlapSearch::new(&img, 8, 6);
+        // Row runs of several widths, as a hole fill's are, and a block-high strip.
+        let regions = [Rect::new(0, 0, 8, 1), Rect::new(2, 1, 3, 1), Rect::new(7, 3, 1, 1), Rect::new(0, 4, 2, 2)];
+        let index = search.sum_sq_map(&regions);
+        let (nx, ny) = search.positions();
+        for y in 0..ny {
+            for x in 0..nx {
+                let direct: u64 = regions.iter().map(|r| search.region_sum_sq(x, y, r)).sum();
+                assert_eq!(search.sum_sq_maps[index].1[(y * nx + x) as usize], direct as f64, "({x}, {y})");
+            }
+        }
     }
 }
