@@ -238,7 +238,8 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         } else {
             None
         };
-        let image_copyable = early_fill.as_ref().zip(job.inpaint.as_ref()).map(|((_, region), i)| image_copyable(region, i.copy_from_image));
+        let image_copyable =
+            early_fill.as_ref().zip(job.inpaint.as_ref()).map(|((_, region), i)| image_copyable(region, i.copy_from_image));
         let atlas = match atlas_of(&job, &sample, &loaded, image_copyable.as_ref()) {
             Ok(a) => a,
             Err(errors) => {

@@ -504,5 +504,7 @@ fn atlas_of_record(
     }
     let samples_ref: Vec<(&Path, std::sync::Arc<LoadedSample>)> = samples.iter().map(|(p, s)| (p.as_path(), s.clone())).collect();
     let masks_ref: Vec<Option<(&Path, &LoadedSample)>> = masks.iter().map(|m| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
-    crate::batch::samples::assemble(&samples_ref, &masks_ref, &augment, image_copyable).map(Some).map_err(|(key, e)| format!("recorded `{key}`: {e}"))
+    crate::batch::samples::assemble(&samples_ref, &masks_ref, &augment, image_copyable)
+        .map(Some)
+        .map_err(|(key, e)| format!("recorded `{key}`: {e}"))
 }

@@ -30,8 +30,9 @@ pub struct Args {
     #[arg(long, value_name = "MASK", group = "inpaint_mask", requires = "inpaint")]
     mask: Option<PathBuf>,
     /// Texture transfer: follow TARGET's light and dark (an image of the output's size; with no
-    /// --size, the output takes TARGET's size).
-    #[arg(long, value_name = "TARGET", conflicts_with = "inpaint")]
+    /// --size, the output takes TARGET's size). With --inpaint, TARGET has IMAGE's size and
+    /// leads the fill of the hole (quilting).
+    #[arg(long, value_name = "TARGET")]
     guide: Option<PathBuf>,
     /// With --guide: the sample's guide (default: the sample's luminance).
     #[arg(long, value_name = "SOURCE", requires = "guide")]

@@ -335,3 +335,90 @@ fn bad_guides_are_refused_by_key() {
     let good = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "good.toml").unwrap();
     assert_eq!(good["status"], "ok", "{good}");
 }
+
+/// `[guide]` with `[inpaint]` (quilting): the hole's fill follows the target guide (dark where it
+/// is dark, light where it is light) while every known pixel stays; one pass only; methods that
+/// cannot are refused by key; `synth --inpaint … --guide …` makes the same pixels.
+#[test]
+fn a_guide_leads_the_fill_of_a_hole() {
+    let d = scratch("guide-inpaint");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let image_path = repo().join("jobs/samples/gravel_gray.png");
+    let image = rgb(&image_path);
+    let (w, h) = image.dimensions();
+    let hole = |x: u32, y: u32| (f64::from(x) - 128.0).powi(2) + (f64::from(y) - 128.0).powi(2) <= 70.0 * 70.0;
+    let mask = d.join("hole.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(w, h, |x, y| if hole(x, y) { [255; 3] } else { [0; 3] }), &mask).unwrap();
+    // Dark in the hole's left half, light in its right half, the image's own mean elsewhere.
+    let target = d.join("target.png");
+    texsyn::save_image(
+        &texsyn::RgbImage::from_fn(w, h, |x, y| match (hole(x, y), x < 128) {
+            (true, true) => [25; 3],
+            (true, false) => [230; 3],
+            (false, _) => [128; 3],
+        }),
+        &target,
+    )
+    .unwrap();
+    let job = |name: &str, method: &str, guide: &str| {
+        write(
+            &jobs.join(format!("{name}.toml")),
+            &format!(
+                "method = \"{method}\"\nseed = 2\n[inpaint]\nimage = \"{}\"\nmask = \"{}\"\n{guide}[output]\npath = \"{name}.png\"\n[params]\nblock = 24\n",
+                image_path.display(),
+                mask.display()
+            ),
+        )
+    };
+    let guide = format!("[guide]\ntarget = \"{}\"\nweight = 0.6\n", target.display());
+    job("guided", "quilting", &guide);
+    job("plain", "quilting", "");
+    job("passes", "quilting", &format!("{guide}passes = 3\n"));
+    job("ps", "patch-sampling", &guide);
+    let said = text(&run(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs)));
+    for expected in [
+        "passes.toml:9:10: `guide.passes`: an [inpaint] job fills its hole in one guided pass",
+        "ps.toml:6:1: `guide`: patch-sampling cannot follow a guide while it inpaints (yet); methods that can: quilting",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
+    let luma = |p: [u8; 3]| (299.0 * f64::from(p[0]) + 587.0 * f64::from(p[1]) + 114.0 * f64::from(p[2])) / 1000.0;
+    let halves = |name: &str| {
+        let out = rgb(&d.join(format!("out/{name}.png")));
+        let (mut sums, mut counts) = ([0.0; 2], [0.0; 2]);
+        for y in 0..h {
+            for x in 0..w {
+                if !hole(x, y) {
+                    assert_eq!(out.get(x, y), image.get(x, y), "{name}: known pixel ({x}, {y}) changed");
+                    continue;
+                }
+                let side = usize::from(x >= 128);
+                sums[side] += luma(out.get(x, y));
+                counts[side] += 1.0;
+            }
+        }
+        (sums[0] / counts[0], sums[1] / counts[1])
+    };
+    let (guided_dark, guided_light) = halves("guided");
+    let (plain_left, plain_right) = halves("plain");
+    assert!(guided_light - guided_dark > 40.0, "the guide leads the fill: {guided_dark:.1} vs {guided_light:.1}");
+    assert!((plain_right - plain_left).abs() < 25.0, "unguided, the halves are alike: {plain_left:.1} vs {plain_right:.1}");
+    let m = json(&d.join("out/manifest.json"));
+    let rec = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "guided.toml").unwrap();
+    assert_eq!(rec["output_spec"]["guide"]["passes"], 1, "{rec}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    let synth_out = d.join("synth/guided.png");
+    run_ok(
+        texsyn()
+            .args(["synth", "--inpaint"])
+            .arg(&image_path)
+            .arg("--mask")
+            .arg(&mask)
+            .arg("--guide")
+            .arg(&target)
+            .args(["--guide-weight", "0.6", "--seed", "2", "--set", "block=24", "-o"])
+            .arg(&synth_out),
+    );
+    assert_eq!(pixels(&synth_out), pixels(&d.join("out/guided.png")), "synth = the job file");
+}

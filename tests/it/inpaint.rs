@@ -185,7 +185,13 @@ fn an_inpainting_job_copies_from_other_samples_never_from_the_hole() {
     ])));
     assert!(printed.contains(&format!("sample = \"{right}\"")) && printed.contains("[inpaint]"), "{printed}");
     let synth_out = d.join("synth/other.png");
-    run_ok(texsyn().args(["synth", "--inpaint", &left, "--mask"]).arg(&mask).args([&right, "--seed", "5", "--set", "block=24", "--source-map", "-o"]).arg(&synth_out));
+    run_ok(
+        texsyn()
+            .args(["synth", "--inpaint", &left, "--mask"])
+            .arg(&mask)
+            .args([&right, "--seed", "5", "--set", "block=24", "--source-map", "-o"])
+            .arg(&synth_out),
+    );
     assert_eq!(pixels(&synth_out), pixels(&d.join("out/other.png")), "synth = the job file");
     // Companions come from one sample's maps: refused with another sample, by key.
     write(
@@ -194,7 +200,10 @@ fn an_inpainting_job_copies_from_other_samples_never_from_the_hole() {
             + &format!("[[companion]]\nsample = \"{left}\"\npath = \"companion_n.png\"\n")),
     );
     let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad")).arg(jobs.join("companion.toml"))));
-    assert!(said.contains("`companion`: companions are rendered from one sample's maps; with samples other than the [inpaint] image"), "{said}");
+    assert!(
+        said.contains("`companion`: companions are rendered from one sample's maps; with samples other than the [inpaint] image"),
+        "{said}"
+    );
 }
 
 /// A 16-bit image with a companion map: outside the mask both outputs hold the inputs' exact

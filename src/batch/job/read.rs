@@ -319,7 +319,8 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
                 .into_iter()
                 .chain(std::mem::take(&mut more_samples))
                 .collect();
-            let same = |p: &Path| p == image || std::fs::canonicalize(p).ok().zip(std::fs::canonicalize(&image).ok()).is_some_and(|(a, b)| a == b);
+            let same =
+                |p: &Path| p == image || std::fs::canonicalize(p).ok().zip(std::fs::canonicalize(&image).ok()).is_some_and(|(a, b)| a == b);
             let own = given.iter().find(|s| same(&s.path)).map(|s| s.mask.clone());
             let copy_from_image = !listed || own.is_some();
             if listed {
@@ -342,7 +343,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         );
     }
     let guide = match raw.guide.take() {
-        Some(g) => check_guide(ctx, g, &raw, method),
+        Some(g) => check_guide(ctx, g, &raw, method, inpaint.is_some()),
         None => None,
     };
     let format_and_depth = check_output_format(ctx, &raw);
@@ -504,7 +505,7 @@ fn read_guide(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawGu
                 }
             }
             "passes" => match de_int(v.get_ref()) {
-                Some(Ok(n)) if (1..=8).contains(&n) => g.passes = Some(n as u32),
+                Some(Ok(n)) if (1..=8).contains(&n) => (g.passes, g.passes_span) = (Some(n as u32), Some(v.span())),
                 Some(Ok(n)) => {
                     ctx.err(Some(v.span()), Some(&key), format!("{n} is out of range: allowed 1..=8 (Efros and Freeman use 3 to 5)"))
                 }
@@ -519,7 +520,13 @@ fn read_guide(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawGu
 
 /// `[guide]` checked against the rest of the file: a target that exists, a source that exists
 /// when given, a method that follows guides, and not together with inpainting or wrapping yet.
-fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dyn crate::synth::method::Method>) -> Option<GuideSpec> {
+fn check_guide(
+    ctx: &mut Ctx,
+    g: RawGuide,
+    raw: &Raw,
+    method: Option<&'static dyn crate::synth::method::Method>,
+    inpainting: bool,
+) -> Option<GuideSpec> {
     let base = ctx.file.path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mut ok = true;
     if let Some(m) = method.filter(|m| !m.honours_guide()) {
@@ -527,8 +534,24 @@ fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dy
         ctx.err(Some(g.span.clone()), Some("guide"), format!("{} cannot follow a guide; methods that can: {}", m.name(), can.join(", ")));
         ok = false;
     }
-    if raw.inpaint.is_some() {
-        ctx.err(Some(g.span.clone()), Some("guide"), "[guide] and [inpaint] do not combine yet: use one of them");
+    if inpainting && let Some(m) = method.filter(|m| m.honours_guide() && !m.honours_guided_inpaint()) {
+        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_guided_inpaint()).map(|m| m.name()).collect();
+        ctx.err(
+            Some(g.span.clone()),
+            Some("guide"),
+            format!("{} cannot follow a guide while it inpaints (yet); methods that can: {}", m.name(), can.join(", ")),
+        );
+        ok = false;
+    }
+    // A hole is filled once, each block matched to the known pixels: the iteration that
+    // re-synthesises a whole output with smaller blocks does not apply.
+    if inpainting && let Some(passes) = g.passes.filter(|&p| p > 1) {
+        let span = g.passes_span.clone().unwrap_or(g.span.clone());
+        ctx.err(
+            Some(span),
+            Some("guide.passes"),
+            format!("an [inpaint] job fills its hole in one guided pass: leave `guide.passes` out or set it to 1 (found {passes})"),
+        );
         ok = false;
     }
     if raw.tileable {
@@ -570,7 +593,7 @@ fn check_guide(ctx: &mut Ctx, g: RawGuide, raw: &Raw, method: Option<&'static dy
         target: target?,
         source,
         weight: g.weight.unwrap_or(DEFAULT_GUIDE_WEIGHT),
-        passes: g.passes.unwrap_or(DEFAULT_GUIDE_PASSES),
+        passes: g.passes.unwrap_or(if inpainting { 1 } else { DEFAULT_GUIDE_PASSES }),
     })
 }
 

@@ -182,6 +182,7 @@ pub(super) struct RawGuide {
     pub(super) source: Option<(String, std::ops::Range<usize>)>,
     pub(super) weight: Option<f64>,
     pub(super) passes: Option<u32>,
+    pub(super) passes_span: Option<std::ops::Range<usize>>,
 }
 
 /// `[inpaint]` as read, each key checked for type.

@@ -73,14 +73,47 @@ pub(crate) struct Fill<'a> {
     pub label: &'static str,
 }
 
-/// A method's choice of the sample position of one block of the hole: `window` is the block's
-/// window of the image as it stands, `regions` the parts of it to match (window coordinates,
-/// never empty), `neighbours` the sample positions of the blocks its content came from (so that,
-/// with turned copies in an atlas, the block is not their mirror image:
-/// [`crate::synth::constraints::Constraints::is_twin`]), `(bi, bj)` the block's index (for its
-/// random streams). It returns the position (one of `how.allowed` flags) and, for the
-/// diagnostics, how many candidates it chose among.
-pub(crate) type Pick<'p> = dyn FnMut(&RgbImage, &[Rect], &[(u32, u32)], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p;
+/// One block of the hole, as a method's pick sees it.
+pub(crate) struct Want<'w> {
+    /// The block's window of the image as it stands.
+    pub window: &'w RgbImage,
+    /// The parts of the window to match (window coordinates, never empty).
+    pub regions: &'w [Rect],
+    /// The sample positions of the blocks the window's content came from, so that, with turned
+    /// copies in an atlas, the block is not their mirror image
+    /// ([`crate::synth::constraints::Constraints::is_twin`]).
+    pub neighbours: &'w [(u32, u32)],
+    /// The block's index (for its random streams).
+    pub index: (u32, u32),
+    /// The window's top-left pixel in the image (where a guide is read).
+    pub place: (u32, u32),
+}
+
+/// A method's choice of the sample position of one block of the hole: the position (one of
+/// `how.allowed` flags) and, for the diagnostics, how many candidates it chose among.
+pub(crate) type Pick<'p> = dyn FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p;
+
+/// Guided quilting's choice (`[guide]` with `[inpaint]`): uniform among the positions whose
+/// error, the window's match weighed against the guides' ([`super::guide::GuidedSearch`]), is
+/// within the tolerance of the best, less its neighbours' twins (stream
+/// `{label}/inpaint/guided/…`). `search`'s target guide is read at the window's place.
+pub(crate) fn pick_guided<'p>(
+    req: &'p Request,
+    search: &'p mut super::guide::GuidedSearch<'p>,
+    tolerance: f64,
+    block: u32,
+    label: &'static str,
+) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
+    move |want| {
+        let found: Vec<(u32, u32, u64)> =
+            search.candidates(want.window, (0, 0), want.regions, want.place, tolerance).into_iter().map(|(x, y)| (x, y, 0)).collect();
+        let members = req.constraints.without_twins(&found, want.neighbours, block).unwrap_or(found);
+        let (bi, bj) = want.index;
+        let mut s = Stream::new(req.seed, &format!("{label}/inpaint/guided/bi={bi}/bj={bj}"));
+        let p = members[s.below_usize(members.len())];
+        ((p.0, p.1), Some(members.len()))
+    }
+}
 
 /// Quilting's choice: uniform among the search's tolerance set less its neighbours' twins
 /// ([`super::untwinned`]; stream `{label}/inpaint/pick/…`).
@@ -90,10 +123,11 @@ pub(crate) fn pick_among_candidates<'p>(
     tolerance: f64,
     block: u32,
     label: &'static str,
-) -> impl FnMut(&RgbImage, &[Rect], &[(u32, u32)], (u32, u32)) -> ((u32, u32), Option<usize>) + 'p {
-    move |window, regions, neighbours, (bi, bj)| {
+) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
+    move |want| {
+        let (window, regions, (bi, bj)) = (want.window, want.regions, want.index);
         let c = search.candidates(window, (0, 0), regions, tolerance);
-        let members = super::untwinned(req, search, window, (0, 0), regions, tolerance, c.members, neighbours, block);
+        let members = super::untwinned(req, search, window, (0, 0), regions, tolerance, c.members, want.neighbours, block);
         let mut s = Stream::new(req.seed, &format!("{label}/inpaint/pick/bi={bi}/bj={bj}"));
         let p = members[s.below_usize(members.len())];
         ((p.0, p.1), Some(members.len()))
@@ -106,11 +140,7 @@ pub(crate) fn pick_among_candidates<'p>(
 pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pick) -> Result<Synthesis, SynthError> {
     let sample = req.sample;
     let (w, h) = region.dimensions();
-    let fits = if req.constraints.atlas.is_some() {
-        sample.width() >= w && sample.height() >= h
-    } else {
-        sample.dimensions() == (w, h)
-    };
+    let fits = if req.constraints.atlas.is_some() { sample.width() >= w && sample.height() >= h } else { sample.dimensions() == (w, h) };
     if !fits || (req.width, req.height) != (w, h) {
         return Err(SynthError::Failed(format!(
             "inpainting makes an output of the image's size ({w}x{h}, the mask's); asked for {}x{} from a {}x{} sample",
@@ -187,7 +217,9 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                 let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
                 nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
             } else {
-                let (p, count) = pick(&window, &regions, &neighbours, (bi as u32, bj as u32));
+                let want =
+                    Want { window: &window, regions: &regions, neighbours: &neighbours, index: (bi as u32, bj as u32), place: (ox, oy) };
+                let (p, count) = pick(&want);
                 candidate_counts.extend(count);
                 p
             };

@@ -867,8 +867,10 @@ impl PatchSampling {
             label: "cpso",
         };
         let settings = &settings;
-        let mut pick = |window: &RgbImage, regions: &[Rect], _neighbours: &[(u32, u32)], (bi, bj): (u32, u32)| {
-            let zone = Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: regions.to_vec(), block, sides: Sides::default() };
+        let mut pick = |want: &super::inpaint::Want| {
+            let (window, (bi, bj)) = (want.window, want.index);
+            let zone =
+                Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: want.regions.to_vec(), block, sides: Sides::default() };
             let r = match (&mut search, &lines) {
                 (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed),
                 (None, Some(lines)) => swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], None),

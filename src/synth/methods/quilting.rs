@@ -199,9 +199,11 @@ impl Method for Quilting {
             return Err(SynthError::Failed(format!("block {block} does not fit in the {}x{} sample", sample.width(), sample.height())));
         }
         let allowed = allowed_positions(req, block)?;
-        if let Some(guide) = req.constraints.guide {
-            if req.constraints.fill.is_some() || req.tileable {
-                return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
+        if let Some(guide) = req.constraints.guide
+            && req.constraints.fill.is_none()
+        {
+            if req.tileable {
+                return Err(SynthError::Failed("guided synthesis does not combine with tileable output yet".into()));
             }
             return self.synthesize_guided(req, &cfg, guide);
         }
@@ -222,8 +224,26 @@ impl Method for Quilting {
                 engine: cfg.search,
                 label: "quilt",
             };
-            let mut synthesis =
-                inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, "quilt"))?;
+            let mut synthesis = match req.constraints.guide {
+                None => inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, "quilt"))?,
+                Some(guide) => {
+                    // The target guide read at any window's place: past the image's edge it
+                    // wraps on a torus and goes on as its own edge otherwise (windows stay inside).
+                    let (w, h) = region.dimensions();
+                    if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
+                        return Err(SynthError::Failed("the guides must have the image's and the sample's sizes".into()));
+                    }
+                    let target = RgbImage::from_fn(w + block, h + block, |x, y| {
+                        if req.tileable { guide.target.get(x % w, y % h) } else { guide.target.get(x.min(w - 1), y.min(h - 1)) }
+                    });
+                    let mut guided =
+                        super::guide::GuidedSearch::new(sample, &guide.source, &target, block, guide.weight, Some(allowed.clone()));
+                    let mut synthesis =
+                        inpaint::fill(req, region, &how, &mut inpaint::pick_guided(req, &mut guided, tolerance, block, "quilt"))?;
+                    synthesis.diagnostics["guided"] = serde_json::json!({ "weight": guide.weight });
+                    synthesis
+                }
+            };
             if let Some(level) = search.coarse_level() {
                 synthesis.diagnostics["pyramid_level"] = serde_json::json!(level);
             }
@@ -327,6 +347,10 @@ impl Method for Quilting {
     }
 
     fn honours_guide(&self) -> bool {
+        true
+    }
+
+    fn honours_guided_inpaint(&self) -> bool {
         true
     }
 
