@@ -52,6 +52,7 @@ fn record(k: usize) -> JobRecord {
         seams: None,
         warnings: Vec::new(),
         companions: Vec::new(),
+        more_companions: Vec::new(),
         sample_mask: None,
         inpaint_mask: None,
         guide_target: None,

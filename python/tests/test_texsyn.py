@@ -271,6 +271,18 @@ def test_everyday_jobs_take_the_job_files_keys_as_arguments(tmp_path):
     subprocess.run([str(texsyn_cli()), "run", str(job), "-o", str(tmp_path / "heal"), "-q"], check=True)
     heal = json.loads((tmp_path / "heal" / "manifest.json").read_text())["jobs"][0]["outputs"][0]["pixel_digest"]["sha256"]
     assert pixel_digest(out) == heal
+    # Inpainting from another photo (and its mirror image): the job file's pixels; the placement
+    # shows the known pixels as the image's own (sample 0) and the fill from the other (sample 1).
+    gravel_hole = np.zeros((256, 128), np.uint8)
+    gravel_hole[100:160, 30:100] = 255
+    res = texsyn.synthesize(left, "quilting", seed=8, inpaint=gravel_hole, inpaint_from=[right], augment=["flip_h"], full=True, block=24)
+    inside = gravel_hole == 255
+    assert (res.placement["sample"][inside] == 1).all() and (res.placement["sample"][~inside] == 0).all()
+    np.testing.assert_array_equal(res.image[~inside], np.asarray(texsyn.synthesize(left, "quilting", seed=8, inpaint=np.zeros((256, 128), np.uint8), block=24))[~inside])
+    with pytest.raises(ValueError, match="inpaint_from goes with inpaint"):
+        texsyn.synthesize(left, inpaint_from=[right])
+    with pytest.raises(ValueError, match="pass the samples to copy from as inpaint_from"):
+        texsyn.synthesize([left, right], inpaint=gravel_hole)
     # A guide: the output takes the target's size; weight and passes reach the job file.
     out = texsyn.synthesize(SAMPLES / "pebbles_beige.png", "quilting", seed=1, guide=GUIDED / "target_rings.png", guide_weight=0.7, guide_passes=1)
     header = (GUIDED / "target_rings.png").read_bytes()[16:24]

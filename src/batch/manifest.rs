@@ -136,6 +136,10 @@ pub struct JobRecord {
     /// key through `output_spec.companions`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub companions: Vec<SampleRecord>,
+    /// With several samples: each companion's maps of the samples after the first, in order
+    /// (their pixels are in `output_spec.companions[].more_sample_pixels`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub more_companions: Vec<Vec<SampleRecord>>,
     /// The job's `sample_mask` image (its pixels are in the content key through
     /// `output_spec.sample_mask`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -540,6 +544,7 @@ mod tests {
             seams: None,
             warnings: Vec::new(),
             companions: Vec::new(),
+            more_companions: Vec::new(),
             sample_mask: None,
             inpaint_mask: None,
             guide_target: None,

@@ -226,6 +226,7 @@ mod tests {
             seams: None,
             warnings: Vec::new(),
             companions: Vec::new(),
+            more_companions: Vec::new(),
             sample_mask: None,
             inpaint_mask: None,
             guide_target: None,

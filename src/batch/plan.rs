@@ -204,7 +204,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         .flat_map(|j| {
             j.sample_paths()
                 .into_iter()
-                .chain(j.companions.iter().map(|c| c.sample.clone()))
+                .chain(j.companions.iter().flat_map(|c| std::iter::once(c.sample.clone()).chain(c.more_samples.iter().cloned())))
                 .chain(j.sample_mask_paths().into_iter().flatten())
                 .chain(j.inpaint_mask_file())
                 .chain(j.guide_files())
@@ -285,7 +285,17 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         };
         let mut atlas = atlas;
         if let Some(a) = &mut atlas {
-            a.companions = job.companions.iter().zip(&companions).map(|(c, l)| pack_map(&a.atlas, &[&**l], c.kind)).collect();
+            // Each sample's own map, packed like the samples (materials checked they decoded).
+            a.companions = job
+                .companions
+                .iter()
+                .zip(&companions)
+                .map(|(c, l)| {
+                    let maps: Vec<&LoadedSample> =
+                        std::iter::once(&**l).chain(c.more_samples.iter().filter_map(|p| loaded[p].as_ref().ok().map(|m| &**m))).collect();
+                    pack_map(&a.atlas, &maps, c.kind)
+                })
+                .collect();
         }
         let sample_mask = match if atlas.is_some() { Ok(None) } else { sample_mask_of(&job, &sample, &loaded) } {
             Ok(m) => m,
@@ -316,7 +326,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
+        let more_maps: Vec<Vec<Arc<LoadedSample>>> =
+            job.companions.iter().map(|c| c.more_samples.iter().filter_map(|p| loaded[p].as_ref().ok().cloned()).collect()).collect();
         let masks = Masks {
+            more_companions: &more_maps,
             samples: atlas.as_ref().map(|_| samples_of(&job, &loaded)),
             augment: &job.augment,
             sample_mask: sample_mask.as_ref().map(|(l, _)| &**l),
@@ -541,6 +554,8 @@ struct Masks<'a> {
     sample_mask: Option<&'a LoadedSample>,
     inpaint: Option<MaskSource<'a>>,
     guide: Option<GuideImages<'a>>,
+    /// With several samples: each companion's maps of the other samples, decoded.
+    more_companions: &'a [Vec<Arc<LoadedSample>>],
 }
 
 /// Checks what a job renders besides its method's 8-bit image and decides what the job file left
@@ -572,6 +587,27 @@ fn materials(
                 ),
             )),
             Ok(l) => companions.push(l.clone()),
+        }
+        // The other samples' maps, each of its own sample's size.
+        for (i, (map, s)) in c.more_samples.iter().zip(&job.more_samples).enumerate() {
+            let Ok(other) = &loaded[&s.path] else { continue };
+            match &loaded[map] {
+                Err(e) => errors.push(job.error(Some(&key), format!("companion sample {e}"))),
+                Ok(l) if l.image.dimensions() != other.image.dimensions() => errors.push(job.error(
+                    Some(&key),
+                    format!(
+                        "companion `{}` (entry {}) is {}x{} but its sample `{}` is {}x{}; each map must have its sample's size",
+                        map.display(),
+                        i + 2,
+                        l.image.width(),
+                        l.image.height(),
+                        s.path.display(),
+                        other.image.width(),
+                        other.image.height()
+                    ),
+                )),
+                Ok(_) => {}
+            }
         }
     }
     if job.output.tileable
@@ -725,11 +761,17 @@ fn base_record(
             .companions
             .iter()
             .zip(companions)
-            .map(|(c, l)| {
-                serde_json::json!({
+            .zip(masks.more_companions)
+            .map(|((c, l), more)| {
+                let mut spec = serde_json::json!({
                     "path": c.path, "format": c.format.name(), "bit_depth": c.bit_depth, "kind": c.kind_name(),
                     "sample_pixels": l.pixel_digest,
-                })
+                });
+                if !c.more_samples.is_empty() {
+                    // The other samples' maps are inputs too.
+                    spec["more_sample_pixels"] = more.iter().map(|m| serde_json::json!(m.pixel_digest)).collect();
+                }
+                spec
             })
             .collect();
     }
@@ -801,6 +843,15 @@ fn base_record(
         timing: None,
         warnings: Vec::new(),
         companions: job.companions.iter().zip(companions).map(|(c, l)| sample_record(&c.sample, l)).collect(),
+        more_companions: if job.companions.iter().any(|c| !c.more_samples.is_empty()) {
+            job.companions
+                .iter()
+                .zip(masks.more_companions)
+                .map(|(c, more)| c.more_samples.iter().zip(more).map(|(p, l)| sample_record(p, l)).collect())
+                .collect()
+        } else {
+            Vec::new()
+        },
         sample_mask: job.sample_mask.as_deref().zip(sample_mask).map(|(p, l)| sample_record(p, l)),
         inpaint_mask: match &masks.inpaint {
             Some(MaskSource::File { path, loaded }) => Some(sample_record(path, loaded)),
@@ -867,6 +918,7 @@ pub fn invalid_record(inv: &InvalidJob, manifest_dir: &Path) -> JobRecord {
         timing: None,
         warnings: Vec::new(),
         companions: Vec::new(),
+        more_companions: Vec::new(),
         sample_mask: None,
         inpaint_mask: None,
         guide_target: None,

@@ -267,7 +267,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
         return Outcome::Mismatch(vec!["the record's companions do not match its output spec".into()]);
     }
     let mut companions = Vec::new();
-    for (w, c) in wanted.iter().zip(&rec.companions) {
+    for (k, (w, c)) in wanted.iter().zip(&rec.companions).enumerate() {
         let loaded = match load_sample(&dir.join(&c.path)) {
             Ok(s) => s,
             Err(e) => return Outcome::Mismatch(vec![format!("companion sample {e}")]),
@@ -279,9 +279,31 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             Ok(s) => s,
             Err(e) => return Outcome::Mismatch(vec![e]),
         };
-        // Packed like the samples when the job searched an atlas of transformed copies.
+        // With several samples, the other samples' maps: still the recorded pixels.
+        let wanted_more: Vec<serde_json::Value> = w.get("more_sample_pixels").and_then(|m| m.as_array()).cloned().unwrap_or_default();
+        let more_records = rec.more_companions.get(k).cloned().unwrap_or_default();
+        if wanted_more.len() != more_records.len() {
+            return Outcome::Mismatch(vec!["the record's companion maps do not match its output spec".into()]);
+        }
+        let mut more = Vec::new();
+        for (digest, r) in wanted_more.iter().zip(&more_records) {
+            match load_sample(&dir.join(&r.path)) {
+                Ok(l) if l.pixel_digest == r.pixel_digest && digest == &serde_json::json!(r.pixel_digest) => more.push(l),
+                Ok(_) => return Outcome::Mismatch(vec![format!("companion sample `{}` no longer has the recorded pixels", r.path)]),
+                Err(e) => return Outcome::Mismatch(vec![format!("companion sample {e}")]),
+            }
+        }
+        // Packed like the samples when the job searched an atlas of samples or transformed copies.
         let loaded = match &atlas {
-            Some(a) => crate::batch::samples::pack_map(&a.atlas, &[&loaded], spec.kind),
+            Some(a) => {
+                let maps: Vec<&LoadedSample> = std::iter::once(&loaded).chain(&more).collect();
+                let sizes = a.atlas.sample_sizes();
+                if maps.len() != sizes.len() || maps.iter().zip(&sizes).any(|(m, &s)| m.image.dimensions() != s) {
+                    return Outcome::Mismatch(vec!["the record's companion maps are not one per sample, of its size".into()]);
+                }
+                crate::batch::samples::pack_map(&a.atlas, &maps, spec.kind)
+            }
+            None if !more.is_empty() => return Outcome::Mismatch(vec!["the record's companion maps are not one per sample".into()]),
             None => loaded,
         };
         companions.push((spec, loaded));
@@ -413,7 +435,15 @@ fn companion_spec(v: &serde_json::Value, sample: &Path) -> Result<Companion, Str
     let kind =
         crate::synth::placement::MapKind::from_name(kind).ok_or_else(|| format!("companion kind {kind:?} is not color or normal"))?;
     let bit_depth = v.get("bit_depth").and_then(|x| x.as_u64()).ok_or("output_spec.companions[].bit_depth is missing")? as u8;
-    Ok(Companion { sample: sample.to_path_buf(), path: text("path")?.to_string(), format, bit_depth, native_depth: false, kind })
+    Ok(Companion {
+        sample: sample.to_path_buf(),
+        more_samples: Vec::new(),
+        path: text("path")?.to_string(),
+        format,
+        bit_depth,
+        native_depth: false,
+        kind,
+    })
 }
 
 fn output_spec(v: &serde_json::Value) -> Result<OutputSpec, String> {

@@ -192,6 +192,58 @@ fn bad_sample_lists_are_refused_by_key() {
     assert_eq!(good["status"], "ok", "{good}");
 }
 
+/// With several samples a companion names each sample's map (`sample = [...]`, parallel to
+/// `samples`); the output's map is rendered from the map of the sample and copy each pixel came
+/// from. With each sample as its own "map", the companion is the output itself, pixel for pixel
+/// (blends and turned copies included); `verify` re-runs it; bad lists are refused by key.
+#[test]
+fn companions_take_one_map_per_sample() {
+    let d = scratch("samples-companions");
+    let jobs = d.join("jobs");
+    let job = |name: &str, companion_sample: &str, extra: &str| {
+        format!(
+            "samples = [\"{}\", \"{}\"]\naugment = [\"rot90\", \"flip_h\"]\nmethod = \"quilting\"\nseed = 6\n[output]\npath = \"{name}.png\"\n\
+             width = 200\nheight = 160\n[params]\nblock = 32\n{extra}[[companion]]\nsample = {companion_sample}\npath = \"{name}_map.png\"\n",
+            abs(LEFT),
+            abs(RIGHT)
+        )
+    };
+    let pair = format!("[\"{}\", \"{}\"]", abs(LEFT), abs(RIGHT));
+    write(&jobs.join("cut.toml"), &job("cut", &pair, ""));
+    write(&jobs.join("feather.toml"), &job("feather", &pair, "cut = \"none\"\nblend = \"feather\"\n"));
+    write(&jobs.join("ps.toml"), &job("ps", &pair, "").replace("quilting", "patch-sampling"));
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
+    for name in ["cut", "feather", "ps"] {
+        assert_eq!(
+            pixels(&d.join(format!("out/{name}_map.png"))),
+            pixels(&d.join(format!("out/{name}.png"))),
+            "{name}: the companion follows"
+        );
+    }
+    let m = json(&d.join("out/manifest.json"));
+    let cut = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "cut.toml").unwrap();
+    assert!(cut["more_companions"][0][0]["path"].as_str().unwrap().ends_with("gravel_gray_right.png"), "{cut}");
+    assert_eq!(cut["output_spec"]["companions"][0]["more_sample_pixels"].as_array().unwrap().len(), 1, "{cut}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    // Mistakes: one map for two samples, a list of the wrong length, a map of another size.
+    let bad = d.join("bad");
+    let small = d.join("small.png");
+    texsyn::save_image(&texsyn::RgbImage::from_fn(64, 64, |x, _| [x as u8; 3]), &small).unwrap();
+    write(&bad.join("one.toml"), &job("one", &format!("\"{}\"", abs(LEFT)), ""));
+    write(&bad.join("three.toml"), &job("three", &format!("[\"{}\", \"{}\", \"{}\"]", abs(LEFT), abs(RIGHT), abs(RIGHT)), ""));
+    write(&bad.join("size.toml"), &job("size", &format!("[\"{}\", \"{}\"]", abs(LEFT), small.display()), ""));
+    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad_out")).arg(&bad)));
+    for expected in [
+        "one.toml:12:1: `companion[1].sample`: with 2 samples, give this map of each sample: a list parallel to `samples`",
+        "three.toml:12:10: `companion[1].sample`: lists 3 maps for 2 samples",
+        "size.toml:",
+        "`companion[1].sample`: companion `",
+        "small.png` (entry 2) is 64x64 but its sample",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
+}
+
 #[test]
 fn the_one_off_command_takes_several_samples_and_augment() {
     let d = scratch("samples-synth");

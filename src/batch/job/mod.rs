@@ -107,8 +107,10 @@ pub struct OutputSpec {
 /// main output's placement.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Companion {
-    /// The companion's sample, resolved against the job file's directory.
+    /// The companion's sample (the first sample's map), resolved against the job file's directory.
     pub sample: PathBuf,
+    /// With several `samples`: the other samples' maps, in their order (`sample = [...]`).
+    pub more_samples: Vec<PathBuf>,
     /// Relative to the output directory, normalised.
     pub path: String,
     pub format: Format,

@@ -334,13 +334,37 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }),
         None => None,
     };
-    if !more_samples.is_empty() && !raw.companions.is_empty() {
-        let what = if inpaint.is_some() { "with samples other than the [inpaint] image" } else { "with several `samples`" };
+    if inpaint.is_some() && !more_samples.is_empty() && !raw.companions.is_empty() {
         ctx.err(
             None,
             Some("companion"),
-            format!("companions are rendered from one sample's maps; {what} they are not supported yet (`augment` with one sample works)"),
+            "companions are rendered from the image's maps; with samples other than the [inpaint] image they are not supported yet (`augment` alone works)",
         );
+    }
+    // With several samples each companion names one map per sample, in their order.
+    if inpaint.is_none() {
+        for c in &raw.companions {
+            let key = format!("companion[{}].sample", c.index + 1);
+            match &c.listed {
+                Some((n, span)) if *n != sample_count => ctx.err(
+                    Some(span.clone()),
+                    Some(&key),
+                    format!("lists {n} maps for {sample_count} samples; give one per sample, in the order of `samples`"),
+                ),
+                None if sample_count > 1 && c.sample.is_some() => {
+                    let position = ctx.positions.get(&key).copied();
+                    ctx.push(JobError {
+                        file: ctx.file.path.clone(),
+                        position,
+                        key: Some(key),
+                        message: format!(
+                            "with {sample_count} samples, give this map of each sample: a list parallel to `samples` (`sample = [\"a_normal.png\", \"b_normal.png\"]`)"
+                        ),
+                    })
+                }
+                _ => {}
+            }
+        }
     }
     let guide = match raw.guide.take() {
         Some(g) => check_guide(ctx, g, &raw, method, inpaint.is_some()),
@@ -357,7 +381,7 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }
         let Some(sample) = c.sample else { continue };
         // The path stays a template until the sweep point is known.
-        companions.push(Companion { sample, path: path.clone(), format, bit_depth, native_depth, kind: c.kind });
+        companions.push(Companion { sample, more_samples: c.more, path: path.clone(), format, bit_depth, native_depth, kind: c.kind });
     }
     if let Some((template, span)) = &raw.source_map
         && let Err(e) = normalise_output_path(template)
@@ -818,7 +842,7 @@ fn read_companions(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
             continue;
         };
         ctx.at(&prefix, item.span());
-        let mut c = RawCompanion { index, sample: None, path: None, kind: MapKind::Color, bit_depth: None };
+        let mut c = RawCompanion { index, sample: None, more: Vec::new(), listed: None, path: None, kind: MapKind::Color, bit_depth: None };
         for (k, v) in t.iter() {
             let key = format!("{prefix}.{}", k.get_ref());
             ctx.at(&key, k.span());
@@ -837,10 +861,37 @@ fn read_companions(ctx: &mut Ctx, v: &Spanned<DeValue>, raw: &mut Raw) {
                             );
                         }
                     }
+                    // With several samples: one map per sample, in their order.
+                    DeValue::Array(_) => {
+                        if let Some(list) = read_string_list(ctx, v, &key, false) {
+                            let mut found = Vec::new();
+                            for (s, span) in &list {
+                                let p = base.join(s);
+                                if p.is_file() {
+                                    found.push(p);
+                                } else {
+                                    let why = missing_file_reason(&p);
+                                    ctx.err(
+                                        Some(span.clone()),
+                                        Some(&key),
+                                        format!("companion sample `{}` {why} (paths are relative to the job file)", p.display()),
+                                    );
+                                }
+                            }
+                            c.listed = Some((list.len(), v.span()));
+                            if found.len() == list.len() && !found.is_empty() {
+                                c.sample = Some(found.remove(0));
+                                c.more = found;
+                            }
+                        }
+                    }
                     other => ctx.err(
                         Some(v.span()),
                         Some(&key),
-                        format!("expected a non-empty string (the map's path), found {}", type_name(other)),
+                        format!(
+                            "expected a non-empty string (the map's path), or with several samples a list of one per sample, found {}",
+                            type_name(other)
+                        ),
                     ),
                 },
                 "path" => match v.get_ref() {

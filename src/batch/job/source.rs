@@ -200,6 +200,10 @@ pub(super) struct RawInpaint {
 pub(super) struct RawCompanion {
     pub(super) index: usize,
     pub(super) sample: Option<PathBuf>,
+    /// `sample = [...]`: the other samples' maps, and the list's length and span (checked
+    /// against `samples` once both are read).
+    pub(super) more: Vec<PathBuf>,
+    pub(super) listed: Option<(usize, std::ops::Range<usize>)>,
     pub(super) path: Option<(String, std::ops::Range<usize>)>,
     pub(super) kind: crate::synth::placement::MapKind,
     pub(super) bit_depth: Option<(i64, std::ops::Range<usize>)>,
