@@ -45,7 +45,10 @@
 //! pixel the mask allows (so feathered blends, which mix two such blocks, do too); the swarms
 //! move over every position but score and place each as its nearest allowed one ([`Allowed`]),
 //! the exhaustive searches restrict their candidates, the first block is drawn among allowed
-//! positions. *Inpainting*: `methods::inpaint`'s driver (blocks over the hole, known pixels never
+//! positions. *Several samples / `augment`* (the atlas): a block never shows a turned or
+//! mirrored copy of the pixels a placed neighbour shows ([`Twins`]: the left one and the three
+//! above, on a torus every placed one): the swarm treats such positions as masked ones, the
+//! exhaustive searches leave them out of their candidates. *Inpainting*: `methods::inpaint`'s driver (blocks over the hole, known pixels never
 //! written) with this method's search and join: patches are feathered into pixels filled earlier
 //! (or cut, with `blend = "cut"`), and the border polish feathers its patches in from the known
 //! border. *Guide*: Efros–Freeman's weighed error ([`GuideTerm`]) is the swarm's fitness and the
@@ -650,6 +653,63 @@ impl Allowed {
     }
 }
 
+/// The twin rule of one block (several samples' atlas with `augment`): a block must not show a
+/// turned or mirrored copy of the pixels a neighbour already placed shows
+/// ([`crate::synth::atlas::Atlas::twins`]). The swarms treat such positions as they treat masked
+/// ones (each stands for its nearest position that is allowed and no twin); the exhaustive
+/// searches leave them out of their candidates.
+struct Twins<'a> {
+    constraints: &'a crate::synth::constraints::Constraints<'a>,
+    /// The sample positions of the blocks placed around this one.
+    neighbours: Vec<(u32, u32)>,
+    block: u32,
+}
+
+impl<'a> Twins<'a> {
+    /// The rule for a block whose placed neighbours are at `neighbours`; `None` when no block can
+    /// be a twin (no transformed copies, or no neighbour yet).
+    fn of(constraints: &'a crate::synth::constraints::Constraints<'a>, neighbours: Vec<(u32, u32)>, block: u32) -> Option<Twins<'a>> {
+        let copies = constraints.atlas.is_some_and(|a| a.has_copies());
+        (copies && !neighbours.is_empty()).then_some(Twins { constraints, neighbours, block })
+    }
+
+    fn is_twin(&self, at: (u32, u32)) -> bool {
+        self.constraints.is_twin(at, &self.neighbours, self.block)
+    }
+
+    /// The position `p` stands for: itself unless it is a twin, else the nearest position (in
+    /// 4-connected steps over the `nx × ny` grid of positions) that `allowed` allows and that is
+    /// no twin, ring by ring, each ring in a fixed order (up, right, down, left of each step);
+    /// `p` itself when there is none.
+    fn resolve(&self, p: (u32, u32), (nx, ny): (u32, u32), allowed: Option<&Allowed>) -> (u32, u32) {
+        if !self.is_twin(p) {
+            return p;
+        }
+        let ok = |q: (u32, u32)| allowed.is_none_or(|a| a.allows(q)) && !self.is_twin(q);
+        let (px, py) = (i64::from(p.0), i64::from(p.1));
+        for d in 1..=i64::from(nx + ny) {
+            // The ring at Manhattan distance d, from the top going clockwise.
+            for k in 0..4 * d {
+                let (side, t) = (k / d, k % d);
+                let (dx, dy) = match side {
+                    0 => (t, t - d),
+                    1 => (d - t, t),
+                    2 => (-t, d - t),
+                    _ => (t - d, -t),
+                };
+                let (x, y) = (px + dx, py + dy);
+                if x < 0 || y < 0 || x >= i64::from(nx) || y >= i64::from(ny) {
+                    continue;
+                }
+                if ok((x as u32, y as u32)) {
+                    return (x as u32, y as u32);
+                }
+            }
+        }
+        p
+    }
+}
+
 /// The guide of a guided synthesis, as the searches use it (Efros–Freeman's error: the zone's
 /// SSD per pixel and channel weighed by `1 − weight` against the guide's over the whole block
 /// by `weight`, the guide read from `target` at the block's place; see `methods::guide`).
@@ -870,8 +930,8 @@ impl PatchSampling {
         let mut pick = |window: &RgbImage, regions: &[Rect], (bi, bj): (u32, u32)| {
             let zone = Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: regions.to_vec(), block, sides: Sides::default() };
             let r = match (&mut search, &lines) {
-                (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed),
-                (None, Some(lines)) => swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], None),
+                (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed, None),
+                (None, Some(lines)) => swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], None, None),
                 (None, None) => unreachable!("a search is prepared"),
             };
             (r.pos, r.candidates)
@@ -1063,6 +1123,28 @@ impl PatchSampling {
                         .collect()
                 })
                 .collect();
+            // The twin rule's neighbours: the blocks already placed around each one (on the plain
+            // grid the left one and the three above; on a torus every placed one, through the wrap).
+            let twins: Vec<Option<Twins>> = wave
+                .iter()
+                .map(|&(bi, bj)| {
+                    let (i, j, r, c) = (i64::from(bi), i64::from(bj), i64::from(rows), i64::from(cols));
+                    let around: Vec<(i64, i64)> = match &torus {
+                        Some(_) => (-1..=1)
+                            .flat_map(|di| (-1..=1).map(move |dj| (di, dj)))
+                            .filter(|&d| d != (0, 0))
+                            .map(|(di, dj)| ((i + di).rem_euclid(r), (j + dj).rem_euclid(c)))
+                            .collect(),
+                        None => vec![(i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)],
+                    };
+                    let neighbours = around
+                        .into_iter()
+                        .filter(|&(i, j)| i >= 0 && j >= 0 && i < r && j < c)
+                        .filter_map(|(i, j)| placed[(i * c + j) as usize])
+                        .collect();
+                    Twins::of(&req.constraints, neighbours, block)
+                })
+                .collect();
             let mut found: Vec<BlockResult> = if wave == [(0, 0)] && guide.is_none() && previous.is_none() {
                 vec![BlockResult {
                     bi: 0,
@@ -1076,16 +1158,26 @@ impl PatchSampling {
                     near_optimum: None,
                 }]
             } else if let Some(g) = guided.as_mut() {
-                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| guided_block(g, sample, zone, bi, bj, settings, req.seed)).collect()
+                wave.iter()
+                    .zip(&zones)
+                    .zip(&twins)
+                    .map(|((&(bi, bj), zone), twins)| guided_block(g, sample, zone, bi, bj, settings, req.seed, twins.as_ref()))
+                    .collect()
             } else if settings.search == Search::Exhaustive {
                 let s = search.as_mut().expect("exhaustive search prepared");
-                wave.iter().zip(&zones).map(|(&(bi, bj), zone)| exhaustive_block(s, sample, zone, bi, bj, settings, req.seed)).collect()
+                wave.iter()
+                    .zip(&zones)
+                    .zip(&twins)
+                    .map(|((&(bi, bj), zone), twins)| exhaustive_block(s, sample, zone, bi, bj, settings, req.seed, twins.as_ref()))
+                    .collect()
             } else {
                 let lines = lines.as_ref().expect("sample lines prepared");
                 wave.par_iter()
-                    .zip(zones.par_iter().zip(hints.par_iter()))
+                    .zip(zones.par_iter().zip(hints.par_iter()).zip(twins.par_iter()))
                     .with_max_len(1)
-                    .map(|(&(bi, bj), (zone, hints))| swarm_block(sample, lines, zone, bi, bj, settings, req.seed, hints, guide))
+                    .map(|(&(bi, bj), ((zone, hints), twins))| {
+                        swarm_block(sample, lines, zone, bi, bj, settings, req.seed, hints, guide, twins.as_ref())
+                    })
                     .collect()
             };
             if settings.optimum {
@@ -1169,12 +1261,13 @@ fn swarm_block(
     seed: u64,
     hints: &[(u32, u32)],
     guide: Option<&GuideTerm>,
+    twins: Option<&Twins>,
 ) -> BlockResult {
     // A thread searches one block at a time and the search starts no parallel work, so the
     // thread's memo is never borrowed twice; should that change, a fresh memo is still correct.
     MEMO.with(|m| match m.try_borrow_mut() {
-        Ok(mut memo) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, &mut memo),
-        Err(_) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, &mut Memo::default()),
+        Ok(mut memo) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, twins, &mut memo),
+        Err(_) => swarm_search(sample, lines, zone, (bi, bj), settings, seed, hints, guide, twins, &mut Memo::default()),
     })
 }
 
@@ -1188,6 +1281,7 @@ fn swarm_search(
     seed: u64,
     hints: &[(u32, u32)],
     guide: Option<&GuideTerm>,
+    twins: Option<&Twins>,
     memo: &mut Memo,
 ) -> BlockResult {
     let packed = PackedZone::new(&zone.target, zone.origin, &zone.regions);
@@ -1201,8 +1295,12 @@ fn swarm_search(
     // Guided: the guide's SSD over the whole block where it goes, weighed against the zone's.
     let guide_zone = guide.map(|g| (g, PackedZone::new(&g.target, zone.origin, &[Rect::new(0, 0, zone.block, zone.block)])));
     let (k_texture, k_guide) = guide.map_or((1.0, 0.0), |g| g.weights(zone_pixels, zone.block));
-    // A position stands for its nearest allowed one when a mask rules some out.
-    let at = |pos: (u32, u32)| settings.allowed.as_ref().map_or(pos, |a| a.nearest(pos));
+    // A position stands for its nearest allowed one when a mask rules some out, and a twin of a
+    // neighbour for the nearest allowed position that is none.
+    let at = |pos: (u32, u32)| {
+        let pos = settings.allowed.as_ref().map_or(pos, |a| a.nearest(pos));
+        twins.map_or(pos, |t| t.resolve(pos, (nx, ny), settings.allowed.as_ref()))
+    };
     let value = |pos: (u32, u32)| {
         let pos = at(pos);
         match &guide_zone {
@@ -1254,6 +1352,8 @@ fn swarm_search(
 /// over the allowed positions): the best weighted error (row-major first on ties) with `tolerance
 /// = 0`, else uniform among the positions within `(1 + tolerance)` of it (Efros–Freeman's rule:
 /// Liang's threshold is relative to the zone's intensity, which a guided error does not have).
+/// A neighbour's twins ([`Twins`]) are left out.
+#[allow(clippy::too_many_arguments)]
 fn guided_block(
     search: &mut super::guide::GuidedSearch,
     sample: &RgbImage,
@@ -1262,8 +1362,24 @@ fn guided_block(
     bj: u32,
     settings: &Settings,
     seed: u64,
+    twins: Option<&Twins>,
 ) -> BlockResult {
-    let members = search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, settings.tolerance.max(0.0));
+    let tolerance = settings.tolerance.max(0.0);
+    let mut members = search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, tolerance);
+    if let Some(t) = twins {
+        // Without the neighbours' twins; when every member is one, a wider set (as quilting).
+        let untwinned = |m: &[(u32, u32)]| -> Vec<(u32, u32)> { m.iter().copied().filter(|&p| !t.is_twin(p)).collect() };
+        let mut kept = untwinned(&members);
+        for wider in [0.25, 1.0, 4.0] {
+            if !kept.is_empty() {
+                break;
+            }
+            kept = untwinned(&search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, tolerance + wider));
+        }
+        if !kept.is_empty() {
+            members = kept;
+        }
+    }
     let pos = if settings.tolerance <= 0.0 || members.len() == 1 {
         members[0]
     } else {
@@ -1332,7 +1448,11 @@ fn round_position(x: &[f64], hi: [f64; 2]) -> (u32, u32) {
 /// ties). `tolerance = ε > 0`, `candidates = "liang"`: Liang et al.'s choice, uniform among
 /// `{ d < ε²·Σ_Ω |out(p)|² }` (the same set as `sqrt(d/A) < ε·sqrt(Σ|out|²/A)`, decided on exact
 /// integers against one `f64` threshold), the best position if that set is empty.
-/// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`.
+/// `candidates = "near-best"`: uniform among `{ d ≤ (1 + ε)·d_min }`. A neighbour's twins
+/// ([`Twins`]) are never candidates: when the best positions are all twins, the best that is
+/// none among a near-best set widened by 0.25, 1 and 4 (as quilting), and a twin only when that
+/// finds none.
+#[allow(clippy::too_many_arguments)]
 fn exhaustive_block(
     search: &mut BlockSearch,
     sample: &RgbImage,
@@ -1341,7 +1461,9 @@ fn exhaustive_block(
     bj: u32,
     settings: &Settings,
     seed: u64,
+    twins: Option<&Twins>,
 ) -> BlockResult {
+    let no_twin = |m: &(u32, u32, u64)| twins.is_none_or(|t| !t.is_twin((m.0, m.1)));
     let (canvas, origin, regions) = (&*zone.target, zone.origin, zone.regions.clone());
     let allows = |m: &(u32, u32, u64)| settings.allowed.as_ref().is_none_or(|a| a.allows((m.0, m.1)));
     let zone_pixels: u64 = regions.iter().map(|r| r.area()).sum();
@@ -1387,9 +1509,17 @@ fn exhaustive_block(
             c.members.into_iter().filter(|m| (m.2 as f64) < threshold && allows(m)).collect()
         }
     };
+    let members: Vec<(u32, u32, u64)> = members.into_iter().filter(no_twin).collect();
     if members.is_empty() {
         let best = best.unwrap_or_else(|| search.candidates(canvas, origin, &regions, 0.0));
-        let (x, y, d) = best.members[0];
+        // The first (row-major) of the lowest errors that is no twin.
+        let untwinned = |c: &Candidates| c.members.iter().copied().filter(no_twin).min_by_key(|m| m.2);
+        let (x, y, d) = match twins {
+            None => best.members[0],
+            Some(_) => untwinned(&best)
+                .or_else(|| [0.25, 1.0, 4.0].into_iter().find_map(|wider| untwinned(&search.candidates(canvas, origin, &regions, wider))))
+                .unwrap_or(best.members[0]),
+        };
         result.pos = (x, y);
         result.error = d;
         result.optimum = Some(d);
@@ -1573,6 +1703,48 @@ mod tests {
             run(&sample, 150, 150, &params(&[("block", ParamValue::Int(30)), ("iterations", ParamValue::Int(10))]), 3).image,
             off.image
         );
+    }
+
+    #[test]
+    fn a_twin_stands_for_the_nearest_allowed_position_that_is_none() {
+        use crate::synth::atlas::{Atlas, Augment};
+        use crate::synth::constraints::Constraints;
+        let block = 10;
+        let atlas = Atlas::layout(&[(40, 30)], &[Augment::FlipH]);
+        let (aw, ah) = atlas.dimensions();
+        let (nx, ny) = (aw - block + 1, ah - block + 1);
+        let mask = crate::synth::constraints::SampleMask::new(aw, ah, atlas.allowed(|_, _, _| true));
+        let allowed = Allowed::new(mask.block_positions(block, block), nx);
+        let constraints = Constraints { atlas: Some(&atlas), ..Constraints::default() };
+        // The neighbour shows sample pixels 5..15 as they are; its mirror image starts at 14.
+        let neighbour = atlas.position(0, None, 5, 5).unwrap();
+        let twins = Twins::of(&constraints, vec![neighbour], block).expect("copies and a neighbour");
+        assert!(Twins::of(&constraints, Vec::new(), block).is_none());
+        let mirrored = atlas.position(0, Some(Augment::FlipH), 14, 5).unwrap();
+        assert!(twins.is_twin(mirrored) && !twins.is_twin(neighbour));
+        let mut resolved = 0;
+        for y in 0..ny {
+            for x in 0..nx {
+                let p = allowed.nearest((x, y));
+                let q = twins.resolve(p, (nx, ny), Some(&allowed));
+                if !twins.is_twin(p) {
+                    assert_eq!(q, p);
+                    continue;
+                }
+                resolved += 1;
+                assert!(allowed.allows(q) && !twins.is_twin(q), "{p:?} -> {q:?}");
+                // Nothing nearer is allowed and no twin.
+                let d = |a: (u32, u32), b: (u32, u32)| a.0.abs_diff(b.0) + a.1.abs_diff(b.1);
+                for yy in 0..ny {
+                    for xx in 0..nx {
+                        if d((xx, yy), p) < d(q, p) {
+                            assert!(!allowed.allows((xx, yy)) || twins.is_twin((xx, yy)), "{p:?} -> {q:?}, but ({xx}, {yy}) is nearer");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(resolved > 0, "the test reaches twins");
     }
 
     #[test]
