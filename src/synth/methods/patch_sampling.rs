@@ -214,7 +214,7 @@ const PARAMS: &[ParamSpec] = &[
         name: "continuations",
         kind: ParamKind::Bool,
         default: Default::Bool(false),
-        doc: "not in the paper: after the swarm, also score the natural continuations of the left and top neighbours (their sample positions one stride on) and keep one that is strictly better; on roofs, walls and tiles the swarm misses these exact matches and rows drift (false: faithful)",
+        doc: "not in the paper: after the swarm, also score the natural continuations of the left and top neighbours (their sample positions one stride on) and keep one that is strictly better; on roofs, walls and tiles the swarm misses these exact matches and rows drift (false: faithful; always on with augment, whose turned copies joined by rough matches look mushy)",
     },
     ParamSpec {
         name: "first_x",
@@ -847,6 +847,15 @@ impl Method for PatchSampling {
             return Err(SynthError::Failed(format!("overlap {overlap} must be in 1..={}", block / 2)));
         }
         let mut settings = Settings::of(&cfg);
+        // Transformed copies (`augment`) are lit from other sides: the swarm's rough matches
+        // (RMS 45-47 per channel on pebbles, with or without copies) then join a copy lit from
+        // the left to one lit from the right, and feathered together they look mushy. Scoring
+        // the neighbours' continuations (same copy, one stride on) keeps runs of one copy and
+        // its exact joins (RMS 47 -> 31): always on with copies, which the paper does not have.
+        let copies = req.constraints.atlas.is_some_and(|a| a.has_copies());
+        if copies && !settings.continuations {
+            settings.continuations = true;
+        }
         if let Some(guide) = req.constraints.guide {
             if req.constraints.fill.is_some() || req.tileable {
                 return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
@@ -857,7 +866,11 @@ impl Method for PatchSampling {
             return self.inpaint(req, &cfg, settings, region);
         }
         settings.allowed = allowed_positions(req, block)?;
-        self.grid(req, &settings, block, overlap, None, None)
+        let mut synthesis = self.grid(req, &settings, block, overlap, None, None)?;
+        if copies && !cfg.swarm.continuations && settings.search != Search::Exhaustive {
+            synthesis.diagnostics["continuations"] = json!("on: augment");
+        }
+        Ok(synthesis)
     }
 
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
