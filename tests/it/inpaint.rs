@@ -201,7 +201,9 @@ fn an_inpainting_job_copies_from_other_samples_never_from_the_hole() {
     );
     let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad")).arg(jobs.join("companion.toml"))));
     assert!(
-        said.contains("`companion`: companions are rendered from one sample's maps; with samples other than the [inpaint] image"),
+        said.contains(
+            "companion.toml:12:1: `companion`: companions are rendered from the image's maps; with samples other than the [inpaint] image"
+        ),
         "{said}"
     );
 }

@@ -335,11 +335,16 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         None => None,
     };
     if inpaint.is_some() && !more_samples.is_empty() && !raw.companions.is_empty() {
-        ctx.err(
-            None,
-            Some("companion"),
-            "companions are rendered from the image's maps; with samples other than the [inpaint] image they are not supported yet (`augment` alone works)",
-        );
+        let position = ctx.positions.get("companion[1]").copied();
+        ctx.push(JobError {
+            file: ctx.file.path.clone(),
+            position,
+            key: Some("companion".into()),
+            message:
+                "companions are rendered from the image's maps; with samples other than the [inpaint] image they are not supported yet \
+                      (`augment` alone works)"
+                    .into(),
+        });
     }
     // With several samples each companion names one map per sample, in their order.
     if inpaint.is_none() {

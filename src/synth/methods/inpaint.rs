@@ -62,6 +62,9 @@ pub(crate) struct Fill<'a> {
     /// its weight rising from the content that stays to the empty pixels (Liang's ramp across an
     /// overlap of any shape). Known pixels are never written, whatever the rule.
     pub rule: OverlapRule,
+    /// How the border polish's patches meet the fill: `Cut` (a seam that pays for the present
+    /// joints) or `Feather` (blended in from the known border). Ignored with `Overwrite`.
+    pub polish_rule: OverlapRule,
     /// The positions a block may be copied from (row-major over the block positions).
     pub allowed: &'a [bool],
     /// The sample pixels that may be copied (outside the hole, inside any sample mask), for the
@@ -480,7 +483,7 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
                 }
             }
         }
-        if how.rule == OverlapRule::Feather {
+        if how.polish_rule == OverlapRule::Feather {
             // Feathered: the patch replaces the border pixels of its window only if it joins the
             // known ones better than what is there, and blends away from them towards the rim.
             if joint_new >= keep_cost.iter().sum::<u64>() {

@@ -219,6 +219,7 @@ impl Method for Quilting {
                 overlap,
                 tolerance,
                 rule,
+                polish_rule: rule,
                 allowed: &allowed,
                 copyable: &copyable,
                 engine: cfg.search,
