@@ -816,7 +816,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
     // A lattice the output's size keeps whole across the wrap: every block in the first block's
     // lattice phase, so the texels run on through the wrap as they do inside.
     let phase = LatticePhase::of(sample, (req.width, req.height));
-    let mut first_offset = (0i32, 0i32);
+    let mut first_shift = (0.0, 0.0);
     let mut phase_missed = 0usize;
     let g = s.g as u32;
     let (w, h) = torus.size();
@@ -832,7 +832,7 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
         let (ox, oy) = torus.origin(bi, bj);
         let (x, y) = if bi == 0 && bj == 0 {
             let (x, y) = mask.first(req.seed);
-            first_offset = (x - ox as i32, y - oy as i32);
+            first_shift = LatticePhase::shift((x, y), (ox as i32, oy as i32));
             (x, y)
         } else {
             let ls = torus_lines(&torus, &done, s, bi, bj);
@@ -870,7 +870,10 @@ fn synthesize_torus(req: &Request, s: &Settings, prep: &Prepared, mask: &MaskPos
             );
             let allowed = |x: i32, y: i32| {
                 mask.allows(x, y)
-                    && phase.as_ref().is_none_or(|p| p.keeps((x - origin.0 - first_offset.0, y - origin.1 - first_offset.1)))
+                    && phase.as_ref().is_none_or(|p| {
+                        let d = LatticePhase::shift((x, y), origin);
+                        p.keeps((d.0 - first_shift.0, d.1 - first_shift.1))
+                    })
                     && !twin_of(req, (x, y), &neighbours, s.block as u32)
             };
             let twins_possible = req.constraints.atlas.is_some_and(|a| a.has_copies());
@@ -968,7 +971,9 @@ impl MaskPositions {
 /// The sample's lattice when a tileable output's size keeps it whole across the wrap
 /// ([`crate::synth::wrap::wrap_fit`], the lattice `texsyn advise` and the manifest's wrap warning
 /// use): blocks are then kept to offsets (sample position − output position) within
-/// [`LatticePhase::tolerance`] of a lattice vector from the first block's.
+/// [`LatticePhase::tolerance`] of a lattice vector from the first block's. The vectors are the
+/// sub-pixel ones ([`crate::synth::lattice::FineVectors`]): blocks a dozen periods apart in the
+/// sample stay in phase, and so does the wrap, which `wrap_fit` checks on the same vectors.
 struct LatticePhase {
     t1: (f64, f64),
     t2: (f64, f64),
@@ -977,29 +982,32 @@ struct LatticePhase {
 }
 
 impl LatticePhase {
-    /// Phase tolerance as a share of the shorter lattice vector (at least a pixel): the measured
-    /// vectors are whole pixels, so a few periods away the true phase is a pixel or two off
-    /// (metal_tread_studs measures 27 px across; the blocks double-seam picks inside one row sit
-    /// 80, 133, 160, 214, 295 px apart, 26.7 px a period).
-    const SHARE: f64 = 0.1;
+    /// Phase tolerance in pixels (largest coordinate of the residual). A pixel: whole-pixel
+    /// positions reach every lattice point within half a pixel, so every period offers a few
+    /// candidates, and a texel drifts no more than that across the output. (It was a tenth of
+    /// the shorter vector, 2.6 px on metal_tread_studs, while the vectors were whole pixels and
+    /// the phase a few periods away was a pixel or two off anyway.)
+    const TOLERANCE_PX: f64 = 1.0;
 
     fn of(sample: &RgbImage, size: (u32, u32)) -> Option<LatticePhase> {
         let l = crate::synth::lattice::extract(sample, &crate::synth::lattice::LatticeOptions::default()).ok()?;
         if !crate::synth::wrap::wrap_fit(&l, size).continuous {
             return None;
         }
-        let (a, b) = crate::synth::lattice::reduce(l.t1, l.t2);
-        let f = |v: (i64, i64)| (v.0 as f64, v.1 as f64);
-        let norm = |v: (f64, f64)| v.0.hypot(v.1);
-        let tolerance = (Self::SHARE * norm(f(a)).min(norm(f(b)))).max(1.0);
-        Some(LatticePhase { t1: f(a), t2: f(b), tolerance, lattice: (a, b) })
+        Some(LatticePhase { t1: l.fine.t1, t2: l.fine.t2, tolerance: Self::TOLERANCE_PX, lattice: (l.t1, l.t2) })
     }
 
-    /// Whether offset difference `d` is within the tolerance of a lattice vector (largest
+    /// Where the sample's lattice lands when the block at `pos` is pasted at `origin`: minus
+    /// the offset (sample position − output position).
+    fn shift(pos: (i32, i32), origin: (i32, i32)) -> (f64, f64) {
+        (f64::from(origin.0 - pos.0), f64::from(origin.1 - pos.1))
+    }
+
+    /// Whether the shift difference `d` is within the tolerance of a lattice vector (largest
     /// coordinate of the residual).
-    fn keeps(&self, d: (i32, i32)) -> bool {
+    fn keeps(&self, d: (f64, f64)) -> bool {
         let (t1, t2) = (self.t1, self.t2);
-        let (x, y) = (f64::from(d.0), f64::from(d.1));
+        let (x, y) = d;
         let det = t1.0 * t2.1 - t1.1 * t2.0;
         let (a, b) = ((x * t2.1 - y * t2.0) / det, (t1.0 * y - t1.1 * x) / det);
         let mut best = f64::INFINITY;
@@ -1017,6 +1025,8 @@ impl LatticePhase {
             "how": "the output's size keeps the sample's lattice whole across the wrap: every block in the first block's lattice phase",
             "t1": [self.lattice.0.0, self.lattice.0.1],
             "t2": [self.lattice.1.0, self.lattice.1.1],
+            "t1_fine": [self.t1.0, self.t1.1],
+            "t2_fine": [self.t2.0, self.t2.1],
             "tolerance_px": (self.tolerance * 1000.0).round() / 1000.0,
         })
     }
