@@ -48,6 +48,14 @@ pub fn run(args: Args) -> Result<Outcome, Error> {
             l.explained,
             l.candidates
         ));
+        if l.fine.peaks > 0 {
+            say(format!(
+                "to a fraction of a pixel: t1 = ({:.2}, {:.2}), t2 = ({:.2}, {:.2}) (fitted to {} autocorrelation peaks)",
+                l.fine.t1.0, l.fine.t1.1, l.fine.t2.0, l.fine.t2.1, l.fine.peaks
+            ));
+        } else {
+            say("not refined below a pixel (too few clear autocorrelation peaks)".to_string());
+        }
         if let Some(view) = l.found_in {
             say(format!("found in the sample's {view} (its plain gray shows no lattice)"));
         }

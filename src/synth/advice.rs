@@ -625,7 +625,7 @@ fn scaled(a: Analysis, f: i64, (width, height): (u32, u32)) -> Analysis {
     Analysis {
         width,
         height,
-        lattice: a.lattice.map(|l| Lattice { t1: v(l.t1), t2: v(l.t2), ..l }),
+        lattice: a.lattice.map(|l| Lattice { t1: v(l.t1), t2: v(l.t2), fine: l.fine.scaled(f as f64), ..l }),
         grid_repeat: a.grid_repeat.map(|g| GridRepeat { block: v(g.block), miss_px: g.miss_px * f as f64, ..g }),
         along_vectors: a.along_vectors.into_iter().map(|r| VectorRepeat { vector: v(r.vector), ..r }).collect(),
         flat_bands: a.flat_bands.into_iter().map(|(b, s)| (b * f, s)).collect(),
@@ -1473,7 +1473,16 @@ mod tests {
     }
 
     fn lattice(t1: (i64, i64), t2: (i64, i64)) -> Lattice {
-        Lattice { t1, t2, peak1: 0.5, peak2: 0.5, candidates: 16, explained: 16, found_in: None }
+        Lattice {
+            t1,
+            t2,
+            peak1: 0.5,
+            peak2: 0.5,
+            candidates: 16,
+            explained: 16,
+            found_in: None,
+            fine: crate::synth::lattice::FineVectors::exact(t1, t2),
+        }
     }
 
     #[test]

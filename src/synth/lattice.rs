@@ -89,6 +89,34 @@ pub struct Lattice {
     /// ([`FallbackView::name`]); absent (and not serialised) for the gray plane itself.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub found_in: Option<&'static str>,
+    /// `t1` and `t2` to a fraction of a pixel ([`refine`]): the same basis, read off the
+    /// positions of the autocorrelation peaks at many of its combinations. `t1`, `t2` are these
+    /// rounded (within a pixel), and stay what the methods cut texels on; the fine ones are for
+    /// whatever adds periods up over a long distance (a tileable output's wrap, hundreds of px on).
+    pub fine: FineVectors,
+}
+
+/// Lattice vectors to a fraction of a pixel (see [`refine`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct FineVectors {
+    pub t1: (f64, f64),
+    pub t2: (f64, f64),
+    /// The autocorrelation peaks the vectors were fitted to (`m·t1 + n·t2`); 0 when too few
+    /// clear peaks were found and the vectors are the whole-pixel ones.
+    pub peaks: usize,
+}
+
+impl FineVectors {
+    /// The whole-pixel vectors as they are (a lattice a job gave, or one made up in a test).
+    pub fn exact(t1: (i64, i64), t2: (i64, i64)) -> FineVectors {
+        let f = |v: (i64, i64)| (v.0 as f64, v.1 as f64);
+        FineVectors { t1: f(t1), t2: f(t2), peaks: 0 }
+    }
+
+    /// Both vectors times `f` (the lattice of a copy reduced `f` times, in the original's pixels).
+    pub fn scaled(self, f: f64) -> FineVectors {
+        FineVectors { t1: (self.t1.0 * f, self.t1.1 * f), t2: (self.t2.0 * f, self.t2.1 * f), ..self }
+    }
 }
 
 impl Lattice {
@@ -476,7 +504,185 @@ fn extract_from(
         None => (t1, t2, peak1, peak2, explained),
     };
     let (t1, t2) = canonical(t1, t2);
-    Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained, found_in: None })
+    let fine = refine(plane, (w, h), planner, t1, t2);
+    Ok(Lattice { t1, t2, peak1, peak2, candidates: c.len(), explained, found_in: None, fine })
+}
+
+/// Combinations `m·t1 + n·t2` [`refine`] looks for: `|m|, |n|` up to this (and inside the window).
+const REFINE_COEFFICIENT: i64 = 12;
+/// A combination's peak is used when its overlap mean reaches this share of the weaker of the
+/// two vectors' own: far out, or where the sample's texels vary, a peak is too weak and flat to
+/// place to a fraction of a pixel.
+const REFINE_PEAK_SHARE: f64 = 0.5;
+
+/// How far [`refine`] climbs from where it looks for a peak, in pixels.
+const CLIMB_STEPS: usize = 2;
+/// How far from where [`refine`] looked for it a peak may lie and still be taken as the
+/// lattice's: a pixel. Past the third period metal_tread_studs' peaks split in two, one where
+/// the first three put them (106.8 px across) and one 5 px short (101.5 px: the sample's
+/// texels shift by that much somewhere across it); the nearer share of the sample is the one
+/// the fit should follow, not a blend of the two.
+const REFINE_MISS_PX: f64 = 1.0;
+
+/// `t1, t2` to a fraction of a pixel: the positions of the autocorrelation peaks at the
+/// combinations `m·t1 + n·t2` (up to [`REFINE_COEFFICIENT`], within the ACF window), each the
+/// local maximum near where the vectors found so far put it, placed between pixels by a parabola
+/// through it and its two neighbours along each axis; then the least-squares `t1, t2` of
+/// `p(m, n) ≈ m·t1 + n·t2`, peak `(m, n)`'s error divided by `m, n`. Rings `max(|m|, |n|) = 1,
+/// 2, …` are added in turn and the vectors refitted after each, so a peak far out is looked for
+/// where the nearer ones put it (the whole-pixel vectors are up to half a pixel off: 8 periods
+/// on that is 4 px, the next peak over on a short lattice).
+///
+/// The autocorrelation is the sample's under a taper ([`taper`]), divided by the taper's own. Untapered,
+/// the overlap at a shift `d` ends part-way through a period, and where it ends moves with `d`:
+/// that tilts every peak by a tenth of a pixel or so (blobs 26.7 px apart read 26.63 from their
+/// first peak), always the same way on a given sample, so more peaks do not average it out. The
+/// taper lets the overlap fade out instead of ending (blobs 26.7 px apart then read 26.70);
+/// dividing by the taper's autocorrelation removes its fall-off away from the origin, which would
+/// pull every peak towards it. The taper stays flat over the middle half: one falling all the
+/// way to the centre (Hann) weighs the middle most, and where a sample's texels jump there (the
+/// 6 px half-way across metal_tread_studs) reads a period no part of the sample has (26.49 px
+/// against 26.6 on either side of the jump).
+///
+/// metal_tread_studs (27, 0), (0, 26): 26.57 px across and 25.96 down, which its whole-pixel
+/// vectors call 27 and 26 (16 periods across are 425 px, not 432).
+fn refine(plane: &[f64], (w, h): (usize, usize), planner: &mut AcfPlanner, t1: (i64, i64), t2: (i64, i64)) -> FineVectors {
+    let (hx, hy) = (taper(w), taper(h));
+    let tapered: Vec<f64> = plane.iter().enumerate().map(|(i, v)| v * hx[i % w] * hy[i / w]).collect();
+    let Ok(acf) = planner.real(&tapered, w, h, w / 2, h / 2, AcfForm::Biased) else { return FineVectors::exact(t1, t2) };
+    let (rx, ry) = (acf.rx() as i64, acf.ry() as i64);
+    // The taper's own autocorrelation, separable: what the sample's is divided by.
+    let lagged = |t: &[f64], d: usize| -> f64 { t.iter().zip(&t[d..]).map(|(a, b)| a * b).sum() };
+    let (ax, ay): (Vec<f64>, Vec<f64>) = ((0..=w / 2).map(|d| lagged(&hx, d)).collect(), (0..=h / 2).map(|d| lagged(&hy, d)).collect());
+    let mean = |dx: i64, dy: i64| acf.get(dx, dy) / (ax[dx.unsigned_abs() as usize] * ay[dy.unsigned_abs() as usize]);
+    // A peak needs its 8 neighbours inside the window.
+    let inner = |x: i64, y: i64| x.abs() < rx && y.abs() < ry;
+    let mut fine = FineVectors::exact(t1, t2);
+    if !inner(t1.0, t1.1) || !inner(t2.0, t2.1) {
+        return fine;
+    }
+    let floor = REFINE_PEAK_SHARE * mean(t1.0, t1.1).min(mean(t2.0, t2.1));
+    // The local maximum reached by climbing from `start` (ties: the first neighbour in row-major
+    // order), at most `steps` pixels away.
+    let climb = |start: (i64, i64), steps: usize| -> Option<(i64, i64)> {
+        let mut at = start;
+        for _ in 0..=steps {
+            let mut best = at;
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let q = (at.0 + dx, at.1 + dy);
+                    if inner(q.0, q.1) && mean(q.0, q.1) > mean(best.0, best.1) {
+                        best = q;
+                    }
+                }
+            }
+            if best == at {
+                return Some(at);
+            }
+            at = best;
+        }
+        None
+    };
+    // The vertex of the parabola through three values, as an offset from the middle one.
+    let vertex = |l: f64, c: f64, r: f64| -> f64 {
+        let curvature = l - 2.0 * c + r;
+        if curvature < 0.0 { ((l - r) / (2.0 * curvature)).clamp(-0.5, 0.5) } else { 0.0 }
+    };
+    let mut found: Vec<((f64, f64), (f64, f64))> = Vec::new();
+    for ring in 1..=REFINE_COEFFICIENT {
+        let before = found.len();
+        for n in -ring..=ring {
+            for m in -ring..=ring {
+                // One of each ± pair (the ACF is symmetric), on this ring only.
+                if m.abs().max(n.abs()) != ring || n < 0 || (n == 0 && m < 0) {
+                    continue;
+                }
+                let (mf, nf) = (m as f64, n as f64);
+                let guess = (mf * fine.t1.0 + nf * fine.t2.0, mf * fine.t1.1 + nf * fine.t2.1);
+                let start = (guess.0.round() as i64, guess.1.round() as i64);
+                if !inner(start.0, start.1) {
+                    continue;
+                }
+                let Some(p) = climb(start, CLIMB_STEPS) else { continue };
+                let v = mean(p.0, p.1);
+                if v < floor {
+                    continue;
+                }
+                let px = p.0 as f64 + vertex(mean(p.0 - 1, p.1), v, mean(p.0 + 1, p.1));
+                let py = p.1 as f64 + vertex(mean(p.0, p.1 - 1), v, mean(p.0, p.1 + 1));
+                if (px - guess.0).abs().max((py - guess.1).abs()) > REFINE_MISS_PX {
+                    continue;
+                }
+                found.push(((mf, nf), (px, py)));
+            }
+        }
+        if found.len() == before {
+            break;
+        }
+        if let Some((a, b)) = least_squares(&found) {
+            fine = FineVectors { t1: a, t2: b, peaks: found.len() };
+        }
+    }
+    // Trusted when more peaks than the two it needs agree with it within half a pixel (root
+    // mean square), and it stays within a pixel of the whole-pixel vectors (further, it has
+    // followed other peaks than the lattice's). Ridges instead of peaks (courses of random-length
+    // bricks) give two peaks or none: the whole-pixel vectors stay.
+    let residual = {
+        let sum: f64 = found
+            .iter()
+            .map(|&((m, n), p)| {
+                let (x, y) = (p.0 - m * fine.t1.0 - n * fine.t2.0, p.1 - m * fine.t1.1 - n * fine.t2.1);
+                x * x + y * y
+            })
+            .sum();
+        (sum / found.len().max(1) as f64).sqrt()
+    };
+    let near = |f: (f64, f64), t: (i64, i64)| (f.0 - t.0 as f64).abs() < 1.0 && (f.1 - t.1 as f64).abs() < 1.0;
+    if found.len() >= REFINE_MIN_PEAKS && residual <= REFINE_RESIDUAL_PX && near(fine.t1, t1) && near(fine.t2, t2) {
+        fine
+    } else {
+        FineVectors::exact(t1, t2)
+    }
+}
+
+/// [`refine`] keeps its fit when at least this many peaks went into it (one more than the two
+/// vectors need, so that they check each other) ...
+const REFINE_MIN_PEAKS: usize = 3;
+/// ... and they lie within this many pixels of it (root mean square).
+const REFINE_RESIDUAL_PX: f64 = 0.5;
+
+/// The taper over `n` pixels: flat in the middle half, falling to 0 along half a cosine over the
+/// outer quarter on each side (a Tukey window).
+fn taper(n: usize) -> Vec<f64> {
+    let edge = 0.25 * n as f64;
+    (0..n)
+        .map(|i| {
+            let from_edge = (i as f64 + 0.5).min(n as f64 - i as f64 - 0.5);
+            if from_edge >= edge { 1.0 } else { (std::f64::consts::FRAC_PI_2 * from_edge / edge).sin().powi(2) }
+        })
+        .collect()
+}
+
+/// The `t1, t2` minimising `Σ |p − (m·t1 + n·t2)|²` over `((m, n), p)`, or `None` when the
+/// coefficients do not span both vectors.
+fn least_squares(found: &[((f64, f64), (f64, f64))]) -> Option<((f64, f64), (f64, f64))> {
+    let (mut smm, mut smn, mut snn) = (0.0, 0.0, 0.0);
+    let (mut smp, mut snp) = ((0.0, 0.0), (0.0, 0.0));
+    for &((m, n), p) in found {
+        smm += m * m;
+        smn += m * n;
+        snn += n * n;
+        smp = (smp.0 + m * p.0, smp.1 + m * p.1);
+        snp = (snp.0 + n * p.0, snp.1 + n * p.1);
+    }
+    let det = smm * snn - smn * smn;
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    let solve = |a: f64, b: f64| ((snn * a - smn * b) / det, (smm * b - smn * a) / det);
+    let (t1x, t2x) = solve(smp.0, snp.0);
+    let (t1y, t2y) = solve(smp.1, snp.1);
+    Some(((t1x, t1y), (t2x, t2y)))
 }
 
 /// How much more clearly a sublattice must repeat than the lattice found before it is taken
@@ -578,6 +784,58 @@ mod tests {
         let s = extract(&periodic(200, 200, (24, 0), (12, 20)), &LatticeOptions::default()).unwrap();
         assert!(s.determinant() == 24 * 20, "{s:?}");
         assert!(s.t1.0 > 0 && s.determinant() > 0);
+    }
+
+    /// Round blobs on the lattice `t1, t2` given to a fraction of a pixel.
+    fn blobs(w: u32, h: u32, t1: (f64, f64), t2: (f64, f64)) -> RgbImage {
+        let d = t1.0 * t2.1 - t1.1 * t2.0;
+        RgbImage::from_fn(w, h, |x, y| {
+            let (x, y) = (f64::from(x), f64::from(y));
+            let a = (x * t2.1 - y * t2.0) / d;
+            let b = (t1.0 * y - t1.1 * x) / d;
+            let (fa, fb) = (a - a.round(), b - b.round());
+            // A smooth bump, so its position between pixels shows in the pixel values.
+            let v = 60.0 + 150.0 * (-(fa * fa + fb * fb) / 0.06).exp();
+            let v = v as u8;
+            [v, v, v]
+        })
+    }
+
+    #[test]
+    fn the_fine_vectors_find_a_period_between_whole_pixels() {
+        for (t1, t2) in [((26.7, 0.0), (0.0, 23.4)), ((30.3, 0.0), (15.15, 21.6)), ((26.62, -0.03), (-0.03, 25.96))] {
+            let l = extract(&blobs(256, 256, t1, t2), &LatticeOptions::default()).unwrap();
+            let f = l.fine;
+            assert!(f.peaks >= 8, "{l:?}");
+            // The same lattice (the basis may be another one): each true vector is a whole
+            // combination of the fine ones within 0.05 px, and the texel areas agree.
+            let det = |a: (f64, f64), b: (f64, f64)| a.0 * b.1 - a.1 * b.0;
+            let d = det(f.t1, f.t2);
+            for t in [t1, t2] {
+                let (a, b) = ((det(t, f.t2) / d).round(), (det(f.t1, t) / d).round());
+                let r = (t.0 - a * f.t1.0 - b * f.t2.0, t.1 - a * f.t1.1 - b * f.t2.1);
+                assert!(r.0.abs().max(r.1.abs()) <= 0.05, "{t:?}: residual {r:?} ({l:?})");
+            }
+            assert!((d.abs() / det(t1, t2).abs() - 1.0).abs() < 0.005, "{l:?}");
+            for (fine, whole) in [(f.t1, l.t1), (f.t2, l.t2)] {
+                assert!((fine.0 - whole.0 as f64).abs() < 1.0 && (fine.1 - whole.1 as f64).abs() < 1.0, "{l:?}");
+            }
+        }
+        // Whole-pixel lattices stay whole.
+        let l = extract(&periodic(160, 160, (20, 0), (0, 16)), &LatticeOptions::default()).unwrap();
+        assert!((l.fine.t1.0 - 20.0).abs() < 0.02 && l.fine.t1.1.abs() < 0.02 && (l.fine.t2.1 - 16.0).abs() < 0.02, "{l:?}");
+    }
+
+    #[test]
+    fn least_squares_recovers_exact_vectors() {
+        let (t1, t2) = ((26.7, 0.1), (-0.2, 25.9));
+        let found: Vec<((f64, f64), (f64, f64))> = [(1.0, 0.0), (0.0, 1.0), (2.0, 1.0), (-1.0, 3.0)]
+            .into_iter()
+            .map(|(m, n)| ((m, n), (m * t1.0 + n * t2.0, m * t1.1 + n * t2.1)))
+            .collect();
+        let (a, b) = least_squares(&found).unwrap();
+        assert!((a.0 - t1.0).abs() < 1e-9 && (a.1 - t1.1).abs() < 1e-9 && (b.0 - t2.0).abs() < 1e-9 && (b.1 - t2.1).abs() < 1e-9);
+        assert!(least_squares(&found[..1]).is_none(), "one peak cannot give two vectors");
     }
 
     #[test]
