@@ -238,8 +238,10 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         } else {
             None
         };
-        let image_copyable =
-            early_fill.as_ref().zip(job.inpaint.as_ref()).map(|((_, region), i)| image_copyable(region, i.copy_from_image));
+        let image_copyable = early_fill
+            .as_ref()
+            .zip(job.inpaint.as_ref())
+            .map(|((_, region), i)| crate::batch::samples::image_copyable(region, i.copy_from_image));
         let atlas = match atlas_of(&job, &sample, &loaded, image_copyable.as_ref()) {
             Ok(a) => a,
             Err(errors) => {
@@ -283,16 +285,19 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
                 continue;
             }
         };
+        // With several samples, each companion's maps of the other samples (materials checked
+        // they decoded): packed with the first into the atlas, and recorded.
+        let more_maps: Vec<Vec<Arc<LoadedSample>>> =
+            job.companions.iter().map(|c| c.more_samples.iter().filter_map(|p| loaded[p].as_ref().ok().cloned()).collect()).collect();
         let mut atlas = atlas;
         if let Some(a) = &mut atlas {
-            // Each sample's own map, packed like the samples (materials checked they decoded).
             a.companions = job
                 .companions
                 .iter()
                 .zip(&companions)
-                .map(|(c, l)| {
-                    let maps: Vec<&LoadedSample> =
-                        std::iter::once(&**l).chain(c.more_samples.iter().filter_map(|p| loaded[p].as_ref().ok().map(|m| &**m))).collect();
+                .zip(&more_maps)
+                .map(|((c, l), more)| {
+                    let maps: Vec<&LoadedSample> = std::iter::once(&**l).chain(more.iter().map(|m| &**m)).collect();
                     pack_map(&a.atlas, &maps, c.kind)
                 })
                 .collect();
@@ -326,8 +331,6 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
             needs_placement.then_some(memory::Materials { companions: job.companions.len(), source_map: job.output.source_map.is_some() });
         let estimate =
             memory::job_estimate_with(job.method, &job.params, sample.image.dimensions(), &job.output, !job.metrics.is_empty(), materials);
-        let more_maps: Vec<Vec<Arc<LoadedSample>>> =
-            job.companions.iter().map(|c| c.more_samples.iter().filter_map(|p| loaded[p].as_ref().ok().cloned()).collect()).collect();
         let masks = Masks {
             more_companions: &more_maps,
             samples: atlas.as_ref().map(|_| samples_of(&job, &loaded)),
@@ -467,17 +470,6 @@ fn atlas_of(
         all.iter().enumerate().map(|(i, (p, s, _))| (p.as_path(), if i == 0 { first.clone() } else { s.clone() })).collect();
     let masks: Vec<Option<(&Path, &LoadedSample)>> = all.iter().map(|(_, _, m)| m.as_ref().map(|(p, l)| (p.as_path(), &**l))).collect();
     assemble(&samples, &masks, &job.augment, image_copyable).map(Some).map_err(|(key, message)| vec![job.error(Some(key), message)])
-}
-
-/// Which pixels of an inpainting job's image its fill may copy: those outside the hole, or none
-/// when the job lists other samples without the image.
-pub fn image_copyable(region: &FillRegion, copy_from_image: bool) -> SampleMask {
-    let known = region.known();
-    if copy_from_image {
-        return known;
-    }
-    let (w, h) = known.dimensions();
-    SampleMask::new(w, h, vec![false; w as usize * h as usize])
 }
 
 /// The job's fill region when it inpaints, from its mask image or one of its image's channels,

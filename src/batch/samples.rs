@@ -44,7 +44,7 @@ pub type SampleProblem = (&'static str, String);
 
 /// Packs `samples` (each with its path and optional mask) and their `augment` copies;
 /// `image_copyable` further restricts the first sample when it is an inpainting job's image (its
-/// hole, or all of it when only other samples are copied from: [`crate::batch::plan::image_copyable`]). Checks
+/// hole, or all of it when only other samples are copied from: [`image_copyable`]). Checks
 /// that they share channels and precision, that each mask has its sample's size, and that the
 /// masks leave something to copy ([`AtlasSamples::check_block`] checks the method's block once
 /// its parameters are resolved for the atlas).
@@ -120,4 +120,15 @@ pub fn assemble(
 pub fn pack_map(atlas: &Atlas, maps: &[&LoadedSample], kind: MapKind) -> LoadedSample {
     let natives: Vec<_> = maps.iter().map(|m| m.native_or_guide()).collect();
     LoadedSample::from_native(atlas.compose(&natives.iter().map(|n| &**n).collect::<Vec<_>>(), kind))
+}
+
+/// Which pixels of an inpainting job's image its fill may copy: those outside the hole, or none
+/// when the job lists other samples without the image.
+pub fn image_copyable(region: &crate::synth::constraints::FillRegion, copy_from_image: bool) -> SampleMask {
+    let known = region.known();
+    if copy_from_image {
+        return known;
+    }
+    let (w, h) = known.dimensions();
+    SampleMask::new(w, h, vec![false; w as usize * h as usize])
 }

@@ -235,7 +235,7 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
     // Several samples or `augment`: the atlas the job searched, from the recorded files.
     let image_copyable = fill.as_ref().map(|r| {
         let copy = spec.pointer("/inpaint/copy_from_image").and_then(|c| c.as_bool()).unwrap_or(true);
-        crate::batch::plan::image_copyable(r, copy)
+        crate::batch::samples::image_copyable(r, copy)
     });
     let atlas = match atlas_of_record(rec, spec, dir, &loaded, image_copyable.as_ref()) {
         Ok(a) => a,
