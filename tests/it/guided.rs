@@ -240,30 +240,6 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     }
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
     let target = rgb(&repo().join("jobs/samples/guided/target_rings.png"));
-    let cells = |img: &texsyn::RgbImage| -> Vec<f64> {
-        let (w, h) = img.dimensions();
-        let mut v = Vec::new();
-        for cy in 0..h / 16 {
-            for cx in 0..w / 16 {
-                let mut sum = 0.0;
-                for y in cy * 16..cy * 16 + 16 {
-                    for x in cx * 16..cx * 16 + 16 {
-                        let p = img.get(x, y);
-                        sum += 0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
-                    }
-                }
-                v.push(sum / 256.0);
-            }
-        }
-        v
-    };
-    let correlation = |a: &[f64], b: &[f64]| {
-        let n = a.len() as f64;
-        let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-        let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
-        let (va, vb): (f64, f64) = (a.iter().map(|x| (x - ma).powi(2)).sum(), b.iter().map(|y| (y - mb).powi(2)).sum());
-        cov / (va * vb).sqrt()
-    };
     let t = cells(&target);
     let guided = rgb(&d.join("out/guided/transfer_rings.png"));
     let unguided = rgb(&d.join("out/guided/unguided.png"));
@@ -282,6 +258,80 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     assert!(rec["guide_target"]["path"].as_str().unwrap().ends_with("target_rings.png"), "{rec}");
     assert_eq!(rec["output_spec"]["guide"]["source"], "luminance", "{rec}");
     assert_eq!(rec["output_spec"]["guide"]["passes"], 3, "{rec}");
+    run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
+    run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
+    let one = json(&d.join("one/manifest.json"));
+    for (a, b) in m["jobs"].as_array().unwrap().iter().zip(one["jobs"].as_array().unwrap()) {
+        assert_eq!(a["outputs"][0]["pixel_digest"], b["outputs"][0]["pixel_digest"], "{}: -j 1 = -j 2", a["id"]);
+    }
+}
+
+/// Luminance averaged over 16-pixel cells.
+fn cells(img: &texsyn::RgbImage) -> Vec<f64> {
+    let (w, h) = img.dimensions();
+    let mut v = Vec::new();
+    for cy in 0..h / 16 {
+        for cx in 0..w / 16 {
+            let mut sum = 0.0;
+            for y in cy * 16..cy * 16 + 16 {
+                for x in cx * 16..cx * 16 + 16 {
+                    let p = img.get(x, y);
+                    sum += 0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
+                }
+            }
+            v.push(sum / 256.0);
+        }
+    }
+    v
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+    let (va, vb): (f64, f64) = (a.iter().map(|x| (x - ma).powi(2)).sum(), b.iter().map(|y| (y - mb).powi(2)).sum());
+    cov / (va * vb).sqrt()
+}
+
+/// A tileable transfer (`[guide]` with `output.tileable`): quilting and patch sampling (swarm and
+/// exhaustive), two passes each on its own torus, follow the target as a plain transfer does and
+/// wrap as a plain tileable output does: the jump across the wrap is like any other neighbour
+/// pair's, while the same job without `tileable` shows its edges. Reproducible and verified.
+#[test]
+fn a_tileable_transfer_wraps_and_follows_the_target() {
+    let d = scratch("transfer-wrap");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let text = std::fs::read_to_string(repo().join("jobs/guided/transfer_rings.toml")).unwrap();
+    let text = text.replace("../samples/", &format!("{}/", repo().join("jobs/samples").display())).replace("passes = 3", "passes = 2");
+    for (name, method, tileable, params) in [
+        ("quilting", "quilting", true, ""),
+        ("quilting_plain", "quilting", false, ""),
+        ("ps", "patch-sampling", true, ""),
+        ("ps_exhaustive", "patch-sampling", true, "search = \"exhaustive\"\n"),
+    ] {
+        let t = text
+            .replace("method = \"quilting\"", &format!("method = \"{method}\""))
+            .replace("guided/transfer_rings.png", &format!("{name}.png"))
+            .replace("height = 256\n", if tileable { "height = 256\ntileable = true\n" } else { "height = 256\n" });
+        std::fs::write(jobs.join(format!("{name}.toml")), format!("{t}{params}")).unwrap();
+    }
+    run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
+    let t = cells(&rgb(&repo().join("jobs/samples/guided/target_rings.png")));
+    let wrap = |name: &str| texsyn::metrics::seams::wrap_visibility(&rgb(&d.join(format!("out/{name}.png")))).unwrap();
+    let plain = wrap("quilting_plain");
+    for name in ["quilting", "ps", "ps_exhaustive"] {
+        let out = rgb(&d.join(format!("out/{name}.png")));
+        assert_eq!(out.dimensions(), (384, 256), "{name}");
+        let c = correlation(&cells(&out), &t);
+        assert!(c > 0.6, "{name}: the tileable output follows the target: correlation {c:.2}");
+        let v = wrap(name);
+        assert!(v < 1.3 && v < plain, "{name}: the wrap is like any neighbour pair: {v:.2} (not tileable: {plain:.2})");
+    }
+    let m = json(&d.join("out/manifest.json"));
+    for rec in m["jobs"].as_array().unwrap() {
+        assert_eq!(rec["status"], "ok", "{rec}");
+    }
     run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
     run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
     let one = json(&d.join("one/manifest.json"));
@@ -313,7 +363,6 @@ fn bad_guides_are_refused_by_key() {
     write("method.toml", "wang-tiles", &format!("target = \"{target}\""), "");
     write("weight.toml", "quilting", &format!("target = \"{target}\"\nweight = 1.5"), "");
     write("passes.toml", "quilting", &format!("target = \"{target}\"\npasses = 0"), "");
-    write("wrap.toml", "quilting", &format!("target = \"{target}\""), "tileable = true");
     write("missing.toml", "quilting", "weight = 0.5", "");
     write("good.toml", "quilting", &format!("target = \"{target}\"\npasses = 1"), "");
     let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("out")).arg(&jobs)));
@@ -326,7 +375,6 @@ fn bad_guides_are_refused_by_key() {
         "method.toml:4:1: `guide`: wang-tiles cannot follow a guide; methods that can: quilting, patch-sampling",
         "weight.toml:6:10: `guide.weight`: 1.5 is out of range",
         "passes.toml:6:10: `guide.passes`: 0 is out of range: allowed 1..=8",
-        "wrap.toml:4:1: `guide`: a guided output cannot wrap yet",
         "missing.toml:4:1: `guide.target`: missing required key `guide.target`",
     ] {
         assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
@@ -376,13 +424,12 @@ fn a_guide_leads_the_fill_of_a_hole() {
     job("plain", "quilting", "");
     job("passes", "quilting", &format!("{guide}passes = 3\n"));
     job("ps", "patch-sampling", &guide);
+    job("ps_exhaustive", "patch-sampling", &guide);
+    let exhaustive = jobs.join("ps_exhaustive.toml");
+    write(&exhaustive, &format!("{}search = \"exhaustive\"\n", std::fs::read_to_string(&exhaustive).unwrap()));
     let said = text(&run(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs)));
-    for expected in [
-        "passes.toml:9:10: `guide.passes`: an [inpaint] job fills its hole in one guided pass",
-        "ps.toml:6:1: `guide`: patch-sampling cannot follow a guide while it inpaints (yet); methods that can: quilting",
-    ] {
-        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
-    }
+    let expected = "passes.toml:9:10: `guide.passes`: an [inpaint] job fills its hole in one guided pass";
+    assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
     let luma = |p: [u8; 3]| (299.0 * f64::from(p[0]) + 587.0 * f64::from(p[1]) + 114.0 * f64::from(p[2])) / 1000.0;
     let halves = |name: &str| {
         let out = rgb(&d.join(format!("out/{name}.png")));
@@ -400,9 +447,12 @@ fn a_guide_leads_the_fill_of_a_hole() {
         }
         (sums[0] / counts[0], sums[1] / counts[1])
     };
-    let (guided_dark, guided_light) = halves("guided");
     let (plain_left, plain_right) = halves("plain");
-    assert!(guided_light - guided_dark > 40.0, "the guide leads the fill: {guided_dark:.1} vs {guided_light:.1}");
+    // Quilting, and patch sampling with its swarm and with its exhaustive search.
+    for name in ["guided", "ps", "ps_exhaustive"] {
+        let (dark, light) = halves(name);
+        assert!(light - dark > 40.0, "{name}: the guide leads the fill: {dark:.1} vs {light:.1}");
+    }
     assert!((plain_right - plain_left).abs() < 25.0, "unguided, the halves are alike: {plain_left:.1} vs {plain_right:.1}");
     let m = json(&d.join("out/manifest.json"));
     let rec = m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == "guided.toml").unwrap();

@@ -548,7 +548,7 @@ fn read_guide(ctx: &mut Ctx, t: &DeTable, span: std::ops::Range<usize>) -> RawGu
 }
 
 /// `[guide]` checked against the rest of the file: a target that exists, a source that exists
-/// when given, a method that follows guides, and not together with inpainting or wrapping yet.
+/// when given, a method that follows guides (while it inpaints, too), one pass for a hole.
 fn check_guide(
     ctx: &mut Ctx,
     g: RawGuide,
@@ -581,10 +581,6 @@ fn check_guide(
             Some("guide.passes"),
             format!("an [inpaint] job fills its hole in one guided pass: leave `guide.passes` out or set it to 1 (found {passes})"),
         );
-        ok = false;
-    }
-    if raw.tileable {
-        ctx.err(Some(g.span.clone()), Some("guide"), "a guided output cannot wrap yet: leave output.tileable out");
         ok = false;
     }
     if let (Some((_, span)), Some((list, _))) = (&g.source, &raw.samples)

@@ -202,9 +202,6 @@ impl Method for Quilting {
         if let Some(guide) = req.constraints.guide
             && req.constraints.fill.is_none()
         {
-            if req.tileable {
-                return Err(SynthError::Failed("guided synthesis does not combine with tileable output yet".into()));
-            }
             return self.synthesize_guided(req, &cfg, guide);
         }
         if let Some(region) = req.constraints.fill {
@@ -398,6 +395,12 @@ fn pick(seed: u64, bi: u32, bj: u32, members: &[(u32, u32, u64)]) -> (u32, u32) 
     (p.0, p.1)
 }
 
+/// The blocks of one guided pass: the plain raster, or a torus when the output wraps.
+enum Grid {
+    Plain(BlockGrid),
+    Torus(TorusGrid),
+}
+
 /// The torus a tileable output is made on, or why there is none.
 fn torus_of(cfg: &QuiltingConfig, sample: (u32, u32), output: (u32, u32)) -> Result<TorusGrid, String> {
     TorusGrid::of_blocks("quilting", cfg.block, cfg.overlap_or_derived(), sample, output)
@@ -408,6 +411,8 @@ impl Quilting {
     /// by its overlap error weighed against its guide error (`methods::guide`), one at a time;
     /// with several passes (Efros and Freeman's iteration), each pass's blocks a third smaller and
     /// matched over the whole block against the previous pass, under a guide weighing less.
+    /// Tileable, every pass is laid on its own torus (`synthesize_torus`'s sides and cuts) and
+    /// the target guide wraps with it.
     fn synthesize_guided(
         &self,
         req: &Request,
@@ -415,7 +420,8 @@ impl Quilting {
         guide: &crate::synth::constraints::Guide,
     ) -> Result<Synthesis, SynthError> {
         let sample = req.sample;
-        if guide.target.dimensions() != (req.width, req.height) || guide.source.dimensions() != sample.dimensions() {
+        let (w, h) = (req.width, req.height);
+        if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
             return Err(SynthError::Failed("the guides must have the output's and the sample's sizes".into()));
         }
         let rule = cfg.overlap_rule();
@@ -432,58 +438,91 @@ impl Quilting {
             let weight = guide.weight;
             // Blocks only shrink, so a mask that left room for the first pass's leaves room here.
             let allowed = copyable.as_ref().map(|mask| mask.block_positions(block, block));
-            let layout = BlockGrid::new(block, overlap, req.width, req.height);
-            let (cw, ch) = layout.canvas();
-            // The last blocks reach past the output (they are cropped): the target guide goes on
-            // there as its own edge, so that those blocks are still guided where they show.
-            let target = RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1)));
+            let grid = if req.tileable {
+                Grid::Torus(TorusGrid::of_blocks("quilting", block, overlap, sample.dimensions(), (w, h)).map_err(SynthError::Failed)?)
+            } else {
+                Grid::Plain(BlockGrid::new(block, overlap, w, h))
+            };
+            // The last blocks reach past the output: the target guide goes on there as its own
+            // edge (those blocks are cropped, but still guided where they show), or wraps.
+            let target = match &grid {
+                Grid::Plain(layout) => {
+                    let (cw, ch) = layout.canvas();
+                    RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(w - 1), y.min(h - 1)))
+                }
+                Grid::Torus(_) => RgbImage::from_fn(w + block, h + block, |x, y| guide.target.get(x % w, y % h)),
+            };
             let mut search = super::guide::GuidedSearch::new(sample, &guide.source, &target, block, weight, allowed);
+            let (cw, ch) = match &grid {
+                Grid::Plain(layout) => layout.canvas(),
+                Grid::Torus(t) => t.size(),
+            };
             let mut canvas = Canvas::new(cw, ch, sample.dimensions(), req.placement);
             if let Some(prev) = &previous {
                 // Every pixel is written again by this pass's blocks: the previous pass is only
                 // what the blocks are matched against where this pass has not been yet.
-                canvas.image = RgbImage::from_fn(cw, ch, |x, y| prev.get(x.min(req.width - 1), y.min(req.height - 1)));
+                canvas.image = RgbImage::from_fn(cw, ch, |x, y| prev.get(x.min(w - 1), y.min(h - 1)));
             }
+            let whole = || vec![Rect::new(0, 0, block, block)];
             let mut candidate_counts = Vec::new();
-            for bi in 0..layout.rows {
-                for bj in 0..layout.cols {
-                    let origin = layout.origin(bi, bj);
-                    let regions = if previous.is_some() { vec![Rect::new(0, 0, block, block)] } else { layout.overlap_regions(bi, bj) };
-                    let members = search.candidates(&canvas.image, origin, &regions, origin, cfg.tolerance);
-                    candidate_counts.push(members.len());
-                    let label = if pass == 0 {
-                        format!("quilt/guided/bi={bi}/bj={bj}")
-                    } else {
-                        format!("quilt/guided/pass={pass}/bi={bi}/bj={bj}")
-                    };
-                    let mut s = Stream::new(req.seed, &label);
-                    let src = members[s.below_usize(members.len())];
-                    let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
-                    paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
+            let mut choose = |search: &mut super::guide::GuidedSearch, window: &RgbImage, origin, regions: &[Rect], place, bi, bj| {
+                let members = search.candidates(window, origin, regions, place, cfg.tolerance);
+                candidate_counts.push(members.len());
+                let label =
+                    if pass == 0 { format!("quilt/guided/bi={bi}/bj={bj}") } else { format!("quilt/guided/pass={pass}/bi={bi}/bj={bj}") };
+                let mut s = Stream::new(req.seed, &label);
+                members[s.below_usize(members.len())]
+            };
+            match &grid {
+                Grid::Plain(layout) => {
+                    for bi in 0..layout.rows {
+                        for bj in 0..layout.cols {
+                            let origin = layout.origin(bi, bj);
+                            let regions = if previous.is_some() { whole() } else { layout.overlap_regions(bi, bj) };
+                            let src = choose(&mut search, &canvas.image, origin, &regions, origin, bi, bj);
+                            let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
+                            paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
+                        }
+                    }
+                }
+                Grid::Torus(torus) => {
+                    let mut done = vec![false; (torus.rows * torus.cols) as usize];
+                    for (bi, bj) in torus.raster() {
+                        let sides = torus.sides(&done, bi, bj);
+                        let window = torus.window(&canvas.image, bi, bj);
+                        let regions = if previous.is_some() { whole() } else { torus.regions(bi, bj, sides) };
+                        let src = choose(&mut search, &window, (0, 0), &regions, torus.origin(bi, bj), bi, bj);
+                        torus.paste(&mut canvas, sample, src, bi, bj, sides, rule);
+                        done[torus.index(bi, bj)] = true;
+                    }
                 }
             }
             pass_diagnostics.push(serde_json::json!({
                 "block": block, "overlap": overlap, "weight": weight,
                 "mean_candidates": candidate_counts.iter().sum::<usize>() as f64 / candidate_counts.len().max(1) as f64,
             }));
-            let done = canvas.into_top_left(req.width, req.height);
+            let done = match &grid {
+                Grid::Plain(_) => canvas.into_top_left(w, h),
+                Grid::Torus(_) => canvas,
+            };
             previous = Some(done.image.clone());
-            finished = Some((done, layout));
+            finished = Some((done, grid));
         }
-        let (canvas, layout) = finished.expect("at least one pass");
+        let (canvas, grid) = finished.expect("at least one pass");
         let (image, placement) = canvas.finish();
-        let diagnostics = serde_json::json!({
-            "blocks": { "cols": layout.cols, "rows": layout.rows },
+        let (cols, rows, seams) = match &grid {
+            Grid::Plain(layout) => (layout.cols, layout.rows, layout.seam_grid(w, h)),
+            Grid::Torus(t) => (t.cols, t.rows, t.seam_grid()),
+        };
+        let mut diagnostics = serde_json::json!({
+            "blocks": { "cols": cols, "rows": rows },
             "guided": { "weight": guide.weight, "passes": pass_diagnostics },
         });
-        Ok(Synthesis {
-            image,
-            seams: Some(layout.seam_grid(req.width, req.height)),
-            diagnostics,
-            phases: Vec::new(),
-            extras: Vec::new(),
-            placement,
-        })
+        if let Grid::Torus(t) = &grid {
+            diagnostics["tileable"] = serde_json::json!(true);
+            t.record_fit(&mut diagnostics);
+        }
+        Ok(Synthesis { image, seams: Some(seams), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
 
     /// Quilting on a torus (`primitives::torus`): the same raster order, search and streams, but

@@ -36,7 +36,7 @@ pub(super) fn guided_block(
     twins: Option<&Twins>,
 ) -> BlockResult {
     let tolerance = settings.tolerance.max(0.0);
-    let mut members = search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, tolerance);
+    let mut members = search.candidates(&zone.target, zone.origin, &zone.regions, zone.guide_at, tolerance);
     if let Some(t) = twins {
         // Without the neighbours' twins; when every member is one, a wider set (as quilting).
         let untwinned = |m: &[(u32, u32)]| -> Vec<(u32, u32)> { m.iter().copied().filter(|&p| !t.is_twin(p)).collect() };
@@ -45,7 +45,7 @@ pub(super) fn guided_block(
             if !kept.is_empty() {
                 break;
             }
-            kept = untwinned(&search.candidates(&zone.target, zone.origin, &zone.regions, zone.origin, tolerance + wider));
+            kept = untwinned(&search.candidates(&zone.target, zone.origin, &zone.regions, zone.guide_at, tolerance + wider));
         }
         if !kept.is_empty() {
             members = kept;

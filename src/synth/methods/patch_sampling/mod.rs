@@ -52,8 +52,10 @@
 //! written) with this method's search: patches meet pixels filled earlier along the minimum-error
 //! cut (feathering there averaged rough matches into a washed-out fill), and the border polish
 //! feathers its patches in from the known border (or cuts them in, with `blend = "cut"`). *Guide*: Efros–Freeman's weighed error ([`GuideTerm`]) is the swarm's fitness and the
-//! exhaustive search's criterion (`methods::guide`), with quilting's shrinking passes. Their
-//! streams carry an `inpaint/` or `guided/…` prefix; plain syntheses keep their labels and pixels.
+//! exhaustive search's criterion (`methods::guide`), with quilting's shrinking passes, each on
+//! its own torus when tileable; in a hole (one pass) the target is read where the window goes
+//! ([`Zone::guide_at`]). Their streams carry an `inpaint/`, `inpaint/guided/` or `guided/…`
+//! prefix; plain syntheses keep their labels and pixels.
 //!
 //! **Threads.** A block depends only on blocks earlier in raster order that overlap its zone, so
 //! the blocks with the same `2·bi + bj` ("waves") never touch each other's pixels and the swarm
@@ -273,14 +275,11 @@ impl Method for PatchSampling {
         if copies && !settings.continuations {
             settings.continuations = true;
         }
-        if let Some(guide) = req.constraints.guide {
-            if req.constraints.fill.is_some() || req.tileable {
-                return Err(SynthError::Failed("guided synthesis does not combine with inpainting or tileable output yet".into()));
-            }
-            return self.synthesize_guided(req, &cfg, settings, guide);
-        }
         if let Some(region) = req.constraints.fill {
             return self.inpaint(req, &cfg, settings, region);
+        }
+        if let Some(guide) = req.constraints.guide {
+            return self.synthesize_guided(req, &cfg, settings, guide);
         }
         settings.allowed = allowed_positions(req, block)?;
         let mut synthesis = self.grid(req, &settings, block, overlap, None, None)?;
@@ -304,6 +303,10 @@ impl Method for PatchSampling {
     }
 
     fn honours_guide(&self) -> bool {
+        true
+    }
+
+    fn honours_guided_inpaint(&self) -> bool {
         true
     }
 }
@@ -363,22 +366,58 @@ impl PatchSampling {
             engine: settings.engine,
             label: "cpso",
         };
+        // With `[guide]`, every block of the hole weighs its match with the pixels around it
+        // against the guides' (one pass: a hole is filled once), the target read where the block
+        // goes: past the image's edge it wraps on a torus and goes on as its own edge otherwise.
+        let term = match req.constraints.guide {
+            Some(guide) => {
+                let (w, h) = region.dimensions();
+                if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
+                    return Err(SynthError::Failed("the guides must have the image's and the sample's sizes".into()));
+                }
+                let target = RgbImage::from_fn(w + block, h + block, |x, y| {
+                    if req.tileable { guide.target.get(x % w, y % h) } else { guide.target.get(x.min(w - 1), y.min(h - 1)) }
+                });
+                settings.label = "inpaint/guided/".into();
+                Some(GuideTerm { source: &guide.source, lines: SampleLines::new(&guide.source), target, weight: guide.weight })
+            }
+            None => None,
+        };
+        let mut guided = match &term {
+            Some(g) if settings.search == Search::Exhaustive => {
+                search = None;
+                Some(super::guide::GuidedSearch::new(sample, g.source, &g.target, block, g.weight, Some(flags.clone())))
+            }
+            _ => None,
+        };
         let settings = &settings;
         let mut pick = |want: &super::inpaint::Want| {
             let (window, (bi, bj)) = (want.window, want.index);
-            let zone =
-                Zone { target: Cow::Borrowed(window), origin: (0, 0), regions: want.regions.to_vec(), block, sides: Sides::default() };
+            let zone = Zone {
+                target: Cow::Borrowed(window),
+                origin: (0, 0),
+                regions: want.regions.to_vec(),
+                block,
+                sides: Sides::default(),
+                guide_at: want.place,
+            };
             // The blocks the window's content came from: the fill never mirrors them.
             let twins = Twins::of(&req.constraints, want.neighbours.to_vec(), block);
-            let r = match (&mut search, &lines) {
-                (Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed, twins.as_ref()),
-                (None, Some(lines)) => swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], None, twins.as_ref()),
-                (None, None) => unreachable!("a search is prepared"),
+            let r = match (&mut guided, &mut search, &lines) {
+                (Some(g), _, _) => guided_block(g, sample, &zone, bi, bj, settings, req.seed, twins.as_ref()),
+                (None, Some(s), _) => exhaustive_block(s, sample, &zone, bi, bj, settings, req.seed, twins.as_ref()),
+                (None, None, Some(lines)) => {
+                    swarm_block(sample, lines, &zone, bi, bj, settings, req.seed, &[], term.as_ref(), twins.as_ref())
+                }
+                (None, None, None) => unreachable!("a search is prepared"),
             };
             (r.pos, r.candidates)
         };
         let mut synthesis = super::inpaint::fill(req, region, &how, &mut pick)?;
         synthesis.diagnostics["search"] = json!(settings.search.name());
+        if let Some(g) = &term {
+            synthesis.diagnostics["guided"] = json!({ "weight": g.weight });
+        }
         Ok(synthesis)
     }
 
@@ -410,14 +449,16 @@ impl PatchSampling {
                 return Err(SynthError::param("block", format!("the sample mask leaves no whole {block}x{block} block to copy")));
             }
             settings.label = if pass == 0 { "guided/".into() } else { format!("guided/pass={pass}/") };
-            let layout = BlockGrid::new(block, overlap, req.width, req.height);
-            let (cw, ch) = layout.canvas();
-            let term = GuideTerm {
-                source: &guide.source,
-                lines: SampleLines::new(&guide.source),
-                target: RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(req.width - 1), y.min(req.height - 1))),
-                weight: guide.weight,
+            let (w, h) = (req.width, req.height);
+            // Past the output the target goes on as its own edge (the last blocks are cropped),
+            // or wraps with a tileable output's torus.
+            let target = if req.tileable {
+                RgbImage::from_fn(w + block, h + block, |x, y| guide.target.get(x % w, y % h))
+            } else {
+                let (cw, ch) = BlockGrid::new(block, overlap, w, h).canvas();
+                RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(w - 1), y.min(h - 1)))
             };
+            let term = GuideTerm { source: &guide.source, lines: SampleLines::new(&guide.source), target, weight: guide.weight };
             let mut synthesis = self.grid(req, &settings, block, overlap, previous.as_ref(), Some(&term))?;
             passes.push(json!({ "block": block, "overlap": overlap, "weight": guide.weight, "mean_rms_error": synthesis.diagnostics["mean_rms_error"].clone() }));
             previous = Some(synthesis.image.clone());
@@ -444,8 +485,11 @@ impl PatchSampling {
     ) -> Result<Synthesis, SynthError> {
         let sample = req.sample;
         let torus = if req.tileable {
-            let cfg = PatchSamplingConfig::from_params(req.params)?;
-            Some(torus_of(&cfg, sample.dimensions(), (req.width, req.height)).map_err(SynthError::Failed)?)
+            // This pass's blocks (a guided pass after the first has smaller ones than `cfg`'s).
+            Some(
+                TorusGrid::of_blocks("patch sampling", block, overlap, sample.dimensions(), (req.width, req.height))
+                    .map_err(SynthError::Failed)?,
+            )
         } else {
             None
         };
@@ -522,9 +566,10 @@ impl PatchSampling {
                         Zone {
                             target: Cow::Owned(t.window(&canvas.image, bi, bj)),
                             origin: (0, 0),
-                            regions: t.regions(bi, bj, sides),
+                            regions: if previous.is_some() { vec![Rect::new(0, 0, block, block)] } else { t.regions(bi, bj, sides) },
                             block,
                             sides,
+                            guide_at: t.origin(bi, bj),
                         }
                     }
                     None => Zone {
@@ -533,6 +578,7 @@ impl PatchSampling {
                         regions: if previous.is_some() { vec![Rect::new(0, 0, block, block)] } else { layout.overlap_regions(bi, bj) },
                         block,
                         sides: Sides { left: bj > 0, top: bi > 0, ..Sides::default() },
+                        guide_at: layout.origin(bi, bj),
                     },
                 })
                 .collect();
@@ -682,4 +728,7 @@ struct Zone<'a> {
     regions: Vec<Rect>,
     block: u32,
     sides: Sides,
+    /// Where the block goes in the guide's target (guided synthesis only): the zone's origin on
+    /// the plain grid; a hole's window or a torus block reads its own place, not the window's.
+    guide_at: (u32, u32),
 }

@@ -55,7 +55,7 @@ fn swarm_search(
         params.stop_below = Some(zone_pixels as f64 * 3.0 * settings.delta_rms * settings.delta_rms);
     }
     // Guided: the guide's SSD over the whole block where it goes, weighed against the zone's.
-    let guide_zone = guide.map(|g| (g, PackedZone::new(&g.target, zone.origin, &[Rect::new(0, 0, zone.block, zone.block)])));
+    let guide_zone = guide.map(|g| (g, PackedZone::new(&g.target, zone.guide_at, &[Rect::new(0, 0, zone.block, zone.block)])));
     let (k_texture, k_guide) = guide.map_or((1.0, 0.0), |g| g.weights(zone_pixels, zone.block));
     // A position stands for its nearest allowed one when a mask rules some out, and a twin of a
     // neighbour for the nearest allowed position that is none.
