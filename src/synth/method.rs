@@ -153,10 +153,6 @@ pub trait Method: Send + Sync {
     fn honours_guide(&self) -> bool {
         false
     }
-    /// Whether the method follows a guide while it inpaints (both constraints at once).
-    fn honours_guided_inpaint(&self) -> bool {
-        false
-    }
     /// Recorded parameters as a manifest written before some of today's parameters existed holds
     /// them: each missing one gets the value that reproduces what the method did then (not
     /// today's default, which may differ), so that `verify` re-makes old records. Manifests

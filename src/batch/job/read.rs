@@ -563,15 +563,6 @@ fn check_guide(
         ctx.err(Some(g.span.clone()), Some("guide"), format!("{} cannot follow a guide; methods that can: {}", m.name(), can.join(", ")));
         ok = false;
     }
-    if inpainting && let Some(m) = method.filter(|m| m.honours_guide() && !m.honours_guided_inpaint()) {
-        let can: Vec<&str> = methods::registry().iter().filter(|m| m.honours_guided_inpaint()).map(|m| m.name()).collect();
-        ctx.err(
-            Some(g.span.clone()),
-            Some("guide"),
-            format!("{} cannot follow a guide while it inpaints (yet); methods that can: {}", m.name(), can.join(", ")),
-        );
-        ok = false;
-    }
     // A hole is filled once, each block matched to the known pixels: the iteration that
     // re-synthesises a whole output with smaller blocks does not apply.
     if inpainting && let Some(passes) = g.passes.filter(|&p| p > 1) {

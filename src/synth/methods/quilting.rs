@@ -348,10 +348,6 @@ impl Method for Quilting {
         true
     }
 
-    fn honours_guided_inpaint(&self) -> bool {
-        true
-    }
-
     fn tileable(&self, p: &Params, sample: (u32, u32), output: (u32, u32)) -> Result<(), String> {
         let cfg = QuiltingConfig::from_params(p).map_err(|e| e.to_string())?;
         torus_of(&cfg, sample, output).map(|_| ())

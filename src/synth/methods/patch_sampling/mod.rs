@@ -305,10 +305,6 @@ impl Method for PatchSampling {
     fn honours_guide(&self) -> bool {
         true
     }
-
-    fn honours_guided_inpaint(&self) -> bool {
-        true
-    }
 }
 
 /// The block positions the request's sample mask (and, when inpainting, the pixels outside the
