@@ -193,19 +193,45 @@ fn an_inpainting_job_copies_from_other_samples_never_from_the_hole() {
             .arg(&synth_out),
     );
     assert_eq!(pixels(&synth_out), pixels(&d.join("out/other.png")), "synth = the job file");
-    // Companions come from one sample's maps: refused with another sample, by key.
+    // Companions: the image's map first, then one per other sample. With each map its image's
+    // channels turned (r, g, b) -> (g, b, r), the companion is the output so turned, pixel for
+    // pixel: every filled pixel's map comes from the sample (and copy) its colour came from.
+    let turned = |img: &texsyn::RgbImage| {
+        texsyn::RgbImage::from_fn(img.width(), img.height(), |x, y| {
+            let p = img.get(x, y);
+            [p[1], p[2], p[0]]
+        })
+    };
+    let (left_map, right_map) = (d.join("left_map.png"), d.join("right_map.png"));
+    texsyn::save_image(&turned(&image), &left_map).unwrap();
+    texsyn::save_image(&turned(&rgb(Path::new(&right))), &right_map).unwrap();
+    let companion = |name: &str, maps: &str| format!("[[companion]]\nsample = {maps}\npath = \"{name}_map.png\"\n");
+    let pair = format!("[\"{}\", \"{}\"]", left_map.display(), right_map.display());
+    let cjobs = d.join("companion-jobs");
+    std::fs::create_dir_all(&cjobs).unwrap();
+    write(&cjobs.join("other.toml"), &(body("other", "quilting", &format!("sample = \"{right}\"")) + &companion("other", &pair)));
+    write(&cjobs.join("ps_both.toml"), &(body("ps_both", "patch-sampling", &both) + &companion("ps_both", &pair)));
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("companions")).arg(&cjobs));
+    for name in ["other", "ps_both"] {
+        let out = rgb(&d.join(format!("companions/{name}.png")));
+        assert_eq!(out, rgb(&d.join(format!("out/{name}.png"))), "{name}: a companion leaves the colours as they were");
+        assert!(turned(&out) == rgb(&d.join(format!("companions/{name}_map.png"))), "{name}: the map follows the colours");
+    }
+    run_ok(texsyn().arg("verify").arg(d.join("companions/manifest.json")));
+    // Refused by key: one map for two images to copy from, three for two.
     write(
-        &jobs.join("companion.toml"),
-        &(body("companion", "quilting", &format!("sample = \"{right}\""))
-            + &format!("[[companion]]\nsample = \"{left}\"\npath = \"companion_n.png\"\n")),
+        &cjobs.join("one.toml"),
+        &(body("one", "quilting", &format!("sample = \"{right}\"")) + &companion("one", &format!("\"{}\"", left_map.display()))),
     );
-    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad")).arg(jobs.join("companion.toml"))));
-    assert!(
-        said.contains(
-            "companion.toml:12:1: `companion`: companions are rendered from the image's maps; with samples other than the [inpaint] image"
-        ),
-        "{said}"
-    );
+    let three = format!("[\"{}\", \"{}\", \"{}\"]", left_map.display(), right_map.display(), right_map.display());
+    write(&cjobs.join("three.toml"), &(body("three", "quilting", &format!("sample = \"{right}\"")) + &companion("three", &three)));
+    let said = text(&run(texsyn().args(["run", "-o"]).arg(d.join("bad")).arg(&cjobs)));
+    for expected in [
+        "one.toml:13:1: `companion[1].sample`: with 2 images to copy from, give this map of each: a list, the [inpaint] image's map first",
+        "three.toml:13:10: `companion[1].sample`: lists 3 maps for 2 images to copy from; give the [inpaint] image's map first",
+    ] {
+        assert!(said.contains(expected), "missing {expected:?} in:\n{said}");
+    }
 }
 
 /// A 16-bit image with a companion map: outside the mask both outputs hold the inputs' exact

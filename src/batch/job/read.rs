@@ -334,41 +334,35 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
         }),
         None => None,
     };
-    if inpaint.is_some() && !more_samples.is_empty() && !raw.companions.is_empty() {
-        let position = ctx.positions.get("companion[1]").copied();
-        ctx.push(JobError {
-            file: ctx.file.path.clone(),
-            position,
-            key: Some("companion".into()),
-            message:
-                "companions are rendered from the image's maps; with samples other than the [inpaint] image they are not supported yet \
-                      (`augment` alone works)"
-                    .into(),
-        });
-    }
-    // With several samples each companion names one map per sample, in their order.
-    if inpaint.is_none() {
-        for c in &raw.companions {
-            let key = format!("companion[{}].sample", c.index + 1);
-            match &c.listed {
-                Some((n, span)) if *n != sample_count => ctx.err(
-                    Some(span.clone()),
-                    Some(&key),
-                    format!("lists {n} maps for {sample_count} samples; give one per sample, in the order of `samples`"),
-                ),
-                None if sample_count > 1 && c.sample.is_some() => {
-                    let position = ctx.positions.get(&key).copied();
-                    ctx.push(JobError {
-                        file: ctx.file.path.clone(),
-                        position,
-                        key: Some(key),
-                        message: format!(
-                            "with {sample_count} samples, give this map of each sample: a list parallel to `samples` (`sample = [\"a_normal.png\", \"b_normal.png\"]`)"
-                        ),
-                    })
-                }
-                _ => {}
+    // With several samples each companion names one map per sample, in their order; when
+    // inpainting from other samples, the image's map first, then one per other sample.
+    let (maps_wanted, order) = match &inpaint {
+        None => (sample_count, "one per sample, in the order of `samples`".to_string()),
+        Some(_) => {
+            (1 + more_samples.len(), "the [inpaint] image's map first, then one per other sample, in the order of `samples`".to_string())
+        }
+    };
+    for c in &raw.companions {
+        let key = format!("companion[{}].sample", c.index + 1);
+        match &c.listed {
+            Some((n, span)) if *n != maps_wanted => {
+                let what = if inpaint.is_some() { "images to copy from" } else { "samples" };
+                ctx.err(Some(span.clone()), Some(&key), format!("lists {n} maps for {maps_wanted} {what}; give {order}"))
             }
+            None if maps_wanted > 1 && c.sample.is_some() => {
+                let position = ctx.positions.get(&key).copied();
+                let message = if inpaint.is_some() {
+                    format!(
+                        "with {maps_wanted} images to copy from, give this map of each: a list, {order} (`sample = [\"wall_normal.png\", \"rock_normal.png\"]`)"
+                    )
+                } else {
+                    format!(
+                        "with {sample_count} samples, give this map of each sample: a list parallel to `samples` (`sample = [\"a_normal.png\", \"b_normal.png\"]`)"
+                    )
+                };
+                ctx.push(JobError { file: ctx.file.path.clone(), position, key: Some(key), message })
+            }
+            _ => {}
         }
     }
     let guide = match raw.guide.take() {
