@@ -18,6 +18,7 @@ use crate::error::Error;
 use crate::synth::advice::{self, Analysis};
 use crate::synth::atlas::{Atlas, Augment};
 use crate::synth::constraints::{FillRegion, Guide, SampleMask};
+use crate::synth::method::Uses;
 use crate::synth::params::Choice;
 use crate::synth::placement::MapKind;
 use crate::synth::wrap;
@@ -802,7 +803,7 @@ fn base_record(
     }
     let content_key = manifest::content_key(
         job.method.name(),
-        job.method.algorithm_version_of(&job.params),
+        job.method.algorithm_version_of(&job.params, Uses::of_spec(&output_json)),
         &params_json,
         job.seed,
         &sample.pixel_digest,
@@ -821,7 +822,7 @@ fn base_record(
         status: Status::Ok,
         error: None,
         method: Some(job.method.name().to_string()),
-        algorithm_version: Some(job.method.algorithm_version_of(&job.params)),
+        algorithm_version: Some(job.method.algorithm_version_of(&job.params, Uses::of_spec(&output_json))),
         params_digest: Some(Digest::of_json(&params_json)),
         params: Some(params_json),
         seed: Some(job.seed),

@@ -12,7 +12,7 @@ use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::io::{Format, NativeImage, Samples};
 use crate::synth::advice;
-use crate::synth::method::Synthesis;
+use crate::synth::method::{Synthesis, Uses};
 use crate::synth::params::ParamValue;
 use crate::synthesizer::Synthesizer;
 use std::path::PathBuf;
@@ -90,7 +90,7 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
     let warnings: Vec<String> = advice::warning(&analysis, method.name(), session.params()).into_iter().chain(wrap).collect();
     let content_key = manifest::content_key(
         method.name(),
-        method.algorithm_version_of(session.params()),
+        method.algorithm_version_of(session.params(), Uses::of_spec(&spec_json)),
         &params_json,
         req.seed,
         &sample.pixel_digest,
@@ -98,7 +98,7 @@ pub fn synthesize(sample: &LoadedSample, req: &SingleRequest) -> Result<Single, 
     );
     let record = serde_json::json!({
         "method": method.name(),
-        "algorithm_version": method.algorithm_version_of(session.params()),
+        "algorithm_version": method.algorithm_version_of(session.params(), Uses::of_spec(&spec_json)),
         "params_digest": Digest::of_json(&params_json),
         "params": params_json,
         "seed": req.seed,

@@ -16,6 +16,7 @@ use crate::digest::Digest;
 use crate::error::Error;
 use crate::image::io::{self as imageio, DecodeLimits};
 use crate::synth::constraints::SampleMask;
+use crate::synth::method::Uses;
 use crate::synth::methods;
 use crate::synth::params::Choice;
 use crate::synth::params::{self, ParamValue};
@@ -153,10 +154,10 @@ fn verify_job(rec: &JobRecord, dir: &Path, _scratch: &Path) -> Outcome {
             return Outcome::Mismatch(errs.into_iter().map(|e| format!("recorded param `{}`: {}", e.key, e.message)).collect());
         }
     };
-    if method.algorithm_version_of(&params) != version {
+    if method.algorithm_version_of(&params, Uses::of_spec(spec)) != version {
         return Outcome::Mismatch(vec![format!(
             "recorded with {method_name} algorithm version {version}; this texsyn makes these parameters' pixels with version {}",
-            method.algorithm_version_of(&params)
+            method.algorithm_version_of(&params, Uses::of_spec(spec))
         )]);
     }
     if rec.params_digest.as_ref() != Some(&Digest::of_json(params_json)) {

@@ -98,6 +98,27 @@ pub enum ExtraContent {
     Json(serde_json::Value),
 }
 
+/// What a job asks of its method beyond parameters, where that decides which version of the
+/// method's pixels it gets ([`Method::algorithm_version_of`]). Read from the job's output spec
+/// (the content key's), so a run, `verify` and the library agree on it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Uses {
+    /// `[inpaint]`: a hole is filled.
+    pub inpaint: bool,
+    /// `augment`: the search sees turned or mirrored copies of the samples.
+    pub copies: bool,
+}
+
+impl Uses {
+    /// What an output spec (`output_spec` of a record) asks for.
+    pub fn of_spec(spec: &serde_json::Value) -> Uses {
+        Uses {
+            inpaint: spec.get("inpaint").is_some_and(|v| !v.is_null()),
+            copies: spec.get("augment").and_then(|a| a.as_array()).is_some_and(|a| !a.is_empty()),
+        }
+    }
+}
+
 /// A synthesis method.
 pub trait Method: Send + Sync {
     /// The name used in job files (`method = "…"`).
@@ -105,11 +126,12 @@ pub trait Method: Send + Sync {
     /// Bumped whenever a change alters the pixels produced for the same inputs; part of the
     /// content key, so outputs made by an older algorithm are recomputed, not trusted.
     fn algorithm_version(&self) -> u32;
-    /// The algorithm version of the pixels these (resolved) parameters make: what the record and
-    /// the content key hold. [`Method::algorithm_version`], unless one of the method's searches
-    /// changed its pixels on its own (quilting's and patch sampling's pyramid), so that only the
-    /// jobs it made are re-made and reported by `verify`, not every job of the method.
-    fn algorithm_version_of(&self, _params: &Params) -> u32 {
+    /// The algorithm version of the pixels these (resolved) parameters make for a job that asks
+    /// for `uses`: what the record and the content key hold. [`Method::algorithm_version`],
+    /// unless one of the method's searches (quilting's and patch sampling's pyramid) or one of
+    /// its ways with inpainting or transformed copies changed its pixels on its own, so that only
+    /// the jobs it made are re-made and reported by `verify`, not every job of the method.
+    fn algorithm_version_of(&self, _params: &Params, _uses: Uses) -> u32 {
         self.algorithm_version()
     }
     /// One line for `texsyn methods`.

@@ -513,3 +513,43 @@ fn a_large_hole_shows_no_block_grid_and_no_outline() {
     let (b, k) = (mean(&border), mean(&known));
     assert!(b < 3.0 * k, "steps across the hole's border {b:.2} against {k:.2} in the known image");
 }
+
+/// Patch sampling's pixels changed for inpainting and for turned copies (issue #28) while plain
+/// syntheses kept theirs: those jobs carry their own algorithm version, so an older record of
+/// one is re-made by `run` and reported by `verify` naming both versions, and plain jobs (and
+/// quilting's inpainting, whose pixels did not change) keep version 1.
+#[test]
+fn patch_sampling_inpainting_and_copies_have_their_own_algorithm_version() {
+    let d = scratch("inpaint-version");
+    let jobs = d.join("jobs");
+    let ps = |s: &str| s.replace("method = \"quilting\"", "method = \"patch-sampling\"");
+    job(&jobs, "quilting.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    job(&jobs, "ps.toml", &abs(IMAGE), &format!("mask = \"{}\"", abs(MASK)), "", "");
+    std::fs::write(jobs.join("ps.toml"), ps(&std::fs::read_to_string(jobs.join("ps.toml")).unwrap())).unwrap();
+    let sample = abs("jobs/samples/pebbles_beige.png");
+    let plain =
+        format!("sample = \"{sample}\"\nmethod = \"patch-sampling\"\nseed = 1\n[output]\npath = \"plain.png\"\nwidth = 96\nheight = 96\n");
+    std::fs::write(jobs.join("plain.toml"), &plain).unwrap();
+    std::fs::write(
+        jobs.join("copies.toml"),
+        plain.replace("seed = 1\n", "seed = 1\naugment = [\"flip_h\"]\n").replace("plain.png", "copies.png"),
+    )
+    .unwrap();
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
+    let m = manifest(&d.join("out"));
+    let version = |id: &str| m["jobs"].as_array().unwrap().iter().find(|j| j["id"] == id).unwrap()["algorithm_version"].clone();
+    assert_eq!((version("quilting.toml"), version("plain.toml")), (1.into(), 1.into()));
+    assert_eq!((version("ps.toml"), version("copies.toml")), (3.into(), 3.into()));
+    // An older texsyn recorded the inpainting job as version 1.
+    let path = d.join("out/manifest.json");
+    let mut old: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    for j in old["jobs"].as_array_mut().unwrap().iter_mut().filter(|j| j["id"] == "ps.toml") {
+        j["algorithm_version"] = 1.into();
+    }
+    std::fs::write(&path, serde_json::to_string_pretty(&old).unwrap()).unwrap();
+    let said = text(&run(texsyn().arg("verify").arg(&path)));
+    assert!(
+        said.contains("recorded with patch-sampling algorithm version 1; this texsyn makes these parameters' pixels with version 3"),
+        "{said}"
+    );
+}

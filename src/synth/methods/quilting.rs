@@ -12,7 +12,7 @@ use super::{BlockSearch, Engine, inpaint, untwinned};
 use crate::image::RgbImage;
 use crate::synth::constraints::nth_allowed;
 use crate::synth::error::SynthError;
-use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::method::{Method, Request, Synthesis, Uses};
 use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params};
 use crate::synth::primitives::block_grid::{BlockCuts, BlockGrid, OverlapRule, block_cuts, paste_with_cuts};
 use crate::synth::primitives::canvas::Canvas;
@@ -159,7 +159,7 @@ impl Method for Quilting {
     fn algorithm_version(&self) -> u32 {
         1
     }
-    fn algorithm_version_of(&self, params: &Params) -> u32 {
+    fn algorithm_version_of(&self, params: &Params, _uses: Uses) -> u32 {
         super::engine_version(params, "search", self.algorithm_version())
     }
     fn summary(&self) -> &'static str {

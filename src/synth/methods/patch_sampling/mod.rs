@@ -76,7 +76,7 @@ pub use config::{Blend, CandidateRule, ChaosConfig, ExhaustiveConfig, PatchSampl
 use super::{BlockSearch, Engine};
 use crate::image::RgbImage;
 use crate::synth::error::SynthError;
-use crate::synth::method::{Method, Request, Synthesis};
+use crate::synth::method::{Method, Request, Synthesis, Uses};
 use crate::synth::params::{Choice, MethodConfig, ParamError, ParamSpec, Params};
 use crate::synth::primitives::block_grid::{BlockGrid, OverlapRule, paste_block};
 use crate::synth::primitives::canvas::Canvas;
@@ -95,6 +95,10 @@ use diagnostics::diagnostics;
 use exhaustive::{exhaustive_block, guided_block};
 use positions::{Allowed, Twins};
 use swarm::swarm_block;
+
+/// The algorithm version of inpainting and of syntheses from turned copies (see
+/// [`PatchSampling::algorithm_version_of`]).
+const INPAINT_AND_COPIES_VERSION: u32 = 3;
 
 pub struct PatchSampling;
 
@@ -201,8 +205,12 @@ impl Method for PatchSampling {
     fn algorithm_version(&self) -> u32 {
         1
     }
-    fn algorithm_version_of(&self, params: &Params) -> u32 {
-        super::engine_version(params, "engine", self.algorithm_version())
+    fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
+        // Version 3: inpainting cuts its patches into earlier fill (it feathered them), and with
+        // turned copies continuations are always scored and twins left out (issue #28); plain
+        // syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
+        let base = if uses.inpaint || uses.copies { INPAINT_AND_COPIES_VERSION } else { self.algorithm_version() };
+        super::engine_version(params, "engine", base)
     }
     fn summary(&self) -> &'static str {
         "Patch sampling with feathered overlaps; best match by chaos PSO (paper 002), PSO or exhaustive / Liang et al."
