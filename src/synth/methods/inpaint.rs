@@ -90,6 +90,48 @@ pub(crate) struct Want<'w> {
     pub index: (u32, u32),
     /// The window's top-left pixel in the image (where a guide is read).
     pub place: (u32, u32),
+    /// The sample positions of the hole's blocks picked so far, in order ([`Reuse`]).
+    pub placed: &'w [(u32, u32)],
+}
+
+/// How much a hole's fill repeats itself. A hole copies only from what lies outside it; with a
+/// large hole in its own image that is a few strips, and blocks picked for their overlap alone
+/// came back to the same few patches: a hole of radius 85 in cork (block 50, 25 blocks) drew its
+/// 22 941 pixels from 7 839 sample pixels, a grid of the same dark pore. So among the positions a
+/// block may take, those that copy little of what earlier blocks of the hole copied come first:
+/// at most what continuing its left and top neighbours shares with them (`2·overlap·block +
+/// overlap²`); when none is within the tolerance, a wider one is asked for (as for twins), and
+/// failing that the least repeating members are kept.
+pub(crate) struct Reuse {
+    block: u32,
+    allowance: u64,
+}
+
+impl Reuse {
+    pub(crate) fn new(block: u32, overlap: u32) -> Reuse {
+        let (b, o) = (u64::from(block), u64::from(overlap));
+        Reuse { block, allowance: 2 * o * b + o * o }
+    }
+
+    /// The pixels of the sample block at `p` that the blocks at `placed` copied (each counted
+    /// once per block that copied it).
+    fn repeats(&self, p: (u32, u32), placed: &[(u32, u32)]) -> u64 {
+        let b = i64::from(self.block);
+        let shared = |a: u32, c: u32| (b - (i64::from(a) - i64::from(c)).abs()).max(0) as u64;
+        placed.iter().map(|&(x, y)| shared(p.0, x) * shared(p.1, y)).sum()
+    }
+
+    /// The members that repeat at most the allowance, or `None` when none does.
+    pub(crate) fn fresh<T: Copy>(&self, members: &[T], pos: impl Fn(&T) -> (u32, u32), placed: &[(u32, u32)]) -> Option<Vec<T>> {
+        let kept: Vec<T> = members.iter().copied().filter(|m| self.repeats(pos(m), placed) <= self.allowance).collect();
+        (!kept.is_empty()).then_some(kept)
+    }
+
+    /// The members that repeat least.
+    pub(crate) fn least<T: Copy>(&self, members: &[T], pos: impl Fn(&T) -> (u32, u32), placed: &[(u32, u32)]) -> Vec<T> {
+        let least = members.iter().map(|m| self.repeats(pos(m), placed)).min().unwrap_or(0);
+        members.iter().copied().filter(|m| self.repeats(pos(m), placed) == least).collect()
+    }
 }
 
 /// A method's choice of the sample position of one block of the hole: the position (one of
@@ -105,12 +147,26 @@ pub(crate) fn pick_guided<'p>(
     search: &'p mut super::guide::GuidedSearch<'p>,
     tolerance: f64,
     block: u32,
+    reuse: Reuse,
     label: &'static str,
 ) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
     move |want| {
-        let found: Vec<(u32, u32, u64)> =
-            search.candidates(want.window, (0, 0), want.regions, want.place, tolerance).into_iter().map(|(x, y)| (x, y, 0)).collect();
-        let members = req.constraints.without_twins(&found, want.neighbours, block).unwrap_or(found);
+        let mut members = Vec::new();
+        for wider in [0.0, 0.25, 1.0] {
+            let found: Vec<(u32, u32, u64)> = search
+                .candidates(want.window, (0, 0), want.regions, want.place, tolerance + wider)
+                .into_iter()
+                .map(|(x, y)| (x, y, 0))
+                .collect();
+            let found = req.constraints.without_twins(&found, want.neighbours, block).unwrap_or(found);
+            if let Some(fresh) = reuse.fresh(&found, |m| (m.0, m.1), want.placed) {
+                members = fresh;
+                break;
+            }
+            if wider == 0.0 {
+                members = reuse.least(&found, |m| (m.0, m.1), want.placed);
+            }
+        }
         let (bi, bj) = want.index;
         let mut s = Stream::new(req.seed, &format!("{label}/inpaint/guided/bi={bi}/bj={bj}"));
         let p = members[s.below_usize(members.len())];
@@ -125,12 +181,23 @@ pub(crate) fn pick_among_candidates<'p>(
     search: &'p mut BlockSearch,
     tolerance: f64,
     block: u32,
+    reuse: Reuse,
     label: &'static str,
 ) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
     move |want| {
         let (window, regions, (bi, bj)) = (want.window, want.regions, want.index);
-        let c = search.candidates(window, (0, 0), regions, tolerance);
-        let members = super::untwinned(req, search, window, (0, 0), regions, tolerance, c.members, want.neighbours, block);
+        let mut members = Vec::new();
+        for wider in [0.0, 0.25, 1.0] {
+            let c = search.candidates(window, (0, 0), regions, tolerance + wider);
+            let found = super::untwinned(req, search, window, (0, 0), regions, tolerance + wider, c.members, want.neighbours, block);
+            if let Some(fresh) = reuse.fresh(&found, |m| (m.0, m.1), want.placed) {
+                members = fresh;
+                break;
+            }
+            if wider == 0.0 {
+                members = reuse.least(&found, |m| (m.0, m.1), want.placed);
+            }
+        }
         let mut s = Stream::new(req.seed, &format!("{label}/inpaint/pick/bi={bi}/bj={bj}"));
         let p = members[s.below_usize(members.len())];
         ((p.0, p.1), Some(members.len()))
@@ -182,6 +249,7 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
     let positions_x = sample.width() - block + 1;
     let mut blocks = 0u32;
     let mut candidate_counts = Vec::new();
+    let mut placed: Vec<(u32, u32)> = Vec::new();
     for (bi, &oy) in ys.iter().enumerate() {
         for (bj, &ox) in xs.iter().enumerate() {
             let index = |i: u32, j: u32| (at(oy, j, h) * w + at(ox, i, w)) as usize;
@@ -220,12 +288,19 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
                 let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
                 nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
             } else {
-                let want =
-                    Want { window: &window, regions: &regions, neighbours: &neighbours, index: (bi as u32, bj as u32), place: (ox, oy) };
+                let want = Want {
+                    window: &window,
+                    regions: &regions,
+                    neighbours: &neighbours,
+                    index: (bi as u32, bj as u32),
+                    place: (ox, oy),
+                    placed: &placed,
+                };
                 let (p, count) = pick(&want);
                 candidate_counts.extend(count);
                 p
             };
+            placed.push((sx, sy));
             if how.rule == OverlapRule::Feather {
                 feather_in(
                     &mut canvas,

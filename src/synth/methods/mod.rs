@@ -68,6 +68,11 @@ pub(crate) fn resolve_engine(params: &mut Params, key: &str, sample: (u32, u32))
 /// method's version, their pixels unchanged.
 pub(crate) const PYRAMID_VERSION: u32 = 1;
 
+/// The algorithm version of quilting's and patch sampling's inpainting (and of patch sampling's
+/// syntheses from turned copies), whose pixels changed in issue #28 while plain syntheses kept
+/// version 1 (2 is that with the pyramid); see their `algorithm_version_of`.
+pub(crate) const INPAINT_VERSION: u32 = 3;
+
 /// A method's algorithm version for the [`Engine`] parameter `key` (resolved): its own, plus
 /// [`PYRAMID_VERSION`] when the pyramid makes the pixels.
 pub(crate) fn engine_version(params: &Params, key: &str, base: u32) -> u32 {

@@ -159,8 +159,12 @@ impl Method for Quilting {
     fn algorithm_version(&self) -> u32 {
         1
     }
-    fn algorithm_version_of(&self, params: &Params, _uses: Uses) -> u32 {
-        super::engine_version(params, "search", self.algorithm_version())
+    fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
+        // Version 3: inpainting prefers blocks that repeat little of what the hole already copied
+        // (`inpaint::Reuse`, issue #28); plain syntheses keep version 1 and their pixels (2 is
+        // version 1 with the pyramid).
+        let base = if uses.inpaint { super::INPAINT_VERSION } else { self.algorithm_version() };
+        super::engine_version(params, "search", base)
     }
     fn summary(&self) -> &'static str {
         "Efros-Freeman image quilting: exact exhaustive block search, minimum-error boundary cut"
@@ -223,7 +227,12 @@ impl Method for Quilting {
                 label: "quilt",
             };
             let mut synthesis = match req.constraints.guide {
-                None => inpaint::fill(req, region, &how, &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, "quilt"))?,
+                None => inpaint::fill(
+                    req,
+                    region,
+                    &how,
+                    &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, inpaint::Reuse::new(block, overlap), "quilt"),
+                )?,
                 Some(guide) => {
                     // The target guide read at any window's place: past the image's edge it
                     // wraps on a torus and goes on as its own edge otherwise (windows stay inside).
@@ -236,8 +245,12 @@ impl Method for Quilting {
                     });
                     let mut guided =
                         super::guide::GuidedSearch::new(sample, &guide.source, &target, block, guide.weight, Some(allowed.clone()));
-                    let mut synthesis =
-                        inpaint::fill(req, region, &how, &mut inpaint::pick_guided(req, &mut guided, tolerance, block, "quilt"))?;
+                    let mut synthesis = inpaint::fill(
+                        req,
+                        region,
+                        &how,
+                        &mut inpaint::pick_guided(req, &mut guided, tolerance, block, inpaint::Reuse::new(block, overlap), "quilt"),
+                    )?;
                     synthesis.diagnostics["guided"] = serde_json::json!({ "weight": guide.weight });
                     synthesis
                 }

@@ -96,10 +96,6 @@ use exhaustive::{exhaustive_block, guided_block};
 use positions::{Allowed, Twins};
 use swarm::swarm_block;
 
-/// The algorithm version of inpainting and of syntheses from turned copies (see
-/// [`PatchSampling::algorithm_version_of`]).
-const INPAINT_AND_COPIES_VERSION: u32 = 3;
-
 pub struct PatchSampling;
 
 /// Blocks in order of `2·bi + bj`: within a wave no two blocks overlap (needs `2·overlap ≤
@@ -209,7 +205,7 @@ impl Method for PatchSampling {
         // Version 3: inpainting cuts its patches into earlier fill (it feathered them), and with
         // turned copies continuations are always scored and twins left out (issue #28); plain
         // syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
-        let base = if uses.inpaint || uses.copies { INPAINT_AND_COPIES_VERSION } else { self.algorithm_version() };
+        let base = if uses.inpaint || uses.copies { super::INPAINT_VERSION } else { self.algorithm_version() };
         super::engine_version(params, "engine", base)
     }
     fn summary(&self) -> &'static str {
