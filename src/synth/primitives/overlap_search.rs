@@ -23,6 +23,12 @@ use std::sync::Arc;
 /// How many ΣS² maps (one per distinct region set) a search keeps.
 const MAX_CACHED_MAPS: usize = 16;
 
+/// From how many rectangles a single search whose region set has no cached ΣS² map takes ΣS² by
+/// FFT, correlating the per-pixel ΣS² with the regions' mask, instead of making the map: a hole
+/// fill's region sets are dozens of row runs, new at every block, and the map costs a pass over
+/// every position per corner; a grid method's few region sets keep their exact maps.
+const MASK_BY_FFT_FROM: usize = 8;
+
 /// Candidates whose exact SSD is within `(1 + tolerance)` of the minimum, in row-major order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Candidates {
@@ -65,6 +71,9 @@ pub struct OverlapSearch<'a> {
     /// Whether every sample pixel is gray (R = G = B), as guided synthesis's guides are: against
     /// a gray template the three channels' correlations are equal, so one is computed, tripled.
     gray: bool,
+    /// The half spectrum of the per-pixel ΣS² plane (R²+G²+B²) and its norm, for ΣS² by FFT
+    /// ([`MASK_BY_FFT_FROM`]); made the first time it is needed.
+    spec_sq: std::sync::OnceLock<(Vec<Complex64>, f64)>,
 }
 
 #[derive(Default)]
@@ -129,6 +138,7 @@ impl<'a> OverlapSearch<'a> {
             sum_sq_maps: Vec::new(),
             allowed: None,
             gray,
+            spec_sq: std::sync::OnceLock::new(),
         };
         let mut spec = vec![Complex64::new(0.0, 0.0); 3 * (wu / 2 + 1) * hu];
         search.forward_real(&planes, hu, &mut Vec::new(), &mut spec, true);
@@ -184,7 +194,7 @@ impl<'a> OverlapSearch<'a> {
     fn forward_real(&self, planes: &[f64], nonzero_rows: usize, pairs: &mut Vec<Complex64>, spec: &mut [Complex64], parallel: bool) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let half = w / 2 + 1;
-        let real_rows = 3 * nonzero_rows;
+        let real_rows = planes.len() / w;
         self.transform_row_pairs(planes, pairs, parallel);
         for column in spec.chunks_exact_mut(h) {
             column[nonzero_rows..].fill(Complex64::new(0.0, 0.0));
@@ -213,6 +223,7 @@ impl<'a> OverlapSearch<'a> {
         by_frequency: &[Complex64],
         rows: usize,
         channels: usize,
+        mask: bool,
         kx: usize,
         out: &mut [Complex64],
         column: &mut [Complex64],
@@ -223,7 +234,7 @@ impl<'a> OverlapSearch<'a> {
         let pair_count = by_frequency.len() / w;
         let at = &by_frequency[kx * pair_count..(kx + 1) * pair_count];
         let mirrored = &by_frequency[(w - kx) % w * pair_count..((w - kx) % w + 1) * pair_count];
-        for c in 0..channels {
+        for c in 0..channels + usize::from(mask) {
             for (y, v) in column[..rows].iter_mut().enumerate() {
                 let r = c * rows + y;
                 let (z, m) = (at[r / 2], mirrored[r / 2].conj());
@@ -231,6 +242,13 @@ impl<'a> OverlapSearch<'a> {
             }
             column[rows..].fill(Complex64::new(0.0, 0.0));
             self.fft_col.process_with_scratch(column, fft_scratch);
+            if c == channels {
+                // The mask's plane, after the colour planes: −½ · (ΣS² ⋆ mask), so that the
+                // caller's −2 × the sum gives +ΣS² over the regions.
+                let sample = &self.spec_sq().0[kx * h..(kx + 1) * h];
+                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o -= s * t.conj() * 0.5);
+                continue;
+            }
             let sample = &self.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
             if c == 0 {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o = s * t.conj());
@@ -238,6 +256,19 @@ impl<'a> OverlapSearch<'a> {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o += s * t.conj());
             }
         }
+    }
+
+    /// [`OverlapSearch::spec_sq`]'s spectrum and norm, made on first use.
+    fn spec_sq(&self) -> &(Vec<Complex64>, f64) {
+        self.spec_sq.get_or_init(|| {
+            let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+            let plane: Vec<f64> =
+                self.sample.as_raw().chunks_exact(3).map(|p| p.iter().map(|&c| f64::from(c) * f64::from(c)).sum()).collect();
+            let norm = plane.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let mut spec = vec![Complex64::new(0.0, 0.0); (w / 2 + 1) * h];
+            self.forward_real(&plane, h, &mut Vec::new(), &mut spec, false);
+            (spec, norm)
+        })
     }
 
     #[cfg(test)]
@@ -292,10 +323,15 @@ impl<'a> OverlapSearch<'a> {
         // A grid method sees a handful of region sets; a hole fill sees a new one per block. Past
         // a bound the cache starts again, so that its memory stays a few maps. (Only here, between
         // searches: the batched searches hold indices into it while they run.)
-        if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
-            self.sum_sq_maps.clear();
-        }
-        let map_index = self.sum_sq_map(regions);
+        let cached = self.sum_sq_maps.iter().any(|(r, _)| r == regions);
+        let map_index = if !cached && regions.len() >= MASK_BY_FFT_FROM {
+            None
+        } else {
+            if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !cached {
+                self.sum_sq_maps.clear();
+            }
+            Some(self.sum_sq_map(regions))
+        };
         let mut work = std::mem::take(&mut self.work);
         let parallel = rayon::current_num_threads() > 1;
         let found = self.search_fft(&mut work, target, origin, regions, map_index, tolerance, parallel);
@@ -327,7 +363,7 @@ impl<'a> OverlapSearch<'a> {
         let map_index = self.sum_sq_map(regions);
         let mut work = std::mem::take(&mut self.work);
         let parallel = rayon::current_num_threads() > 1;
-        let margin = self.approximate(&mut work, target, origin, regions, map_index, parallel);
+        let margin = self.approximate(&mut work, target, origin, regions, Some(map_index), parallel);
         self.work = work;
         Some((&self.work.approx, margin))
     }
@@ -354,8 +390,8 @@ impl<'a> OverlapSearch<'a> {
         let maps = [a.cached_sum_sq_map(regions_a), b.cached_sum_sq_map(regions_b)];
         let parallel = rayon::current_num_threads() > 1;
         let (mut wa, mut wb) = (std::mem::take(&mut a.work), std::mem::take(&mut b.work));
-        let (t2a, channels_a) = a.template(&mut wa, target_a, origin_a, regions_a, parallel);
-        let (t2b, channels_b) = b.template(&mut wb, target_b, origin_b, regions_b, parallel);
+        let (t2a, channels_a) = a.template(&mut wa, target_a, origin_a, regions_a, false, parallel);
+        let (t2b, channels_b) = b.template(&mut wb, target_b, origin_b, regions_b, false, parallel);
         let (w, h) = (a.sample.width() as usize, a.sample.height() as usize);
         let rows = a.block_h as usize;
         // Each product carries its weight and its channel factor (3 for one gray channel).
@@ -366,8 +402,8 @@ impl<'a> OverlapSearch<'a> {
         let (sa, sb) = (&*a, &*b);
         let column_back =
             |kx: usize, out: &mut [Complex64], other: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
-                sa.correlate_column(pairs_a, rows, channels_a, kx, out, column, scratch);
-                sb.correlate_column(pairs_b, rows, channels_b, kx, other, column, scratch);
+                sa.correlate_column(pairs_a, rows, channels_a, false, kx, out, column, scratch);
+                sb.correlate_column(pairs_b, rows, channels_b, false, kx, other, column, scratch);
                 out.iter_mut().zip(other.iter()).for_each(|(o, p)| *o = *o * fa + *p * fb);
                 sa.ifft_col.process_with_scratch(out, scratch);
             };
@@ -451,7 +487,7 @@ impl<'a> OverlapSearch<'a> {
                 .iter()
                 .zip(maps)
                 .map(|((origin, regions), map)| match map {
-                    Some(m) => this.search_fft(work, target, *origin, regions, *m, tolerance, false),
+                    Some(m) => this.search_fft(work, target, *origin, regions, Some(*m), tolerance, false),
                     None => this.candidates_direct(target, *origin, regions, tolerance),
                 })
                 .collect()
@@ -514,7 +550,7 @@ impl<'a> OverlapSearch<'a> {
         found.into_iter().flatten().collect()
     }
 
-    /// One block's FFT search with the ΣS² map `map_index`; `parallel` splits its transforms and
+    /// One block's FFT search with the ΣS² map `map_index` (`None`: ΣS² by FFT); `parallel` splits its transforms and
     /// re-check across the pool (same result either way).
     fn search_fft(
         &self,
@@ -522,7 +558,7 @@ impl<'a> OverlapSearch<'a> {
         target: &RgbImage,
         origin: (u32, u32),
         regions: &[Rect],
-        map_index: usize,
+        map_index: Option<usize>,
         tolerance: f64,
         parallel: bool,
     ) -> Candidates {
@@ -554,7 +590,7 @@ impl<'a> OverlapSearch<'a> {
         count: usize,
         parallel: bool,
     ) -> Vec<(u32, u32, u64)> {
-        let margin = self.approximate(work, target, origin, regions, map_index, parallel);
+        let margin = self.approximate(work, target, origin, regions, Some(map_index), parallel);
         let mut order = work.approx.clone();
         let k = count.clamp(1, order.len()) - 1;
         let kth = *order.select_nth_unstable_by(k, f64::total_cmp).1;
@@ -588,26 +624,31 @@ impl<'a> OverlapSearch<'a> {
     }
 
     /// Fills `work.approx` with every position's approximate SSD (FFT correlation) and returns the
-    /// bound on its error.
+    /// bound on its error. ΣS² comes from the map `map_index`, exactly, or with `None` from the
+    /// FFT as well (ΣS² ⋆ mask, with its own bound added to the margin).
     fn approximate(
         &self,
         work: &mut Workspace,
         target: &RgbImage,
         origin: (u32, u32),
         regions: &[Rect],
-        map_index: usize,
+        map_index: Option<usize>,
         parallel: bool,
     ) -> f64 {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let rows = self.block_h as usize;
-        let (sum_t2, channels) = self.template(work, target, origin, regions, parallel);
+        let mask = map_index.is_none();
+        let (sum_t2, channels) = self.template(work, target, origin, regions, mask, parallel);
+        if mask {
+            self.spec_sq();
+        }
         // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
         // back along columns one column at a time.
         let zero = Complex64::new(0.0, 0.0);
         let scratch_len = self.fft_col.get_inplace_scratch_len().max(self.ifft_col.get_inplace_scratch_len());
         let pairs = &work.by_frequency;
         let column_back = |kx: usize, out: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
-            self.correlate_column(pairs, rows, channels, kx, out, column, scratch);
+            self.correlate_column(pairs, rows, channels, mask, kx, out, column, scratch);
             self.ifft_col.process_with_scratch(out, scratch);
         };
         if parallel {
@@ -627,17 +668,32 @@ impl<'a> OverlapSearch<'a> {
 
         // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
         // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
-        let margin = self.margin(sum_t2);
+        let mut margin = self.margin(sum_t2);
+        if mask {
+            // ΣS² ⋆ mask's own error, bounded as the cross term's (the mask's norm is √area).
+            let area: u64 = regions.iter().map(|r| r.area()).sum();
+            margin += 1e-9 * self.spec_sq().1 * (area as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
+        }
         let nxu = self.positions().0 as usize;
-        let sum_sq = &self.sum_sq_maps[map_index].1;
+        let sum_sq = map_index.map(|m| &self.sum_sq_maps[m].1);
         let pairs = &work.rows;
         let approx_row = |(y, row): (usize, &mut [f64])| {
             let corr = &pairs[y / 2 * w..y / 2 * w + nxu];
-            let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
             let second = y % 2 == 1;
-            for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
-                let c = if second { c.im } else { c.re };
-                *a = s - 2.0 * c * scale + sum_t2 as f64;
+            match sum_sq {
+                Some(sum_sq) => {
+                    let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
+                    for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
+                        let c = if second { c.im } else { c.re };
+                        *a = s - 2.0 * c * scale + sum_t2 as f64;
+                    }
+                }
+                None => {
+                    for (a, c) in row.iter_mut().zip(corr) {
+                        let c = if second { c.im } else { c.re };
+                        *a = -2.0 * c * scale + sum_t2 as f64;
+                    }
+                }
             }
         };
         if parallel {
@@ -657,14 +713,22 @@ impl<'a> OverlapSearch<'a> {
     /// The template's row transforms for a block at `origin` of `target` over `regions`, left in
     /// `work.by_frequency` (see [`OverlapSearch::correlate_column`]); returns the template's energy
     /// ΣT² and how many channels the correlation needs (1 when template and sample are gray).
-    fn template(&self, work: &mut Workspace, target: &RgbImage, origin: (u32, u32), regions: &[Rect], parallel: bool) -> (u64, usize) {
+    fn template(
+        &self,
+        work: &mut Workspace,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        mask: bool,
+        parallel: bool,
+    ) -> (u64, usize) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let (nx, ny) = self.positions();
         let (nxu, nyu) = (nx as usize, ny as usize);
         let rows = self.block_h as usize;
         let half = w / 2 + 1;
         if work.product.len() != half * h {
-            work.planes = vec![0.0; 3 * rows * w];
+            work.planes = vec![0.0; 4 * rows * w];
             work.product = vec![Complex64::new(0.0, 0.0); half * h];
             work.approx = vec![0.0; nxu * nyu];
         }
@@ -684,13 +748,20 @@ impl<'a> OverlapSearch<'a> {
                     sum_t2 += p.iter().map(|&c| c as u64 * c as u64).sum::<u64>();
                 }
             }
+            if mask {
+                for dy in 0..r.h as usize {
+                    let i = 3 * rows * w + (r.y as usize + dy) * w + r.x as usize;
+                    work.planes[i..i + r.w as usize].fill(1.0);
+                }
+            }
         }
         // A gray template on a gray sample: Σ_c S_c ⋆ T_c = 3 · S_0 ⋆ T_0, one channel's work.
         // (The value differs from the three channels' sum by rounding only, well inside `margin`.)
-        let channels = if self.gray && template_gray { 1 } else { 3 };
-        self.transform_row_pairs(&work.planes[..channels * rows * w], &mut work.pairs, parallel);
+        // The mask's plane follows the three colour planes.
+        let channels = if self.gray && template_gray && !mask { 1 } else { 3 };
+        self.transform_row_pairs(&work.planes[..(channels + usize::from(mask)) * rows * w], &mut work.pairs, parallel);
         for r in regions {
-            for c in 0..3 {
+            for c in 0..3 + usize::from(mask) {
                 for dy in 0..r.h as usize {
                     let i = c * rows * w + (r.y as usize + dy) * w + r.x as usize;
                     work.planes[i..i + r.w as usize].fill(0.0);
@@ -1002,6 +1073,34 @@ mod tests {
         for (i, a) in weighted.iter().enumerate() {
             let e = kt * exact_texture[i] as f64 + kg * exact_guide[i] as f64;
             assert!((a - e).abs() <= margin, "{a} against {e}, margin {margin}");
+        }
+    }
+
+    #[test]
+    fn many_row_runs_take_the_sum_of_squares_by_fft_and_stay_exact() {
+        let sample = noise(50, 44, 11);
+        let mut target = noise(40, 40, 12);
+        // A strong best match: the target's block at (6, 5) is partly the sample's at (17, 9).
+        for y in 0..12 {
+            for x in 0..12 {
+                target.put(6 + x, 5 + y, sample.get(17 + x, 9 + y));
+            }
+        }
+        // Row runs around a round hole, as a hole fill's: more than MASK_BY_FFT_FROM of them.
+        let regions: Vec<Rect> = (0..12u32)
+            .flat_map(|j| {
+                let half = (36i64 - (j as i64 - 6).pow(2)).max(0).isqrt() as u32;
+                let (a, b) = (6u32.saturating_sub(half), (6 + half).min(12));
+                [(0, a), (b, 12)].into_iter().filter(|(x0, x1)| x1 > x0).map(move |(x0, x1)| Rect::new(x0, j, x1 - x0, 1))
+            })
+            .collect();
+        assert!(regions.len() >= MASK_BY_FFT_FROM);
+        for tolerance in [0.0, 0.2] {
+            let mut search = OverlapSearch::new(&sample, 12, 12);
+            let fast = search.candidates(&target, (6, 5), &regions, tolerance);
+            assert!(search.sum_sq_maps.is_empty(), "ΣS² came from the FFT, not a map");
+            assert_eq!(fast, search.candidates_direct(&target, (6, 5), &regions, tolerance));
+            assert_eq!(fast.min_ssd, 0);
         }
     }
 }
