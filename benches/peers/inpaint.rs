@@ -4,7 +4,9 @@
 //!     cargo bench --bench peers -- inpaint     # only this part
 //!
 //! Each bundled sample gets a round hole (radius 40 px, off centre) painted magenta, so that
-//! neither program can copy what was there. texsyn runs quilting with its defaults on an
+//! neither program can copy what was there. A second table does the same at 512² (each sample
+//! enlarged 2×, bilinear) with a radius-80 hole, where the fill, not the fixed costs of a process
+//! (start, plan, the sample's advice, hashing, writing), is most of the time. texsyn runs quilting with its defaults on an
 //! `[inpaint]` job (`-j 1`), and patch sampling with its defaults on the same (a second row); Embark runs `--inpaint KEEP --sample-masks KEEP -t 1` (its masks are
 //! white = keep), both as whole processes. Quality is paper 003's four measures (lower is better)
 //! between the intact sample and the 48 × 48 square at the hole's centre, which both programs
@@ -18,11 +20,32 @@ use texsyn::RgbImage;
 
 const SAMPLES: [&str; 8] =
     ["pebbles_beige", "cork", "grass_gray", "gravel_gray", "hedge_leaves", "roughcast_plaster", "wood_weathered", "bricks_gray"];
-const RADIUS: i64 = 40;
-const CROP: u32 = 48;
+/// (enlargement, hole radius, side of the measured square): the 256² samples, then 512² ones.
+const SIZES: [(u32, i64, u32); 2] = [(1, 40, 48), (2, 80, 96)];
 
-fn quality(sample: &RgbImage, filled: &RgbImage, centre: (u32, u32)) -> [f64; 4] {
-    measures(sample, &filled.crop(centre.0 - CROP / 2, centre.1 - CROP / 2, CROP, CROP))
+fn quality(sample: &RgbImage, filled: &RgbImage, centre: (u32, u32), crop: u32) -> [f64; 4] {
+    measures(sample, &filled.crop(centre.0 - crop / 2, centre.1 - crop / 2, crop, crop))
+}
+
+/// `img` enlarged `f` times, bilinear (pixel centres aligned, edges clamped).
+fn enlarged(img: &RgbImage, f: u32) -> RgbImage {
+    if f == 1 {
+        return img.clone();
+    }
+    let (w, h) = img.dimensions();
+    RgbImage::from_fn(w * f, h * f, |x, y| {
+        let at = |v: u32, n: u32| ((f64::from(v) + 0.5) / f64::from(f) - 0.5).clamp(0.0, f64::from(n - 1));
+        let (fx, fy) = (at(x, w), at(y, h));
+        let (x0, y0) = (fx as u32, fy as u32);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (ax, ay) = (fx - f64::from(x0), fy - f64::from(y0));
+        let (a, b, c, d) = (img.get(x0, y0), img.get(x1, y0), img.get(x0, y1), img.get(x1, y1));
+        std::array::from_fn(|k| {
+            let top = f64::from(a[k]) * (1.0 - ax) + f64::from(b[k]) * ax;
+            let bottom = f64::from(c[k]) * (1.0 - ax) + f64::from(d[k]) * ax;
+            (top * (1.0 - ay) + bottom * ay).round() as u8
+        })
+    })
 }
 
 /// Paper 003's four measures of `image` against `sample` (NaN where undefined).
@@ -36,8 +59,27 @@ pub fn measures(sample: &RgbImage, image: &RgbImage) -> [f64; 4] {
 }
 
 pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>) {
-    println!("\ninpainting a round hole (radius {RADIUS}) in each 256² sample, one thread; quality: paper 003's measures of the hole's");
-    println!("central {CROP}² against the intact sample (lower is better); ratios texsyn / Embark (< 1: texsyn closer)\n");
+    for (scale, radius, crop) in SIZES {
+        table(work, embark, reps, time, scale, radius, crop);
+    }
+}
+
+/// One table: every sample enlarged `scale` times, a hole of `radius`, quality over the central `crop`².
+fn table(
+    work: &Path,
+    embark: Option<&Path>,
+    reps: usize,
+    time: &dyn Fn(usize, &mut dyn FnMut() -> Command) -> Option<f64>,
+    scale: u32,
+    radius: i64,
+    crop: u32,
+) {
+    let side = 256 * scale;
+    let enlarged_how = if scale == 1 { String::new() } else { format!(" (the sample enlarged {scale}×, bilinear)") };
+    println!(
+        "\ninpainting a round hole (radius {radius}) in each {side}² sample{enlarged_how}, one thread; quality: paper 003's measures of the hole's"
+    );
+    println!("central {crop}² against the intact sample (lower is better); ratios texsyn / Embark (< 1: texsyn closer)\n");
     println!(
         "{:<20} {:>9} {:>9} {:>8}   {:>22} {:>22} {:>22} {:>22}",
         "sample", "texsyn s", "Embark s", "speed", "kl_gray t/E", "kl_orient t/E", "acf_gray t/E", "acf_orient t/E"
@@ -45,13 +87,13 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
     let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let (mut better, mut compared) = ([0; 2], 0);
     for s in SAMPLES {
-        let dir = work.join(format!("inpaint-{s}"));
+        let dir = work.join(format!("inpaint{side}-{s}"));
         std::fs::create_dir_all(&dir).expect("bench dir");
-        let sample = texsyn::load_image(repo.join(format!("jobs/samples/{s}.png"))).expect("bundled sample");
+        let sample = enlarged(&texsyn::load_image(repo.join(format!("jobs/samples/{s}.png"))).expect("bundled sample"), scale);
         let (w, h) = sample.dimensions();
-        let centre = (w / 2 + 17, h / 2 - 11);
+        let centre = (w / 2 + 17 * scale, h / 2 - 11 * scale);
         let inside =
-            |x: u32, y: u32| (i64::from(x) - i64::from(centre.0)).pow(2) + (i64::from(y) - i64::from(centre.1)).pow(2) <= RADIUS * RADIUS;
+            |x: u32, y: u32| (i64::from(x) - i64::from(centre.0)).pow(2) + (i64::from(y) - i64::from(centre.1)).pow(2) <= radius * radius;
         let damaged = RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255, 0, 255] } else { sample.get(x, y) });
         texsyn::save_image(&damaged, dir.join("damaged.png")).expect("write");
         texsyn::save_image(&RgbImage::from_fn(w, h, |x, y| if inside(x, y) { [255; 3] } else { [0; 3] }), dir.join("fill.png"))
@@ -93,7 +135,7 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
                 c
             })
         });
-        let theirs = embark_t.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|img| quality(&sample, &img, centre));
+        let theirs = embark_t.and_then(|_| texsyn::load_image(&embark_out).ok()).map(|img| quality(&sample, &img, centre, crop));
         compared += usize::from(theirs.is_some());
         for (k, (method, tt)) in ["quilting", "patch-sampling"].into_iter().zip(texsyn_t).enumerate() {
             let row = if k == 0 { s.to_string() } else { "  patch-sampling".to_string() };
@@ -101,7 +143,7 @@ pub fn run(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(usize,
                 println!("{row:<20} texsyn failed");
                 continue;
             };
-            let ours = quality(&sample, &texsyn::load_image(dir.join(format!("out-{method}/h.png"))).expect("texsyn output"), centre);
+            let ours = quality(&sample, &texsyn::load_image(dir.join(format!("out-{method}/h.png"))).expect("texsyn output"), centre, crop);
             let cell = |i: usize| match theirs {
                 Some(t) => format!("{:.3}/{:.3} {:>5.2}", ours[i], t[i], ours[i] / t[i]),
                 None => format!("{:.3}/—", ours[i]),

@@ -2,9 +2,10 @@
 //! block's error weighs how well it continues the texture (its overlap with what is already
 //! made) against how well the sample's guide under it matches the target guide where it goes.
 //!
-//! Both errors come from the exact search's FFT correlations (`OverlapSearch::approximate_all`),
-//! each with its rigorous error bound; the weighted sum bounds which positions can be within the
-//! tolerance of the best, and only those are scored exactly. The choice is made on exact integer
+//! Both errors come from the exact search's FFT correlations, weighed and summed before one
+//! inverse transform (`OverlapSearch::approximate_weighted`), with the weighed sum of their
+//! rigorous error bounds: that bounds which positions can be within the tolerance of the best, and
+//! only those are scored exactly. The choice is made on exact integer
 //! sums combined in a fixed order, so the pixels are the same on every machine and thread count.
 //!
 //! The two errors are made comparable per pixel and channel: the overlap's sum over its area, the
@@ -21,6 +22,8 @@ pub(crate) struct GuidedSearch<'a> {
     target: &'a RgbImage,
     weight: f64,
     block: u32,
+    /// The weighted approximate errors of the last search, kept to reuse its memory.
+    combined: Vec<f64>,
 }
 
 impl<'a> GuidedSearch<'a> {
@@ -40,7 +43,7 @@ impl<'a> GuidedSearch<'a> {
             texture.restrict_to(a.clone());
             by_guide.restrict_to(a);
         }
-        GuidedSearch { texture, guide: by_guide, target, weight, block }
+        GuidedSearch { texture, guide: by_guide, target, weight, block, combined: Vec::new() }
     }
 
     /// The positions whose weighted error is within `(1 + tolerance)` of the best, row-major:
@@ -59,23 +62,45 @@ impl<'a> GuidedSearch<'a> {
         let area: u64 = regions.iter().map(|r| r.area()).sum();
         let k_texture = if area == 0 { 0.0 } else { (1.0 - self.weight) / (3.0 * area as f64) };
         let k_guide = self.weight / (3.0 * f64::from(b) * f64::from(b));
-        let (texture, texture_margin) = self.texture.approximate_all(canvas, origin, regions);
-        let (guide, guide_margin) = self.guide.approximate_all(self.target, place, &whole);
-        let nx = self.texture.sample().width() - b + 1;
-        let margin = k_texture * texture_margin + k_guide * guide_margin;
-        let combined = |i: usize| k_texture * texture[i] + k_guide * guide[i];
-        let allowed = |i: usize| self.texture.may_copy(i as u32 % nx, i as u32 / nx);
-        let best = (0..texture.len()).filter(|&i| allowed(i)).map(combined).fold(f64::INFINITY, f64::min);
+        // The weighted approximation of every position, into a buffer kept between blocks (the
+        // maps stay in the searches' workspaces). Without an overlap the texture term is zero.
+        // With an overlap, both correlations are weighed and summed before one inverse transform.
+        let mut combined = std::mem::take(&mut self.combined);
+        let margin = if area == 0 {
+            let (guide, guide_margin) = self.guide.approximate_in_place(self.target, place, &whole).expect("a whole block is never empty");
+            combined.clear();
+            combined.extend(guide.iter().map(|&g| k_guide * g));
+            k_guide * guide_margin
+        } else {
+            OverlapSearch::approximate_weighted(
+                &mut self.texture,
+                k_texture,
+                (canvas, origin, regions),
+                &mut self.guide,
+                k_guide,
+                (self.target, place, &whole),
+                &mut combined,
+            )
+        };
+        let nx = (self.texture.sample().width() - b + 1) as usize;
+        let allowed = self.texture.allowed_positions();
+        let best = match allowed {
+            None => combined.iter().copied().fold(f64::INFINITY, f64::min),
+            Some(a) => combined.iter().zip(a).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min),
+        };
         let threshold = (1.0 + tolerance) * (best + margin) + margin;
-        let exact: Vec<(u32, u32, f64)> = (0..texture.len())
-            .filter(|&i| allowed(i) && combined(i) <= threshold)
-            .map(|i| {
-                let (x, y) = (i as u32 % nx, i as u32 / nx);
+        let exact: Vec<(u32, u32, f64)> = combined
+            .iter()
+            .enumerate()
+            .filter(|&(i, &v)| v <= threshold && allowed.is_none_or(|a| a[i]))
+            .map(|(i, _)| {
+                let (x, y) = ((i % nx) as u32, (i / nx) as u32);
                 let t = self.texture.exact_ssd(x, y, canvas, origin, regions) as f64;
                 let g = self.guide.exact_ssd(x, y, self.target, place, &whole) as f64;
                 (x, y, k_texture * t + k_guide * g)
             })
             .collect();
+        self.combined = combined;
         let min = exact.iter().map(|c| c.2).fold(f64::INFINITY, f64::min);
         exact.into_iter().filter(|c| c.2 <= (1.0 + tolerance) * min).map(|c| (c.0, c.1)).collect()
     }
@@ -110,6 +135,37 @@ mod tests {
         let canvas = RgbImage::from_fn(10, 10, |_, y| [20 + (y % 3) as u8, 20, 20]);
         for (x, _) in search.candidates(&canvas, (0, 0), &[Rect::new(0, 0, 3, 10)], (0, 0), 0.0) {
             assert!(x + 3 <= 20, "the dark overlap takes a dark block, not x = {x}");
+        }
+    }
+
+    #[test]
+    fn the_candidates_are_those_of_brute_force() {
+        let mut s = crate::synth::rng::Stream::new(5, "test/guided");
+        let sample = RgbImage::from_fn(40, 36, |x, _| [(x * 6) as u8 + s.below(20) as u8, s.below(256) as u8, s.below(256) as u8]);
+        let target = RgbImage::from_fn(30, 30, |x, y| [(x * 8) as u8, (y * 8) as u8, 90]);
+        let guide = Guide::from_images(&target, &sample, 0.6, 1);
+        let canvas = RgbImage::from_fn(30, 30, |x, y| sample.get(x + 3, y + 2));
+        let (b, origin, place) = (9, (7, 8), (4, 5));
+        let whole = [Rect::new(0, 0, b, b)];
+        for regions in [vec![], vec![Rect::new(0, 0, 3, b), Rect::new(3, 0, b - 3, 3)], whole.to_vec()] {
+            for tolerance in [0.0, 0.1] {
+                let mut search = GuidedSearch::new(&sample, &guide.source, &guide.target, b, 0.6, None);
+                let picks = search.candidates(&canvas, origin, &regions, place, tolerance);
+                let area: u64 = regions.iter().map(|r| r.area()).sum();
+                let kt = if area == 0 { 0.0 } else { 0.4 / (3.0 * area as f64) };
+                let kg = 0.6 / (3.0 * f64::from(b * b));
+                let mut all = Vec::new();
+                for y in 0..sample.height() - b + 1 {
+                    for x in 0..sample.width() - b + 1 {
+                        let t = search.texture.exact_ssd(x, y, &canvas, origin, &regions) as f64;
+                        let g = search.guide.exact_ssd(x, y, &guide.target, place, &whole) as f64;
+                        all.push((x, y, kt * t + kg * g));
+                    }
+                }
+                let min = all.iter().map(|c| c.2).fold(f64::INFINITY, f64::min);
+                let brute: Vec<(u32, u32)> = all.iter().filter(|c| c.2 <= (1.0 + tolerance) * min).map(|c| (c.0, c.1)).collect();
+                assert_eq!(picks, brute, "regions {regions:?}, tolerance {tolerance}");
+            }
         }
     }
 }

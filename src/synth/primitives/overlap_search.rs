@@ -23,6 +23,12 @@ use std::sync::Arc;
 /// How many ΣS² maps (one per distinct region set) a search keeps.
 const MAX_CACHED_MAPS: usize = 16;
 
+/// From how many rectangles a single search whose region set has no cached ΣS² map takes ΣS² by
+/// FFT, correlating the per-pixel ΣS² with the regions' mask, instead of making the map: a hole
+/// fill's region sets are dozens of row runs, new at every block, and the map costs a pass over
+/// every position per corner; a grid method's few region sets keep their exact maps.
+const MASK_BY_FFT_FROM: usize = 8;
+
 /// Candidates whose exact SSD is within `(1 + tolerance)` of the minimum, in row-major order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Candidates {
@@ -62,6 +68,12 @@ pub struct OverlapSearch<'a> {
     sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
     /// The positions a candidate may come from (row-major flags; a sample mask), or all.
     allowed: Option<Vec<bool>>,
+    /// Whether every sample pixel is gray (R = G = B), as guided synthesis's guides are: against
+    /// a gray template the three channels' correlations are equal, so one is computed, tripled.
+    gray: bool,
+    /// The half spectrum of the per-pixel ΣS² plane (R²+G²+B²) and its norm, for ΣS² by FFT
+    /// ([`MASK_BY_FFT_FROM`]); made the first time it is needed.
+    spec_sq: std::sync::OnceLock<(Vec<Complex64>, f64)>,
 }
 
 #[derive(Default)]
@@ -109,6 +121,7 @@ impl<'a> OverlapSearch<'a> {
             }
         }
         let integral_sq = integral_of_squares(&sample);
+        let gray = sample.as_raw().chunks_exact(3).all(|p| p[0] == p[1] && p[1] == p[2]);
         let mut search = OverlapSearch {
             sample,
             block_w,
@@ -124,6 +137,8 @@ impl<'a> OverlapSearch<'a> {
             spare_work: Vec::new(),
             sum_sq_maps: Vec::new(),
             allowed: None,
+            gray,
+            spec_sq: std::sync::OnceLock::new(),
         };
         let mut spec = vec![Complex64::new(0.0, 0.0); 3 * (wu / 2 + 1) * hu];
         search.forward_real(&planes, hu, &mut Vec::new(), &mut spec, true);
@@ -179,7 +194,7 @@ impl<'a> OverlapSearch<'a> {
     fn forward_real(&self, planes: &[f64], nonzero_rows: usize, pairs: &mut Vec<Complex64>, spec: &mut [Complex64], parallel: bool) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let half = w / 2 + 1;
-        let real_rows = 3 * nonzero_rows;
+        let real_rows = planes.len() / w;
         self.transform_row_pairs(planes, pairs, parallel);
         for column in spec.chunks_exact_mut(h) {
             column[nonzero_rows..].fill(Complex64::new(0.0, 0.0));
@@ -198,8 +213,8 @@ impl<'a> OverlapSearch<'a> {
         process_rows(&self.fft_col, spec, h, parallel);
     }
 
-    /// Column `kx` of the summed cross-correlation's half spectrum, `Σ_c Ŝ_c·conj T̂_c`, already
-    /// transformed back along `y`, into `out`; `by_frequency` holds the template's row-pair
+    /// Column `kx` of the summed cross-correlation's half spectrum, `Σ_c Ŝ_c·conj T̂_c` (over the
+    /// first `channels`), into `out` (the caller transforms it back along `y`); `by_frequency` holds the template's row-pair
     /// transforms transposed (all pairs at frequency 0, then at 1, …), so a column reads two runs. The template's column of each channel is
     /// transformed in `column` just before its product: one column at a time stays in cache,
     /// where whole template spectra would not.
@@ -207,6 +222,8 @@ impl<'a> OverlapSearch<'a> {
         &self,
         by_frequency: &[Complex64],
         rows: usize,
+        channels: usize,
+        mask: bool,
         kx: usize,
         out: &mut [Complex64],
         column: &mut [Complex64],
@@ -217,7 +234,7 @@ impl<'a> OverlapSearch<'a> {
         let pair_count = by_frequency.len() / w;
         let at = &by_frequency[kx * pair_count..(kx + 1) * pair_count];
         let mirrored = &by_frequency[(w - kx) % w * pair_count..((w - kx) % w + 1) * pair_count];
-        for c in 0..3 {
+        for c in 0..channels + usize::from(mask) {
             for (y, v) in column[..rows].iter_mut().enumerate() {
                 let r = c * rows + y;
                 let (z, m) = (at[r / 2], mirrored[r / 2].conj());
@@ -225,6 +242,13 @@ impl<'a> OverlapSearch<'a> {
             }
             column[rows..].fill(Complex64::new(0.0, 0.0));
             self.fft_col.process_with_scratch(column, fft_scratch);
+            if c == channels {
+                // The mask's plane, after the colour planes: −½ · (ΣS² ⋆ mask), so that the
+                // caller's −2 × the sum gives +ΣS² over the regions.
+                let sample = &self.spec_sq().0[kx * h..(kx + 1) * h];
+                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o -= s * t.conj() * 0.5);
+                continue;
+            }
             let sample = &self.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
             if c == 0 {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o = s * t.conj());
@@ -232,7 +256,19 @@ impl<'a> OverlapSearch<'a> {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o += s * t.conj());
             }
         }
-        self.ifft_col.process_with_scratch(out, fft_scratch);
+    }
+
+    /// [`OverlapSearch::spec_sq`]'s spectrum and norm, made on first use.
+    fn spec_sq(&self) -> &(Vec<Complex64>, f64) {
+        self.spec_sq.get_or_init(|| {
+            let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+            let plane: Vec<f64> =
+                self.sample.as_raw().chunks_exact(3).map(|p| p.iter().map(|&c| f64::from(c) * f64::from(c)).sum()).collect();
+            let norm = plane.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let mut spec = vec![Complex64::new(0.0, 0.0); (w / 2 + 1) * h];
+            self.forward_real(&plane, h, &mut Vec::new(), &mut spec, false);
+            (spec, norm)
+        })
     }
 
     #[cfg(test)]
@@ -287,10 +323,15 @@ impl<'a> OverlapSearch<'a> {
         // A grid method sees a handful of region sets; a hole fill sees a new one per block. Past
         // a bound the cache starts again, so that its memory stays a few maps. (Only here, between
         // searches: the batched searches hold indices into it while they run.)
-        if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
-            self.sum_sq_maps.clear();
-        }
-        let map_index = self.sum_sq_map(regions);
+        let cached = self.sum_sq_maps.iter().any(|(r, _)| r == regions);
+        let map_index = if !cached && regions.len() >= MASK_BY_FFT_FROM {
+            None
+        } else {
+            if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !cached {
+                self.sum_sq_maps.clear();
+            }
+            Some(self.sum_sq_map(regions))
+        };
         let mut work = std::mem::take(&mut self.work);
         let parallel = rayon::current_num_threads() > 1;
         let found = self.search_fft(&mut work, target, origin, regions, map_index, tolerance, parallel);
@@ -304,8 +345,17 @@ impl<'a> OverlapSearch<'a> {
     /// zero bound when `regions` are empty.
     pub fn approximate_all(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> (Vec<f64>, f64) {
         let (nx, ny) = self.positions();
+        match self.approximate_in_place(target, origin, regions) {
+            Some((approx, margin)) => (approx.to_vec(), margin),
+            None => (vec![0.0; nx as usize * ny as usize], 0.0),
+        }
+    }
+
+    /// [`OverlapSearch::approximate_all`] without the copy: the map lives in the search's
+    /// workspace until its next search. `None` when `regions` are empty (every SSD is zero then).
+    pub fn approximate_in_place(&mut self, target: &RgbImage, origin: (u32, u32), regions: &[Rect]) -> Option<(&[f64], f64)> {
         if regions.iter().map(|r| r.area()).sum::<u64>() == 0 {
-            return (vec![0.0; nx as usize * ny as usize], 0.0);
+            return None;
         }
         if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
             self.sum_sq_maps.clear();
@@ -313,10 +363,104 @@ impl<'a> OverlapSearch<'a> {
         let map_index = self.sum_sq_map(regions);
         let mut work = std::mem::take(&mut self.work);
         let parallel = rayon::current_num_threads() > 1;
-        let margin = self.approximate(&mut work, target, origin, regions, map_index, parallel);
-        let approx = work.approx.clone();
+        let margin = self.approximate(&mut work, target, origin, regions, Some(map_index), parallel);
         self.work = work;
-        (approx, margin)
+        Some((&self.work.approx, margin))
+    }
+
+    /// `ka · SSD_a + kb · SSD_b` at every position, approximately, into `out`, and the bound on
+    /// its error: two searches' maps ([`OverlapSearch::approximate_in_place`]) weighed and summed,
+    /// as guided synthesis weighs its texture and guide errors. The correlations are weighed and
+    /// summed in the frequency domain, so that one inverse transform serves both (the searches
+    /// must be over images of one size, for blocks of one size; the regions must not be empty).
+    /// The result differs from weighing the two maps by rounding only; the bound is the weighed
+    /// sum of theirs, which is generous (see [`OverlapSearch::approximate`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn approximate_weighted(
+        a: &mut OverlapSearch,
+        ka: f64,
+        (target_a, origin_a, regions_a): (&RgbImage, (u32, u32), &[Rect]),
+        b: &mut OverlapSearch,
+        kb: f64,
+        (target_b, origin_b, regions_b): (&RgbImage, (u32, u32), &[Rect]),
+        out: &mut Vec<f64>,
+    ) -> f64 {
+        assert_eq!(a.sample.dimensions(), b.sample.dimensions(), "searches over images of one size");
+        assert_eq!((a.block_w, a.block_h), (b.block_w, b.block_h), "searches for blocks of one size");
+        let maps = [a.cached_sum_sq_map(regions_a), b.cached_sum_sq_map(regions_b)];
+        let parallel = rayon::current_num_threads() > 1;
+        let (mut wa, mut wb) = (std::mem::take(&mut a.work), std::mem::take(&mut b.work));
+        let (t2a, channels_a) = a.template(&mut wa, target_a, origin_a, regions_a, false, parallel);
+        let (t2b, channels_b) = b.template(&mut wb, target_b, origin_b, regions_b, false, parallel);
+        let (w, h) = (a.sample.width() as usize, a.sample.height() as usize);
+        let rows = a.block_h as usize;
+        // Each product carries its weight and its channel factor (3 for one gray channel).
+        let (fa, fb) = (ka * (3 / channels_a) as f64, kb * (3 / channels_b) as f64);
+        let zero = Complex64::new(0.0, 0.0);
+        let scratch_len = [&a.fft_col, &a.ifft_col, &b.fft_col].iter().map(|f| f.get_inplace_scratch_len()).max().unwrap_or(0);
+        let (pairs_a, pairs_b) = (&wa.by_frequency, &wb.by_frequency);
+        let (sa, sb) = (&*a, &*b);
+        let column_back =
+            |kx: usize, out: &mut [Complex64], other: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
+                sa.correlate_column(pairs_a, rows, channels_a, false, kx, out, column, scratch);
+                sb.correlate_column(pairs_b, rows, channels_b, false, kx, other, column, scratch);
+                out.iter_mut().zip(other.iter()).for_each(|(o, p)| *o = *o * fa + *p * fb);
+                sa.ifft_col.process_with_scratch(out, scratch);
+            };
+        if parallel {
+            wa.product.par_chunks_mut(h).enumerate().for_each_init(
+                || (vec![zero; h], vec![zero; h], vec![zero; scratch_len]),
+                |(other, column, scratch), (kx, out)| column_back(kx, out, other, column, scratch),
+            );
+        } else {
+            wa.column.resize(h, zero);
+            wa.fft_scratch.resize(scratch_len, zero);
+            wb.column.resize(h, zero);
+            for (kx, out) in wa.product.chunks_exact_mut(h).enumerate() {
+                column_back(kx, out, &mut wb.column, &mut wa.column, &mut wa.fft_scratch);
+            }
+        }
+        a.rows_back(&mut wa, parallel);
+        let scale = 1.0 / (w * h) as f64;
+        let nxu = a.positions().0 as usize;
+        let (s2a, s2b) = (&a.sum_sq_maps[maps[0]].1, &b.sum_sq_maps[maps[1]].1);
+        let (ca, cb) = (t2a as f64, t2b as f64);
+        out.clear();
+        out.resize(s2a.len(), 0.0);
+        let corr_rows = &wa.rows;
+        let approx_row = |(y, row): (usize, &mut [f64])| {
+            let corr = &corr_rows[y / 2 * w..y / 2 * w + nxu];
+            let (sa, sb) = (&s2a[y * nxu..(y + 1) * nxu], &s2b[y * nxu..(y + 1) * nxu]);
+            let second = y % 2 == 1;
+            for (((o, c), sa), sb) in row.iter_mut().zip(corr).zip(sa).zip(sb) {
+                let c = if second { c.im } else { c.re };
+                *o = ka * (sa + ca) + kb * (sb + cb) - 2.0 * c * scale;
+            }
+        };
+        if parallel {
+            out.par_chunks_mut(nxu).enumerate().for_each(approx_row);
+        } else {
+            out.chunks_mut(nxu).enumerate().for_each(approx_row);
+        }
+        let margin = ka * a.margin(t2a) + kb * b.margin(t2b);
+        a.work = wa;
+        b.work = wb;
+        margin
+    }
+
+    /// [`OverlapSearch::sum_sq_map`] for one search between others: past a bound the cache starts
+    /// again (as in [`OverlapSearch::candidates`]).
+    fn cached_sum_sq_map(&mut self, regions: &[Rect]) -> usize {
+        assert!(regions.iter().map(|r| r.area()).sum::<u64>() > 0, "regions to compare");
+        if self.sum_sq_maps.len() >= MAX_CACHED_MAPS && !self.sum_sq_maps.iter().any(|(r, _)| r == regions) {
+            self.sum_sq_maps.clear();
+        }
+        self.sum_sq_map(regions)
+    }
+
+    /// The row-major flags of the positions a candidate may come from, if restricted.
+    pub fn allowed_positions(&self) -> Option<&[bool]> {
+        self.allowed.as_deref()
     }
 
     /// Whether a candidate may come from `(x, y)` (a restriction set by [`OverlapSearch::restrict_to`]).
@@ -343,7 +487,7 @@ impl<'a> OverlapSearch<'a> {
                 .iter()
                 .zip(maps)
                 .map(|((origin, regions), map)| match map {
-                    Some(m) => this.search_fft(work, target, *origin, regions, *m, tolerance, false),
+                    Some(m) => this.search_fft(work, target, *origin, regions, Some(*m), tolerance, false),
                     None => this.candidates_direct(target, *origin, regions, tolerance),
                 })
                 .collect()
@@ -406,7 +550,7 @@ impl<'a> OverlapSearch<'a> {
         found.into_iter().flatten().collect()
     }
 
-    /// One block's FFT search with the ΣS² map `map_index`; `parallel` splits its transforms and
+    /// One block's FFT search with the ΣS² map `map_index` (`None`: ΣS² by FFT); `parallel` splits its transforms and
     /// re-check across the pool (same result either way).
     fn search_fft(
         &self,
@@ -414,7 +558,7 @@ impl<'a> OverlapSearch<'a> {
         target: &RgbImage,
         origin: (u32, u32),
         regions: &[Rect],
-        map_index: usize,
+        map_index: Option<usize>,
         tolerance: f64,
         parallel: bool,
     ) -> Candidates {
@@ -446,7 +590,7 @@ impl<'a> OverlapSearch<'a> {
         count: usize,
         parallel: bool,
     ) -> Vec<(u32, u32, u64)> {
-        let margin = self.approximate(work, target, origin, regions, map_index, parallel);
+        let margin = self.approximate(work, target, origin, regions, Some(map_index), parallel);
         let mut order = work.approx.clone();
         let k = count.clamp(1, order.len()) - 1;
         let kth = *order.select_nth_unstable_by(k, f64::total_cmp).1;
@@ -480,29 +624,118 @@ impl<'a> OverlapSearch<'a> {
     }
 
     /// Fills `work.approx` with every position's approximate SSD (FFT correlation) and returns the
-    /// bound on its error.
+    /// bound on its error. ΣS² comes from the map `map_index`, exactly, or with `None` from the
+    /// FFT as well (ΣS² ⋆ mask, with its own bound added to the margin).
     fn approximate(
         &self,
         work: &mut Workspace,
         target: &RgbImage,
         origin: (u32, u32),
         regions: &[Rect],
-        map_index: usize,
+        map_index: Option<usize>,
         parallel: bool,
     ) -> f64 {
+        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        let rows = self.block_h as usize;
+        let mask = map_index.is_none();
+        let (sum_t2, channels) = self.template(work, target, origin, regions, mask, parallel);
+        if mask {
+            self.spec_sq();
+        }
+        // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
+        // back along columns one column at a time.
+        let zero = Complex64::new(0.0, 0.0);
+        let scratch_len = self.fft_col.get_inplace_scratch_len().max(self.ifft_col.get_inplace_scratch_len());
+        let pairs = &work.by_frequency;
+        let column_back = |kx: usize, out: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
+            self.correlate_column(pairs, rows, channels, mask, kx, out, column, scratch);
+            self.ifft_col.process_with_scratch(out, scratch);
+        };
+        if parallel {
+            work.product.par_chunks_mut(h).enumerate().for_each_init(
+                || (vec![zero; h], vec![zero; scratch_len]),
+                |(column, scratch), (kx, out)| column_back(kx, out, column, scratch),
+            );
+        } else {
+            work.column.resize(h, zero);
+            work.fft_scratch.resize(scratch_len, zero);
+            for (kx, out) in work.product.chunks_exact_mut(h).enumerate() {
+                column_back(kx, out, &mut work.column, &mut work.fft_scratch);
+            }
+        }
+        self.rows_back(work, parallel);
+        let scale = (3 / channels) as f64 / (w * h) as f64;
+
+        // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
+        // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
+        let mut margin = self.margin(sum_t2);
+        if mask {
+            // ΣS² ⋆ mask's own error, bounded as the cross term's (the mask's norm is √area).
+            let area: u64 = regions.iter().map(|r| r.area()).sum();
+            margin += 1e-9 * self.spec_sq().1 * (area as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
+        }
+        let nxu = self.positions().0 as usize;
+        let sum_sq = map_index.map(|m| &self.sum_sq_maps[m].1);
+        let pairs = &work.rows;
+        let approx_row = |(y, row): (usize, &mut [f64])| {
+            let corr = &pairs[y / 2 * w..y / 2 * w + nxu];
+            let second = y % 2 == 1;
+            match sum_sq {
+                Some(sum_sq) => {
+                    let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
+                    for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
+                        let c = if second { c.im } else { c.re };
+                        *a = s - 2.0 * c * scale + sum_t2 as f64;
+                    }
+                }
+                None => {
+                    for (a, c) in row.iter_mut().zip(corr) {
+                        let c = if second { c.im } else { c.re };
+                        *a = -2.0 * c * scale + sum_t2 as f64;
+                    }
+                }
+            }
+        };
+        if parallel {
+            work.approx.par_chunks_mut(nxu).enumerate().for_each(approx_row);
+        } else {
+            work.approx.chunks_mut(nxu).enumerate().for_each(approx_row);
+        }
+        margin
+    }
+
+    /// The bound on the FFT's error for a template of energy `sum_t2` (see [`OverlapSearch::approximate`]).
+    fn margin(&self, sum_t2: u64) -> f64 {
+        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        1e-9 * self.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0
+    }
+
+    /// The template's row transforms for a block at `origin` of `target` over `regions`, left in
+    /// `work.by_frequency` (see [`OverlapSearch::correlate_column`]); returns the template's energy
+    /// ΣT² and how many channels the correlation needs (1 when template and sample are gray).
+    fn template(
+        &self,
+        work: &mut Workspace,
+        target: &RgbImage,
+        origin: (u32, u32),
+        regions: &[Rect],
+        mask: bool,
+        parallel: bool,
+    ) -> (u64, usize) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let (nx, ny) = self.positions();
         let (nxu, nyu) = (nx as usize, ny as usize);
         let rows = self.block_h as usize;
         let half = w / 2 + 1;
         if work.product.len() != half * h {
-            work.planes = vec![0.0; 3 * rows * w];
+            work.planes = vec![0.0; 4 * rows * w];
             work.product = vec![Complex64::new(0.0, 0.0); half * h];
             work.approx = vec![0.0; nxu * nyu];
         }
         // Template planes: the target's overlap pixels at their block offsets, zero elsewhere (the
         // planes are kept zero between blocks: only the pixels written here are cleared after).
         let mut sum_t2: u64 = 0;
+        let mut template_gray = true;
         for r in regions {
             for dy in 0..r.h {
                 for dx in 0..r.w {
@@ -511,39 +744,42 @@ impl<'a> OverlapSearch<'a> {
                     for (c, &v) in p.iter().enumerate() {
                         work.planes[c * rows * w + i] = v as f64;
                     }
+                    template_gray &= p[0] == p[1] && p[1] == p[2];
                     sum_t2 += p.iter().map(|&c| c as u64 * c as u64).sum::<u64>();
                 }
             }
+            if mask {
+                for dy in 0..r.h as usize {
+                    let i = 3 * rows * w + (r.y as usize + dy) * w + r.x as usize;
+                    work.planes[i..i + r.w as usize].fill(1.0);
+                }
+            }
         }
-        self.transform_row_pairs(&work.planes, &mut work.pairs, parallel);
+        // A gray template on a gray sample: Σ_c S_c ⋆ T_c = 3 · S_0 ⋆ T_0, one channel's work.
+        // (The value differs from the three channels' sum by rounding only, well inside `margin`.)
+        // The mask's plane follows the three colour planes.
+        let channels = if self.gray && template_gray && !mask { 1 } else { 3 };
+        self.transform_row_pairs(&work.planes[..(channels + usize::from(mask)) * rows * w], &mut work.pairs, parallel);
         for r in regions {
-            for c in 0..3 {
+            for c in 0..3 + usize::from(mask) {
                 for dy in 0..r.h as usize {
                     let i = c * rows * w + (r.y as usize + dy) * w + r.x as usize;
                     work.planes[i..i + r.w as usize].fill(0.0);
                 }
             }
         }
-        // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
-        // back along columns one column at a time.
-        let zero = Complex64::new(0.0, 0.0);
-        let scratch_len = self.fft_col.get_inplace_scratch_len().max(self.ifft_col.get_inplace_scratch_len());
         let pair_count = work.pairs.len() / w;
-        work.by_frequency.resize(work.pairs.len(), zero);
+        work.by_frequency.resize(work.pairs.len(), Complex64::new(0.0, 0.0));
         transpose_into(&work.pairs, w, pair_count, &mut work.by_frequency, pair_count);
-        let pairs = &work.by_frequency;
-        if parallel {
-            work.product.par_chunks_mut(h).enumerate().for_each_init(
-                || (vec![zero; h], vec![zero; scratch_len]),
-                |(column, scratch), (kx, out)| self.correlate_column(pairs, rows, kx, out, column, scratch),
-            );
-        } else {
-            work.column.resize(h, zero);
-            work.fft_scratch.resize(scratch_len, zero);
-            for (kx, out) in work.product.chunks_exact_mut(h).enumerate() {
-                self.correlate_column(pairs, rows, kx, out, &mut work.column, &mut work.fft_scratch);
-            }
-        }
+        (sum_t2, channels)
+    }
+
+    /// The correlation's rows from its columns transformed back (`work.product`), transformed
+    /// back along rows into `work.rows`: row pair `p` holds real rows `2p` (re) and `2p + 1` (im).
+    fn rows_back(&self, work: &mut Workspace, parallel: bool) {
+        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        let nyu = self.positions().1 as usize;
+        let half = w / 2 + 1;
         // Then the rows that hold candidate positions, two real rows `y1`, `y2` per complex row:
         // its spectrum is X₁(k) + i·X₂(k), each X completed by X(W−k) = X̄(k).
         let row_pairs = nyu.div_ceil(2);
@@ -569,28 +805,6 @@ impl<'a> OverlapSearch<'a> {
             }
         }
         process_rows(&self.ifft_row, &mut work.rows, w, parallel);
-        let scale = 1.0 / (w * h) as f64;
-
-        // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
-        // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
-        let margin = 1e-9 * self.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
-        let sum_sq = &self.sum_sq_maps[map_index].1;
-        let pairs = &work.rows;
-        let approx_row = |(y, row): (usize, &mut [f64])| {
-            let corr = &pairs[y / 2 * w..y / 2 * w + nxu];
-            let s2 = &sum_sq[y * nxu..(y + 1) * nxu];
-            let second = y % 2 == 1;
-            for ((a, c), s) in row.iter_mut().zip(corr).zip(s2) {
-                let c = if second { c.im } else { c.re };
-                *a = s - 2.0 * c * scale + sum_t2 as f64;
-            }
-        };
-        if parallel {
-            work.approx.par_chunks_mut(nxu).enumerate().for_each(approx_row);
-        } else {
-            work.approx.chunks_mut(nxu).enumerate().for_each(approx_row);
-        }
-        margin
     }
 
     /// Index of the ΣS² map for this region set, computing it the first time (exactly, from the
@@ -600,21 +814,32 @@ impl<'a> OverlapSearch<'a> {
             return i;
         }
 
-        // Region by region, a whole row of positions at a time: four contiguous slices of the
-        // integral image per row, so the sums vectorise (a hole fill's regions are row runs,
-        // dozens per block, and a per-position loop over them was most of its search time).
+        // The regions' union as signed corners of the integral image: each rectangle is
+        // `+ii(x1, y1) + ii(x0, y0) − ii(x1, y0) − ii(x0, y1)`, and corners that rectangles share
+        // cancel (a hole fill's regions are row runs, dozens per block, whose ends mostly stay in
+        // place from one row to the next: about a third of their corners remain). Then a whole
+        // row of positions per corner, one contiguous slice of the integral image, so the sums
+        // vectorise. Exact integers: the same map as region by region.
+        let mut corners: std::collections::BTreeMap<(usize, usize), i64> = std::collections::BTreeMap::new();
+        for r in regions {
+            let (x0, y0, x1, y1) = (r.x as usize, r.y as usize, (r.x + r.w) as usize, (r.y + r.h) as usize);
+            for (corner, sign) in [((y1, x1), 1), ((y0, x0), 1), ((y0, x1), -1), ((y1, x0), -1)] {
+                *corners.entry(corner).or_insert(0) += sign;
+            }
+        }
+        corners.retain(|_, c| *c != 0);
         let (nx, ny) = self.positions();
         let (nxu, stride) = (nx as usize, self.sample.width() as usize + 1);
         let ii = &self.integral_sq;
-        let mut sums = vec![0u64; nxu * ny as usize];
-        for r in regions {
-            let (rw, rh) = (r.w as usize, r.h as usize);
-            for (y, row) in sums.chunks_exact_mut(nxu).enumerate() {
-                let (top, bottom) = ((y + r.y as usize) * stride + r.x as usize, (y + r.y as usize + rh) * stride + r.x as usize);
-                let (a, b) = (&ii[bottom + rw..bottom + rw + nxu], &ii[top..top + nxu]);
-                let (c, d) = (&ii[top + rw..top + rw + nxu], &ii[bottom..bottom + nxu]);
-                for (i, out) in row.iter_mut().enumerate() {
-                    *out += a[i] + b[i] - c[i] - d[i];
+        let mut sums = vec![0i64; nxu * ny as usize];
+        for (y, row) in sums.chunks_exact_mut(nxu).enumerate() {
+            for (&(cy, cx), &coefficient) in &corners {
+                let from = (y + cy) * stride + cx;
+                let corner_row = &ii[from..from + nxu];
+                match coefficient {
+                    1 => row.iter_mut().zip(corner_row).for_each(|(o, &v)| *o += v as i64),
+                    -1 => row.iter_mut().zip(corner_row).for_each(|(o, &v)| *o -= v as i64),
+                    k => row.iter_mut().zip(corner_row).for_each(|(o, &v)| *o += k * v as i64),
                 }
             }
         }
@@ -799,8 +1024,9 @@ mod tests {
     fn the_sum_of_squares_map_is_every_positions_sum_over_its_regions() {
         let img = noise(23, 17, 9);
         let mut search = OverlapSearch::new(&img, 8, 6);
-        // Row runs of several widths, as a hole fill's are, and a block-high strip.
-        let regions = [Rect::new(0, 0, 8, 1), Rect::new(2, 1, 3, 1), Rect::new(7, 3, 1, 1), Rect::new(0, 4, 2, 2)];
+        // Row runs of several widths, as a hole fill's are (two of them stacked on one start, so
+        // that corners cancel), and a block-high strip.
+        let regions = [Rect::new(0, 0, 8, 1), Rect::new(2, 1, 3, 1), Rect::new(2, 2, 4, 1), Rect::new(7, 3, 1, 1), Rect::new(0, 4, 2, 2)];
         let index = search.sum_sq_map(&regions);
         let (nx, ny) = search.positions();
         for y in 0..ny {
@@ -808,6 +1034,73 @@ mod tests {
                 let direct: u64 = regions.iter().map(|r| search.region_sum_sq(x, y, r)).sum();
                 assert_eq!(search.sum_sq_maps[index].1[(y * nx + x) as usize], direct as f64, "({x}, {y})");
             }
+        }
+    }
+
+    #[test]
+    fn gray_and_weighted_approximations_stay_within_their_bounds() {
+        let sample = noise(48, 40, 7);
+        let gray = RgbImage::from_fn(48, 40, |x, y| [sample.get(x, y)[1]; 3]);
+        let target = noise(30, 30, 8);
+        let gray_target = RgbImage::from_fn(30, 30, |x, y| [target.get(x, y)[0]; 3]);
+        let (regions, whole) = ([Rect::new(0, 0, 3, 10), Rect::new(3, 0, 7, 3)], [Rect::new(0, 0, 10, 10)]);
+        let mut texture = OverlapSearch::new(&sample, 10, 10);
+        let mut guide = OverlapSearch::new(&gray, 10, 10);
+        // A gray template on a gray sample takes the one-channel path.
+        let (approx, margin) = guide.approximate_all(&gray_target, (5, 6), &whole);
+        let exact_guide = guide.all_ssd_direct(&gray_target, (5, 6), &whole);
+        for (a, e) in approx.iter().zip(&exact_guide) {
+            assert!((a - *e as f64).abs() <= margin, "{a} against {e}, margin {margin}");
+        }
+        // A colour template on the gray sample takes the three channels.
+        let (approx, margin) = guide.approximate_all(&target, (1, 2), &whole);
+        for (a, e) in approx.iter().zip(guide.all_ssd_direct(&target, (1, 2), &whole)) {
+            assert!((a - e as f64).abs() <= margin, "{a} against {e}, margin {margin}");
+        }
+        let (kt, kg) = (0.3 / 90.0, 0.7 / 300.0);
+        let mut weighted = Vec::new();
+        let margin = OverlapSearch::approximate_weighted(
+            &mut texture,
+            kt,
+            (&target, (2, 3), &regions),
+            &mut guide,
+            kg,
+            (&gray_target, (5, 6), &whole),
+            &mut weighted,
+        );
+        let exact_texture = texture.all_ssd_direct(&target, (2, 3), &regions);
+        assert_eq!(weighted.len(), exact_texture.len());
+        for (i, a) in weighted.iter().enumerate() {
+            let e = kt * exact_texture[i] as f64 + kg * exact_guide[i] as f64;
+            assert!((a - e).abs() <= margin, "{a} against {e}, margin {margin}");
+        }
+    }
+
+    #[test]
+    fn many_row_runs_take_the_sum_of_squares_by_fft_and_stay_exact() {
+        let sample = noise(50, 44, 11);
+        let mut target = noise(40, 40, 12);
+        // A strong best match: the target's block at (6, 5) is partly the sample's at (17, 9).
+        for y in 0..12 {
+            for x in 0..12 {
+                target.put(6 + x, 5 + y, sample.get(17 + x, 9 + y));
+            }
+        }
+        // Row runs around a round hole, as a hole fill's: more than MASK_BY_FFT_FROM of them.
+        let regions: Vec<Rect> = (0..12u32)
+            .flat_map(|j| {
+                let half = (36i64 - (j as i64 - 6).pow(2)).max(0).isqrt() as u32;
+                let (a, b) = (6u32.saturating_sub(half), (6 + half).min(12));
+                [(0, a), (b, 12)].into_iter().filter(|(x0, x1)| x1 > x0).map(move |(x0, x1)| Rect::new(x0, j, x1 - x0, 1))
+            })
+            .collect();
+        assert!(regions.len() >= MASK_BY_FFT_FROM);
+        for tolerance in [0.0, 0.2] {
+            let mut search = OverlapSearch::new(&sample, 12, 12);
+            let fast = search.candidates(&target, (6, 5), &regions, tolerance);
+            assert!(search.sum_sq_maps.is_empty(), "ΣS² came from the FFT, not a map");
+            assert_eq!(fast, search.candidates_direct(&target, (6, 5), &regions, tolerance));
+            assert_eq!(fast.min_ssd, 0);
         }
     }
 }
