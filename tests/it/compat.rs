@@ -27,9 +27,10 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
         // `colors` means two), while a fresh run of the old job file makes the new fill, which
         // `diff` below explains. What stays the same is compared. Likewise `interior` (`auto`:
         // tiles of more than two colours take insides of their own; a record without it means
-        // `edges`).
+        // `edges`). The new fill is the tile methods' algorithm version 2 (issue #30's spread
+        // interiors and balanced bands), while the old record's two colours stay version 1.
         if o["method"] == "rw-tiles" || o["method"] == "wang-tiles" {
-            for k in ["content_key", "params_digest", "outputs", "diagnostics"] {
+            for k in ["content_key", "params_digest", "outputs", "diagnostics", "algorithm_version"] {
                 o.remove(k);
             }
             for k in ["colors", "align", "interior"] {

@@ -116,6 +116,11 @@ impl Ring {
         self.q1
     }
 
+    /// How many patch corners a `sample`-sized sample has each way.
+    pub fn range(&self, sample: (u32, u32)) -> (u32, u32) {
+        (sample.0 - self.extent.0 + 1, sample.1 - self.extent.1 + 1)
+    }
+
     /// Whether a patch of this ring's tiles fits in a `sample`-sized sample.
     pub fn fits(&self, sample: (u32, u32)) -> bool {
         self.extent.0 <= sample.0 && self.extent.1 <= sample.1
@@ -170,19 +175,47 @@ impl Ring {
         (depths, total)
     }
 
+    /// The pixel error between the tile's band and the patch at `offset`, over every third ring
+    /// pixel: how well a candidate agrees with the band. Every third ring pixel tells the
+    /// candidates apart about as well as all of them, for a third of the cost (the choice is a
+    /// large part of a 2048² fill's time).
+    fn ring_cost(&self, sample: &RgbImage, raster: &[u8], off: (i32, i32), err: PixelError) -> u64 {
+        let side = self.side;
+        self.ring
+            .iter()
+            .step_by(3)
+            .map(|&i| {
+                let p = sample.get(((i % side) as i32 + off.0) as u32, ((i / side) as i32 + off.1) as u32);
+                u64::from(err.eval([raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]], p))
+            })
+            .sum()
+    }
+
+    fn offset_of(&self, c: (u32, u32)) -> (i32, i32) {
+        (c.0 as i32 - self.origin.0, c.1 as i32 - self.origin.1)
+    }
+
+    /// Each candidate's [`Ring::ring_cost`] against the tile's band.
+    pub fn costs(&self, sample: &RgbImage, raster: &[u8], candidates: &[(u32, u32)], err: PixelError) -> Vec<u64> {
+        candidates.iter().map(|&c| self.ring_cost(sample, raster, self.offset_of(c), err)).collect()
+    }
+
     /// Gives the tile (`raster`, RGB, and `labels`, both `side × side`) the interior of the
     /// candidate patch that agrees best with it over the ring (ties to the earliest), beyond the
     /// four cuts. Pixels shallower than `q0` are unchanged.
     pub fn apply(&self, sample: &RgbImage, raster: &mut [u8], labels: &mut [u8], candidates: &[(u32, u32)], err: PixelError) -> Interior {
+        let costs = self.costs(sample, raster, candidates, err);
+        let best = (0..candidates.len()).min_by_key(|&j| (costs[j], j)).expect("at least one candidate");
+        self.apply_at(sample, raster, labels, candidates[best], err)
+    }
+
+    /// Gives the tile the interior of the patch at `corner` (one of its candidates), beyond the
+    /// four cuts.
+    pub fn apply_at(&self, sample: &RgbImage, raster: &mut [u8], labels: &mut [u8], corner: (u32, u32), err: PixelError) -> Interior {
         let side = self.side;
-        let offset_of = |c: (u32, u32)| (c.0 as i32 - self.origin.0, c.1 as i32 - self.origin.1);
         let patch = |off: (i32, i32), i: usize| sample.get(((i % side) as i32 + off.0) as u32, ((i / side) as i32 + off.1) as u32);
         let band = |raster: &[u8], i: usize| [raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]];
-        // Every third ring pixel tells the candidates apart about as well as all of them, for a
-        // third of the cost (the choice is a large part of a 2048² fill's time).
-        let ring_cost =
-            |off: (i32, i32)| -> u64 { self.ring.iter().step_by(3).map(|&i| u64::from(err.eval(band(raster, i), patch(off, i)))).sum() };
-        let best = candidates.iter().map(|&c| offset_of(c)).min_by_key(|&off| ring_cost(off)).expect("at least one candidate");
+        let best = self.offset_of(corner);
         let mut error = vec![0u32; side * side];
         for &i in &self.ring {
             error[i] = err.eval(band(raster, i), patch(best, i));
@@ -203,6 +236,14 @@ impl Ring {
         Interior { offset: best, cost: cuts.iter().map(|c| c.1).sum() }
     }
 }
+
+/// How strongly a tile's patch avoids the sample places earlier tiles took ([`choose`]).
+/// Measured on grass_gray at 2048² (issue #30): picking by ring cost alone sent the Wang tiles'
+/// interiors to the sample's low-contrast left part (3.6 times as many patch corners in the
+/// densest eighth of `x` as in the sparsest; twice uniform's neighbours within 8 px), so that
+/// one dark clump recurred at one place in many tiles, in rows along the tile rows. With 1 the
+/// corners are as spread as uniform draws (9.6 neighbours against 9.4) for ring costs 10% higher.
+pub const CROWDING: f64 = 1.0;
 
 /// The ring of a tile with overlap `ov`, in depth steps of `step` pixels (1 for square tiles,
 /// √2/2 for the rhombus' diagonal steps): from 1 to about `ov / 2` pixels in, at least two steps
@@ -228,17 +269,176 @@ pub fn give<T: Send>(
 ) -> u64 {
     let mut st = Stream::new(seed, label);
     let draws: Vec<Vec<(u32, u32)>> = tiles.iter().map(|_| ring.draw(&mut st, sample.dimensions())).collect();
-    let costs: Vec<u64> = tiles
+    let costs: Vec<Vec<u64>> = tiles
         .par_iter_mut()
         .zip(draws.par_iter())
         .map(|(tile, candidates)| {
+            let (raster, _, _) = parts(tile);
+            ring.costs(sample, raster, candidates, err)
+        })
+        .collect();
+    let picks = choose(&draws, &costs, ring.range(sample.dimensions()), CROWDING);
+    let cut_costs: Vec<u64> = tiles
+        .par_iter_mut()
+        .zip(draws.par_iter().zip(picks.par_iter()))
+        .map(|(tile, (candidates, &pick))| {
             let (raster, labels, interior) = parts(tile);
-            let got = ring.apply(sample, raster, labels, candidates, err);
+            let got = ring.apply_at(sample, raster, labels, candidates[pick], err);
             *interior = Some(got.offset);
             got.cost
         })
         .collect();
-    costs.iter().sum()
+    cut_costs.iter().sum()
+}
+
+/// Picks each tile's patch among its candidates, in tile order: the one of least ring cost
+/// times `1 + lambda · crowding`, where crowding is how many earlier tiles took a patch corner
+/// near the candidate's, relative to how many would at uniform density. `range`: how many patch
+/// corners there are each way.
+fn choose(draws: &[Vec<(u32, u32)>], costs: &[Vec<u64>], range: (u32, u32), lambda: f64) -> Vec<usize> {
+    let n = draws.len().max(1);
+    let area = f64::from(range.0) * f64::from(range.1);
+    let cell = ((area / n as f64).sqrt().floor() as u32).max(1);
+    let (gw, gh) = (range.0.div_ceil(cell) as usize, range.1.div_ceil(cell) as usize);
+    let mut counts = vec![0u32; gw * gh];
+    let near = |counts: &[u32], (x, y): (u32, u32)| -> u32 {
+        let (cx, cy) = ((x / cell) as usize, (y / cell) as usize);
+        let mut sum = 0;
+        for gy in cy.saturating_sub(1)..(cy + 2).min(gh) {
+            for gx in cx.saturating_sub(1)..(cx + 2).min(gw) {
+                sum += counts[gy * gw + gx];
+            }
+        }
+        sum
+    };
+    let window = 9.0 * f64::from(cell) * f64::from(cell) / area;
+    draws
+        .iter()
+        .zip(costs)
+        .enumerate()
+        .map(|(i, (cands, cost))| {
+            let expected = i as f64 * window;
+            let score = |j: usize| cost[j] as f64 * (1.0 + lambda * f64::from(near(&counts, cands[j])) / (expected + 1.0));
+            let mut best = 0;
+            for j in 1..cands.len() {
+                if score(j) < score(best) {
+                    best = j;
+                }
+            }
+            let (x, y) = cands[best];
+            counts[(y / cell) as usize * gw + (x / cell) as usize] += 1;
+            best
+        })
+        .collect()
+}
+
+/// Splits `cells`, the `2K` patch positions of a set's edge patches (the first `K` for the class
+/// that plays sides 0 and 2, the rest for sides 1 and 3), between the two classes so that each
+/// side's band, averaged over the `K` patches that may fill it, has the sample's mean colour at
+/// every depth: swaps one patch of each class at a time, the swap that brings the bands' average
+/// closest to the mean, while one helps (ties to the earliest pair).
+///
+/// Why: with interiors of their own, a tile keeps from its edge patches only the band within
+/// `q1` of its sides (made of edge patches only, its band is its outer part), and every tile of a
+/// fill shows one of only `K` bands along each side. Their
+/// average lies on the tile grid, every tile period: when those `K` strips of the sample happen to
+/// be darker (or lighter) than the sample, a fill shows lines along the tile rows and columns (on
+/// grass_gray the bottom rows of every Wang tile were 6 grey levels dark). Which cells the patches
+/// take is not changed, only which class uses each, so the patches stay as spread over the
+/// sample as before.
+///
+/// `sides(x, y)`: a `side × side` tile raster's side coordinates `(p, q)` (as [`Ring::new`]);
+/// `read(k, cell, x, y)`: the sample pixel that raster pixel `(x, y)` reads from the patch at
+/// `cell` playing side `k`. Only a pixel's nearest side counts it (the first, at a tie).
+pub fn balance_bands(
+    sample: &RgbImage,
+    side: usize,
+    q1: i32,
+    sides: impl Fn(i32, i32) -> Option<[(i32, i32); 4]>,
+    read: impl Fn(usize, (u32, u32), i32, i32) -> (u32, u32),
+    cells: &mut [(u32, u32)],
+) {
+    let k = cells.len() / 2;
+    if k == 0 || q1 < 1 {
+        return;
+    }
+    let depths = q1 as usize;
+    // groups[s][d]: the raster pixels whose nearest side is `s`, at depth `d`.
+    let mut groups = vec![vec![Vec::new(); depths]; 4];
+    for y in 0..side as i32 {
+        for x in 0..side as i32 {
+            if let Some(c) = sides(x, y) {
+                let (s, q) = (0..4).map(|s| (s, c[s].1)).min_by_key(|&(s, q)| (q, s)).expect("four sides");
+                if (0..q1).contains(&q) {
+                    groups[s][q as usize].push((x, y));
+                }
+            }
+        }
+    }
+    let (w, h) = sample.dimensions();
+    let mut mean = [0f64; 3];
+    for (i, v) in sample.as_raw().iter().enumerate() {
+        mean[i % 3] += f64::from(*v);
+    }
+    let mean = mean.map(|m| m / f64::from(w) / f64::from(h));
+    // profile(class, cell): the mean colour, less the sample's, of each band pixel group of the
+    // class's two sides, at each depth.
+    let profile = |class: usize, cell: (u32, u32)| -> Vec<f64> {
+        let mut out = Vec::with_capacity(2 * depths * 3);
+        for s in [class, class + 2] {
+            for group in &groups[s] {
+                let (mut sum, mut n) = ([0f64; 3], 0usize);
+                for &(x, y) in group {
+                    let (sx, sy) = read(s, cell, x, y);
+                    if sx < w && sy < h {
+                        let p = sample.get(sx, sy);
+                        for c in 0..3 {
+                            sum[c] += f64::from(p[c]);
+                        }
+                        n += 1;
+                    }
+                }
+                out.extend((0..3).map(|c| if n == 0 { 0.0 } else { sum[c] / n as f64 - mean[c] }));
+            }
+        }
+        out
+    };
+    let profiles: Vec<[Vec<f64>; 2]> = cells.iter().map(|&c| [profile(0, c), profile(1, c)]).collect();
+    let len = profiles[0][0].len();
+    let mut order: Vec<usize> = (0..2 * k).collect();
+    let total = |order: &[usize], class: usize| -> Vec<f64> {
+        let mut t = vec![0f64; len];
+        for &i in &order[class * k..(class + 1) * k] {
+            for (a, b) in t.iter_mut().zip(&profiles[i][class]) {
+                *a += b;
+            }
+        }
+        t
+    };
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>();
+    let (mut s0, mut s1) = (total(&order, 0), total(&order, 1));
+    let mut score = norm(&s0) + norm(&s1);
+    for _ in 0..4 * k {
+        let mut best: Option<(f64, usize, usize)> = None;
+        for a in 0..k {
+            for b in k..2 * k {
+                let (i, j) = (order[a], order[b]);
+                let t0: Vec<f64> = (0..len).map(|e| s0[e] - profiles[i][0][e] + profiles[j][0][e]).collect();
+                let t1: Vec<f64> = (0..len).map(|e| s1[e] - profiles[j][1][e] + profiles[i][1][e]).collect();
+                let v = norm(&t0) + norm(&t1);
+                if v < best.map_or(score, |b| b.0) {
+                    best = Some((v, a, b));
+                }
+            }
+        }
+        let Some((v, a, b)) = best else { break };
+        order.swap(a, b);
+        (s0, s1, score) = (total(&order, 0), total(&order, 1), v);
+    }
+    let was = cells.to_vec();
+    for (slot, &i) in cells.iter_mut().zip(&order) {
+        *slot = was[i];
+    }
 }
 
 /// `diagnostics.interior` of a job whose tiles have interiors of their own.
