@@ -30,7 +30,7 @@ use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
 use crate::synth::error::SynthError;
 use crate::synth::lattice::{GivenVectors, VECTOR_PARAMS};
-use crate::synth::method::{Method, Request, Strips, Synthesis};
+use crate::synth::method::{Method, Request, Strips, Synthesis, Uses};
 use crate::synth::params::{
     Choice, Default, MethodConfig, ParamError, ParamKind, ParamSpec, ParamValue, Params, boolean, int, int_or, word,
 };
@@ -755,7 +755,7 @@ impl Method for RwTiles {
     fn algorithm_version(&self) -> u32 {
         common::ALGORITHM_VERSION
     }
-    fn algorithm_version_of(&self, params: &Params) -> u32 {
+    fn algorithm_version_of(&self, params: &Params, _uses: Uses) -> u32 {
         common::algorithm_version_of(params)
     }
     fn summary(&self) -> &'static str {
