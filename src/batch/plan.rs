@@ -659,21 +659,44 @@ fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
 /// re-run with nothing to do does not analyse every sample again.
 fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, same_tool: &BTreeSet<String>) {
     let reuse = |e: &Entry| e.action == Action::UpToDate && same_tool.contains(&e.job.id);
-    let analysed = |e: &Entry| e.atlas.as_ref().map_or(&e.sample, |a| &a.first).clone();
-    let mut wanted: Vec<(String, Arc<LoadedSample>)> =
-        entries.iter().filter(|e| !reuse(e)).map(|e| (analysed(e).pixel_digest.sha256.clone(), analysed(e))).collect();
+    // What shows the texture: the (first) sample; for an inpainting job, the largest rectangle of
+    // its image outside the hole (analysed whole, the hole's paint read as a flat area and as
+    // large features, and the advice asked for blocks that no longer fit beside the hole), none
+    // when that is smaller than `MIN_ADVISED` a side.
+    const MIN_ADVISED: u32 = 32;
+    let analysed = |e: &Entry| -> Option<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)> {
+        let s = e.atlas.as_ref().map_or(&e.sample, |a| &a.first).clone();
+        match &e.fill {
+            None => Some((s.pixel_digest.sha256.clone(), s, None)),
+            Some((_, region)) => {
+                let (x, y, w, h) = region.largest_known_rect().filter(|r| r.2 >= MIN_ADVISED && r.3 >= MIN_ADVISED)?;
+                Some((format!("{}/{x},{y},{w}x{h}", s.pixel_digest.sha256), s, Some((x, y, w, h))))
+            }
+        }
+    };
+    let mut wanted: Vec<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)> =
+        entries.iter().filter(|e| !reuse(e)).filter_map(analysed).collect();
     wanted.sort_by(|a, b| a.0.cmp(&b.0));
     wanted.dedup_by(|a, b| a.0 == b.0);
-    let analyses: BTreeMap<String, Analysis> =
-        wanted.par_iter().map(|(d, s)| (d.to_string(), advice::analyse(&s.image))).collect::<Vec<_>>().into_iter().collect();
+    let analyses: BTreeMap<String, Analysis> = wanted
+        .par_iter()
+        .map(|(key, s, rect)| {
+            let analysis = match rect {
+                Some((x, y, w, h)) => advice::analyse(&s.image.crop(*x, *y, *w, *h)),
+                None => advice::analyse(&s.image),
+            };
+            (key.to_string(), analysis)
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect();
     for e in entries.iter_mut() {
         e.record.warnings = if reuse(e) {
             previous[&e.job.id].warnings.clone()
         } else {
-            let a = &analyses[&analysed(e).pixel_digest.sha256];
+            let a = analysed(e).map(|(key, _, _)| &analyses[&key]);
             let wrap = a
-                .lattice
-                .as_ref()
+                .and_then(|a| a.lattice.as_ref())
                 .filter(|_| e.job.output.tileable)
                 .and_then(|l| wrap::warning(l, (e.job.output.width, e.job.output.height)));
             let nothing_to_fill = e
@@ -681,7 +704,7 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
                 .as_ref()
                 .filter(|(_, f)| f.count() == 0)
                 .map(|_| "the inpaint mask marks no pixel to fill (white = fill): the output is the image, unchanged".to_string());
-            advice::warning(a, e.job.method.name(), &e.job.params).into_iter().chain(wrap).chain(nothing_to_fill).collect()
+            a.into_iter().flat_map(|a| advice::warning(a, e.job.method.name(), &e.job.params)).chain(wrap).chain(nothing_to_fill).collect()
         };
     }
 }

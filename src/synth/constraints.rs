@@ -149,6 +149,39 @@ impl FillRegion {
         (x1 > 0).then_some((x0, y0, x1, y1))
     }
 
+    /// The largest rectangle `(x, y, w, h)` of known pixels (the largest area; the first found
+    /// in raster order of its bottom-right corner on ties), or `None` when every pixel is to be
+    /// filled: the part of a damaged image that shows its texture as it is.
+    pub fn largest_known_rect(&self) -> Option<(u32, u32, u32, u32)> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        // Per column, how many known pixels end at this row; then the largest rectangle under
+        // that histogram, by a stack of rising bars.
+        let mut heights = vec![0usize; w];
+        let mut best: Option<(usize, usize, usize, usize, usize)> = None;
+        for y in 0..h {
+            for (x, run) in heights.iter_mut().enumerate() {
+                *run = if self.fill[y * w + x] { 0 } else { *run + 1 };
+            }
+            let mut stack: Vec<usize> = Vec::new();
+            for x in 0..=w {
+                let bar = if x < w { heights[x] } else { 0 };
+                while let Some(&top) = stack.last() {
+                    if heights[top] < bar {
+                        break;
+                    }
+                    stack.pop();
+                    let left = stack.last().map_or(0, |&l| l + 1);
+                    let (rw, rh) = (x - left, heights[top]);
+                    if rw * rh > best.map_or(0, |b| b.4) {
+                        best = Some((left, y + 1 - rh, rw, rh, rw * rh));
+                    }
+                }
+                stack.push(x);
+            }
+        }
+        best.map(|(x, y, rw, rh, _)| (x as u32, y as u32, rw as u32, rh as u32))
+    }
+
     /// The known pixels as a sample mask: what a fill may copy from when the image is its own
     /// sample (the pixels to fill hold what must go: a logo, a cable, a hole).
     pub fn known(&self) -> SampleMask {
@@ -272,6 +305,40 @@ mod tests {
         SampleMask::new(rows[0].len() as u32, rows.len() as u32, allowed)
     }
 
+    #[test]
+    fn the_largest_known_rectangle_is_the_largest_one_with_no_pixel_to_fill() {
+        // Brute force over every rectangle of small pseudo-random masks.
+        let mut state = 12345u64;
+        for _ in 0..40 {
+            let (w, h) = (1 + (state % 9) as u32, 1 + (state / 9 % 7) as u32);
+            let fill: Vec<bool> = (0..w * h)
+                .map(|_| {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    state >> 61 == 0
+                })
+                .collect();
+            let region = FillRegion::new(w, h, fill);
+            let mut best = 0;
+            for y0 in 0..h {
+                for x0 in 0..w {
+                    for y1 in y0 + 1..=h {
+                        for x1 in x0 + 1..=w {
+                            if (y0..y1).all(|y| (x0..x1).all(|x| !region.fills(x, y))) {
+                                best = best.max((x1 - x0) * (y1 - y0));
+                            }
+                        }
+                    }
+                }
+            }
+            match region.largest_known_rect() {
+                Some((x, y, rw, rh)) => {
+                    assert_eq!(rw * rh, best, "{w}x{h}");
+                    assert!((y..y + rh).all(|yy| (x..x + rw).all(|xx| !region.fills(xx, yy))), "{w}x{h}: the rectangle holds no hole");
+                }
+                None => assert_eq!(best, 0),
+            }
+        }
+    }
     #[test]
     fn a_block_position_is_allowed_only_when_every_pixel_is() {
         let m = mask(&["###.", "###.", "####", "#.##"]);

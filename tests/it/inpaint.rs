@@ -595,3 +595,34 @@ fn a_large_hole_does_not_repeat_the_same_patches() {
     assert!(distinct > 0.45, "{:.0} % of the filled pixels are distinct sample pixels", 100.0 * distinct);
     assert!(most <= 10, "one sample pixel is copied {most} times");
 }
+
+/// The advice of an inpainting job reads the texture around the hole, not the hole's paint: a
+/// magenta disc in cork, analysed with the image, reads as flat overlap bands and large features
+/// (`advise` of the painted image asks for block = 128, which no longer fits beside the hole);
+/// the job's warnings come from the largest rectangle outside the hole, where cork fits quilting.
+#[test]
+fn an_inpainting_jobs_advice_ignores_the_holes_paint() {
+    let d = scratch("inpaint-advice");
+    let jobs = d.join("jobs");
+    std::fs::create_dir_all(&jobs).unwrap();
+    let cork = rgb(&repo().join("jobs/samples/cork.png"));
+    let (w, h) = cork.dimensions();
+    let hole = |x: u32, y: u32| (f64::from(x) - 128.0).powi(2) + (f64::from(y) - 128.0).powi(2) <= 85.0 * 85.0;
+    let (image, mask) = (d.join("painted.png"), d.join("hole.png"));
+    texsyn::save_image(&texsyn::RgbImage::from_fn(w, h, |x, y| if hole(x, y) { [255, 0, 255] } else { cork.get(x, y) }), &image).unwrap();
+    texsyn::save_image(&texsyn::RgbImage::from_fn(w, h, |x, y| if hole(x, y) { [255; 3] } else { [0; 3] }), &mask).unwrap();
+    let whole = text(&run_ok(texsyn().arg("advise").arg(&image)));
+    assert!(whole.contains("almost no contrast") && whole.contains("block = 128"), "the painted image read whole: {whole}");
+    write(
+        &jobs.join("h.toml"),
+        &format!(
+            "method = \"quilting\"\nseed = 1\n[inpaint]\nimage = \"{}\"\nmask = \"{}\"\n[output]\npath = \"h.png\"\n",
+            image.display(),
+            mask.display()
+        ),
+    );
+    run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
+    let rec = &manifest(&d.join("out"))["jobs"][0];
+    let warnings = rec["warnings"].to_string();
+    assert!(!warnings.contains("no contrast") && !warnings.contains("block = 128"), "{warnings}");
+}
