@@ -206,6 +206,15 @@ pub struct Guide {
 }
 
 impl Guide {
+    /// The target guide over a `width × height` canvas that may reach past it (blocks a search
+    /// reads whole): wrapped when the output is `tileable` (a torus), else its edge going on.
+    pub fn target_beyond(&self, width: u32, height: u32, tileable: bool) -> crate::image::RgbImage {
+        let (w, h) = self.target.dimensions();
+        crate::image::RgbImage::from_fn(width, height, |x, y| {
+            if tileable { self.target.get(x % w, y % h) } else { self.target.get(x.min(w - 1), y.min(h - 1)) }
+        })
+    }
+
     /// The luminance of `source` (the sample's guide, or the sample) and of `target`, the target's
     /// levels moved to the source's mean and spread: a photo much darker or flatter than the
     /// sample would otherwise match only its darkest or most uniform blocks.

@@ -240,9 +240,7 @@ impl Method for Quilting {
                     if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
                         return Err(SynthError::Failed("the guides must have the image's and the sample's sizes".into()));
                     }
-                    let target = RgbImage::from_fn(w + block, h + block, |x, y| {
-                        if req.tileable { guide.target.get(x % w, y % h) } else { guide.target.get(x.min(w - 1), y.min(h - 1)) }
-                    });
+                    let target = guide.target_beyond(w + block, h + block, req.tileable);
                     let mut guided =
                         super::guide::GuidedSearch::new(sample, &guide.source, &target, block, guide.weight, Some(allowed.clone()));
                     let mut synthesis = inpaint::fill(
@@ -454,13 +452,11 @@ impl Quilting {
             };
             // The last blocks reach past the output: the target guide goes on there as its own
             // edge (those blocks are cropped, but still guided where they show), or wraps.
-            let target = match &grid {
-                Grid::Plain(layout) => {
-                    let (cw, ch) = layout.canvas();
-                    RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(w - 1), y.min(h - 1)))
-                }
-                Grid::Torus(_) => RgbImage::from_fn(w + block, h + block, |x, y| guide.target.get(x % w, y % h)),
+            let (tw, th) = match &grid {
+                Grid::Plain(layout) => layout.canvas(),
+                Grid::Torus(_) => (w + block, h + block),
             };
+            let target = guide.target_beyond(tw, th, req.tileable);
             let mut search = super::guide::GuidedSearch::new(sample, &guide.source, &target, block, weight, allowed);
             let (cw, ch) = match &grid {
                 Grid::Plain(layout) => layout.canvas(),

@@ -375,9 +375,7 @@ impl PatchSampling {
                 if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
                     return Err(SynthError::Failed("the guides must have the image's and the sample's sizes".into()));
                 }
-                let target = RgbImage::from_fn(w + block, h + block, |x, y| {
-                    if req.tileable { guide.target.get(x % w, y % h) } else { guide.target.get(x.min(w - 1), y.min(h - 1)) }
-                });
+                let target = guide.target_beyond(w + block, h + block, req.tileable);
                 settings.label = "inpaint/guided/".into();
                 Some(GuideTerm { source: &guide.source, lines: SampleLines::new(&guide.source), target, weight: guide.weight })
             }
@@ -452,12 +450,8 @@ impl PatchSampling {
             let (w, h) = (req.width, req.height);
             // Past the output the target goes on as its own edge (the last blocks are cropped),
             // or wraps with a tileable output's torus.
-            let target = if req.tileable {
-                RgbImage::from_fn(w + block, h + block, |x, y| guide.target.get(x % w, y % h))
-            } else {
-                let (cw, ch) = BlockGrid::new(block, overlap, w, h).canvas();
-                RgbImage::from_fn(cw, ch, |x, y| guide.target.get(x.min(w - 1), y.min(h - 1)))
-            };
+            let (cw, ch) = if req.tileable { (w + block, h + block) } else { BlockGrid::new(block, overlap, w, h).canvas() };
+            let target = guide.target_beyond(cw, ch, req.tileable);
             let term = GuideTerm { source: &guide.source, lines: SampleLines::new(&guide.source), target, weight: guide.weight };
             let mut synthesis = self.grid(req, &settings, block, overlap, previous.as_ref(), Some(&term))?;
             passes.push(json!({ "block": block, "overlap": overlap, "weight": guide.weight, "mean_rms_error": synthesis.diagnostics["mean_rms_error"].clone() }));
