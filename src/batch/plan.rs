@@ -674,8 +674,10 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
             }
         }
     };
-    let mut wanted: Vec<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)> =
-        entries.iter().filter(|e| !reuse(e)).filter_map(analysed).collect();
+    // Once per entry (the hole's rectangle is a pass over the mask): what it is analysed as.
+    let per_entry: Vec<Option<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)>> =
+        entries.iter().map(|e| if reuse(e) { None } else { analysed(e) }).collect();
+    let mut wanted: Vec<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)> = per_entry.iter().flatten().cloned().collect();
     wanted.sort_by(|a, b| a.0.cmp(&b.0));
     wanted.dedup_by(|a, b| a.0 == b.0);
     let analyses: BTreeMap<String, Analysis> = wanted
@@ -690,11 +692,11 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
         .collect::<Vec<_>>()
         .into_iter()
         .collect();
-    for e in entries.iter_mut() {
+    for (e, analysed_as) in entries.iter_mut().zip(&per_entry) {
         e.record.warnings = if reuse(e) {
             previous[&e.job.id].warnings.clone()
         } else {
-            let a = analysed(e).map(|(key, _, _)| &analyses[&key]);
+            let a = analysed_as.as_ref().map(|(key, _, _)| &analyses[key]);
             let wrap = a
                 .and_then(|a| a.lattice.as_ref())
                 .filter(|_| e.job.output.tileable)

@@ -121,16 +121,24 @@ impl Reuse {
         placed.iter().map(|&(x, y)| shared(p.0, x) * shared(p.1, y)).sum()
     }
 
-    /// The members that repeat at most the allowance, or `None` when none does.
-    pub(crate) fn fresh<T: Copy>(&self, members: &[T], pos: impl Fn(&T) -> (u32, u32), placed: &[(u32, u32)]) -> Option<Vec<T>> {
-        let kept: Vec<T> = members.iter().copied().filter(|m| self.repeats(pos(m), placed) <= self.allowance).collect();
-        (!kept.is_empty()).then_some(kept)
-    }
-
-    /// The members that repeat least.
-    pub(crate) fn least<T: Copy>(&self, members: &[T], pos: impl Fn(&T) -> (u32, u32), placed: &[(u32, u32)]) -> Vec<T> {
-        let least = members.iter().map(|m| self.repeats(pos(m), placed)).min().unwrap_or(0);
-        members.iter().copied().filter(|m| self.repeats(pos(m), placed) == least).collect()
+    /// The members to pick from: `set(widening)` is the tolerance set (twins left out) widened
+    /// by `widening`; the first of `+0`, `+0.25`, `+1` with members that repeat at most the
+    /// allowance gives those, and failing all three, the least repeating of the first set.
+    pub(crate) fn members(&self, placed: &[(u32, u32)], mut set: impl FnMut(f64) -> Vec<(u32, u32, u64)>) -> Vec<(u32, u32, u64)> {
+        let repeats = |m: &(u32, u32, u64)| self.repeats((m.0, m.1), placed);
+        let mut least = Vec::new();
+        for widening in [0.0, 0.25, 1.0] {
+            let found = set(widening);
+            let fresh: Vec<(u32, u32, u64)> = found.iter().copied().filter(|m| repeats(m) <= self.allowance).collect();
+            if !fresh.is_empty() {
+                return fresh;
+            }
+            if widening == 0.0 {
+                let fewest = found.iter().map(repeats).min().unwrap_or(0);
+                least = found.into_iter().filter(|m| repeats(m) == fewest).collect();
+            }
+        }
+        least
     }
 }
 
@@ -151,22 +159,14 @@ pub(crate) fn pick_guided<'p>(
     label: &'static str,
 ) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
     move |want| {
-        let mut members = Vec::new();
-        for wider in [0.0, 0.25, 1.0] {
+        let members = reuse.members(want.placed, |wider| {
             let found: Vec<(u32, u32, u64)> = search
                 .candidates(want.window, (0, 0), want.regions, want.place, tolerance + wider)
                 .into_iter()
                 .map(|(x, y)| (x, y, 0))
                 .collect();
-            let found = req.constraints.without_twins(&found, want.neighbours, block).unwrap_or(found);
-            if let Some(fresh) = reuse.fresh(&found, |m| (m.0, m.1), want.placed) {
-                members = fresh;
-                break;
-            }
-            if wider == 0.0 {
-                members = reuse.least(&found, |m| (m.0, m.1), want.placed);
-            }
-        }
+            req.constraints.without_twins(&found, want.neighbours, block).unwrap_or(found)
+        });
         let (bi, bj) = want.index;
         let mut s = Stream::new(req.seed, &format!("{label}/inpaint/guided/bi={bi}/bj={bj}"));
         let p = members[s.below_usize(members.len())];
@@ -186,18 +186,10 @@ pub(crate) fn pick_among_candidates<'p>(
 ) -> impl FnMut(&Want) -> ((u32, u32), Option<usize>) + 'p {
     move |want| {
         let (window, regions, (bi, bj)) = (want.window, want.regions, want.index);
-        let mut members = Vec::new();
-        for wider in [0.0, 0.25, 1.0] {
+        let members = reuse.members(want.placed, |wider| {
             let c = search.candidates(window, (0, 0), regions, tolerance + wider);
-            let found = super::untwinned(req, search, window, (0, 0), regions, tolerance + wider, c.members, want.neighbours, block);
-            if let Some(fresh) = reuse.fresh(&found, |m| (m.0, m.1), want.placed) {
-                members = fresh;
-                break;
-            }
-            if wider == 0.0 {
-                members = reuse.least(&found, |m| (m.0, m.1), want.placed);
-            }
-        }
+            super::untwinned(req, search, window, (0, 0), regions, tolerance + wider, c.members, want.neighbours, block)
+        });
         let mut s = Stream::new(req.seed, &format!("{label}/inpaint/pick/bi={bi}/bj={bj}"));
         let p = members[s.below_usize(members.len())];
         ((p.0, p.1), Some(members.len()))
