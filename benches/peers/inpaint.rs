@@ -206,7 +206,7 @@ pub fn transfer(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(u
     let (w, h) = target.dimensions();
     println!("\ntexture transfer onto jobs/samples/guided/target_rings.png ({w}x{h}), one thread; texsyn: quilting block 32 / overlap 6,");
     println!(
-        "[guide] defaults (weight 0.5, 3 passes); Embark: transfer-style defaults. follow = correlation with the target (16-px cells)\n"
+        "[guide] defaults (weight 0.7, 3 passes); Embark: transfer-style defaults. follow = correlation with the target (16-px cells)\n"
     );
     println!(
         "{:<16} {:>9} {:>9} {:>8}   {:>16} {:>16} {:>16}",

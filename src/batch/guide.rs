@@ -62,6 +62,6 @@ impl GuideImages<'_> {
             }
             None => &sample.image,
         };
-        Ok(Guide::from_images(&self.target.1.image, source, self.weight, self.passes))
+        Ok(Guide::from_images(&self.target.1.image, source, self.weight, self.passes, self.source.is_none()))
     }
 }

@@ -107,6 +107,9 @@ pub struct Uses {
     pub inpaint: bool,
     /// `augment`: the search sees turned or mirrored copies of the samples.
     pub copies: bool,
+    /// `[guide]` without a `source`: the guides are luminance, compared at a block's scale
+    /// ([`crate::synth::constraints::Guide::at_block_scale`]).
+    pub luminance_guide: bool,
 }
 
 impl Uses {
@@ -115,6 +118,7 @@ impl Uses {
         Uses {
             inpaint: spec.get("inpaint").is_some_and(|v| !v.is_null()),
             copies: spec.get("augment").and_then(|a| a.as_array()).is_some_and(|a| !a.is_empty()),
+            luminance_guide: spec.get("guide").and_then(|g| g.get("source")).is_some_and(|s| s == "luminance"),
         }
     }
 }

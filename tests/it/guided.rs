@@ -228,14 +228,14 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     let text = std::fs::read_to_string(repo().join("jobs/guided/transfer_rings.toml")).unwrap();
     let text = text.replace("../samples/", &format!("{}/", repo().join("jobs/samples").display()));
     std::fs::write(jobs.join("guided.toml"), &text).unwrap();
-    std::fs::write(jobs.join("unguided.toml"), text.replace("weight = 0.5", "weight = 0.0").replace("transfer_rings.png", "unguided.png"))
+    std::fs::write(jobs.join("unguided.toml"), text.replace("weight = 0.7", "weight = 0.0").replace("transfer_rings.png", "unguided.png"))
         .unwrap();
     // Patch sampling: its swarm and its exhaustive search, guided and at weight 0.
     let ps = text.replace("method = \"quilting\"", "method = \"patch-sampling\"");
     for (name, weight, params) in
-        [("ps_guided", "0.5", ""), ("ps_unguided", "0.0", ""), ("ps_exhaustive", "0.5", "search = \"exhaustive\"\n")]
+        [("ps_guided", "0.7", ""), ("ps_unguided", "0.0", ""), ("ps_exhaustive", "0.7", "search = \"exhaustive\"\n")]
     {
-        let t = ps.replace("weight = 0.5", &format!("weight = {weight}")).replace("transfer_rings.png", &format!("{name}.png"));
+        let t = ps.replace("weight = 0.7", &format!("weight = {weight}")).replace("transfer_rings.png", &format!("{name}.png"));
         std::fs::write(jobs.join(format!("{name}.toml")), format!("{t}{params}")).unwrap();
     }
     run_ok(texsyn().args(["run", "-q", "-j", "2", "-o"]).arg(d.join("out")).arg(&jobs));
@@ -251,6 +251,17 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     assert!(pg > 0.6 && pe > 0.6, "patch sampling follows the target: correlation {pg:.2} (cpso), {pe:.2} (exhaustive)");
     assert!(pu.abs() < 0.3, "patch sampling at weight 0 ignores the target: correlation {pu:.2}");
     let sample = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
+    // The texture stays the sample's: paper 003's gray and orientation KL divergences of the
+    // output against the sample. Matched pixel by pixel against the target, quilting's search took
+    // the flattest blocks near each level: 0.18 and 0.05 (Embark's transfer-style: 0.05 and 0.011
+    // on this sample and target; texsyn now 0.057 and 0.019). Patch sampling feathers its
+    // overlaps, which narrows the gray histogram whatever the guide (0.11 and 0.006).
+    for (name, gray, orientation) in [("transfer_rings", 0.09, 0.025), ("ps_guided", 0.15, 0.025), ("ps_exhaustive", 0.15, 0.025)] {
+        let out = rgb(&d.join(format!("out/guided/{name}.png")));
+        let (g, o) = (texsyn::metrics::kl_gray(&sample, &out).unwrap(), texsyn::metrics::kl_orientation(&sample, &out).unwrap());
+        eprintln!("{name}: kl_gray {g:.4}, kl_orientation {o:.4}");
+        assert!(g < gray && o < orientation, "{name} keeps the sample's texture statistics: kl_gray {g:.3}, kl_orientation {o:.3}");
+    }
     let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
     assert!(guided.as_raw().chunks_exact(3).all(|p| colours.contains(&[p[0], p[1], p[2]])), "every pixel is a sample pixel");
     let m = json(&d.join("out/manifest.json"));
@@ -258,6 +269,7 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
     assert!(rec["guide_target"]["path"].as_str().unwrap().ends_with("target_rings.png"), "{rec}");
     assert_eq!(rec["output_spec"]["guide"]["source"], "luminance", "{rec}");
     assert_eq!(rec["output_spec"]["guide"]["passes"], 3, "{rec}");
+    assert_eq!(rec["algorithm_version"], 5, "a luminance guide compared at a block's scale: {rec}");
     run_ok(texsyn().arg("verify").arg(d.join("out/manifest.json")));
     run_ok(texsyn().args(["run", "-q", "-j", "1", "-o"]).arg(d.join("one")).arg(&jobs));
     let one = json(&d.join("one/manifest.json"));

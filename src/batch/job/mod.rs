@@ -46,7 +46,7 @@ pub const GUIDE_KEYS: &[&str] = &["target", "source", "weight", "passes"];
 /// `[guide] passes` when the file leaves it out: Efros and Freeman iterate three to five times.
 pub const DEFAULT_GUIDE_PASSES: u32 = 3;
 /// `[guide] weight` when the file leaves it out: the guide's share of a block's error.
-pub const DEFAULT_GUIDE_WEIGHT: f64 = 0.5;
+pub const DEFAULT_GUIDE_WEIGHT: f64 = 0.7;
 /// The keys of the `[inpaint]` table.
 pub const INPAINT_KEYS: &[&str] = &["image", "mask", "channel"];
 /// The keys of the `[output]` table.

@@ -116,11 +116,11 @@ mod tests {
         // A sample dark on the left half and light on the right; the target asks for light.
         let sample = RgbImage::from_fn(40, 20, |x, y| if x < 20 { [20 + (y % 3) as u8, 20, 20] } else { [230, 230 - (y % 3) as u8, 230] });
         let target = RgbImage::from_fn(10, 10, |_, _| [255, 255, 255]);
-        let guide = Guide::from_images(&target, &sample, 1.0, 1);
+        let guide = Guide::from_images(&target, &sample, 1.0, 1, true);
         // A flat target has no spread: it sits at the sample's mean level, between the halves.
         assert!(guide.target.get(0, 0)[0] > 100 && guide.target.get(0, 0)[0] < 150);
         let light = RgbImage::from_fn(10, 10, |x, _| if x < 5 { [0; 3] } else { [255; 3] });
-        let guide = Guide::from_images(&light, &sample, 1.0, 1);
+        let guide = Guide::from_images(&light, &sample, 1.0, 1, true);
         let mut search = GuidedSearch::new(&sample, &guide.source, &guide.target, 10, 1.0, None);
         // The right half of the target is light: a block placed there comes from the light half.
         let picks = search.candidates(&RgbImage::new(10, 10), (0, 0), &[], (0, 0), 0.0);
@@ -143,7 +143,7 @@ mod tests {
         let mut s = crate::synth::rng::Stream::new(5, "test/guided");
         let sample = RgbImage::from_fn(40, 36, |x, _| [(x * 6) as u8 + s.below(20) as u8, s.below(256) as u8, s.below(256) as u8]);
         let target = RgbImage::from_fn(30, 30, |x, y| [(x * 8) as u8, (y * 8) as u8, 90]);
-        let guide = Guide::from_images(&target, &sample, 0.6, 1);
+        let guide = Guide::from_images(&target, &sample, 0.6, 1, true);
         let canvas = RgbImage::from_fn(30, 30, |x, y| sample.get(x + 3, y + 2));
         let (b, origin, place) = (9, (7, 8), (4, 5));
         let whole = [Rect::new(0, 0, b, b)];

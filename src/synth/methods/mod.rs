@@ -73,6 +73,11 @@ pub(crate) const PYRAMID_VERSION: u32 = 1;
 /// version 1 (2 is that with the pyramid); see their `algorithm_version_of`.
 pub(crate) const INPAINT_VERSION: u32 = 3;
 
+/// The algorithm version of quilting's and patch sampling's syntheses and hole fills led by a
+/// luminance guide, compared at a block's scale since issue #28's transfer statistics (6 with the
+/// pyramid); a guide with its own `source` keeps the versions above.
+pub(crate) const LUMINANCE_GUIDE_VERSION: u32 = 5;
+
 /// A method's algorithm version for the [`Engine`] parameter `key` (resolved): its own, plus
 /// [`PYRAMID_VERSION`] when the pyramid makes the pixels.
 pub(crate) fn engine_version(params: &Params, key: &str, base: u32) -> u32 {

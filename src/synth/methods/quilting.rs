@@ -161,9 +161,15 @@ impl Method for Quilting {
     }
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting prefers blocks that repeat little of what the hole already copied
-        // (`inpaint::Reuse`, issue #28); plain syntheses keep version 1 and their pixels (2 is
-        // version 1 with the pyramid).
-        let base = if uses.inpaint { super::INPAINT_VERSION } else { self.algorithm_version() };
+        // (`inpaint::Reuse`, issue #28); version 5: a luminance guide is compared at a block's
+        // scale; plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
+        let base = if uses.luminance_guide {
+            super::LUMINANCE_GUIDE_VERSION
+        } else if uses.inpaint {
+            super::INPAINT_VERSION
+        } else {
+            self.algorithm_version()
+        };
         super::engine_version(params, "search", base)
     }
     fn summary(&self) -> &'static str {
@@ -206,7 +212,7 @@ impl Method for Quilting {
         if let Some(guide) = req.constraints.guide
             && req.constraints.fill.is_none()
         {
-            return self.synthesize_guided(req, &cfg, guide);
+            return self.synthesize_guided(req, &cfg, &guide.at_block_scale(cfg.block));
         }
         if let Some(region) = req.constraints.fill {
             if rule == OverlapRule::Feather {
@@ -234,6 +240,7 @@ impl Method for Quilting {
                     &mut inpaint::pick_among_candidates(req, &mut search, tolerance, block, inpaint::Reuse::new(block, overlap), "quilt"),
                 )?,
                 Some(guide) => {
+                    let guide = &guide.at_block_scale(block);
                     // The target guide read at any window's place: past the image's edge it
                     // wraps on a torus and goes on as its own edge otherwise (windows stay inside).
                     let (w, h) = region.dimensions();

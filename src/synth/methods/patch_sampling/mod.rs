@@ -203,9 +203,16 @@ impl Method for PatchSampling {
     }
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting cuts its patches into earlier fill (it feathered them), and with
-        // turned copies continuations are always scored and twins left out (issue #28); plain
+        // turned copies continuations are always scored and twins left out (issue #28); version 5:
+        // a luminance guide is compared at a block's scale; plain
         // syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
-        let base = if uses.inpaint || uses.copies { super::INPAINT_VERSION } else { self.algorithm_version() };
+        let base = if uses.luminance_guide {
+            super::LUMINANCE_GUIDE_VERSION
+        } else if uses.inpaint || uses.copies {
+            super::INPAINT_VERSION
+        } else {
+            self.algorithm_version()
+        };
         super::engine_version(params, "engine", base)
     }
     fn summary(&self) -> &'static str {
@@ -283,7 +290,7 @@ impl Method for PatchSampling {
             return self.inpaint(req, &cfg, settings, region);
         }
         if let Some(guide) = req.constraints.guide {
-            return self.synthesize_guided(req, &cfg, settings, guide);
+            return self.synthesize_guided(req, &cfg, settings, &guide.at_block_scale(cfg.block));
         }
         settings.allowed = allowed_positions(req, block)?;
         let mut synthesis = self.grid(req, &settings, block, overlap, None, None)?;
@@ -369,7 +376,8 @@ impl PatchSampling {
         // With `[guide]`, every block of the hole weighs its match with the pixels around it
         // against the guides' (one pass: a hole is filled once), the target read where the block
         // goes: past the image's edge it wraps on a torus and goes on as its own edge otherwise.
-        let term = match req.constraints.guide {
+        let scaled = req.constraints.guide.map(|g| g.at_block_scale(block));
+        let term = match &scaled {
             Some(guide) => {
                 let (w, h) = region.dimensions();
                 if guide.target.dimensions() != (w, h) || guide.source.dimensions() != sample.dimensions() {
