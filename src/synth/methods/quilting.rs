@@ -225,6 +225,7 @@ impl Method for Quilting {
                 copyable: &copyable,
                 engine: cfg.search,
                 label: "quilt",
+                polish_search: inpaint::polish_search(&search, block, overlap, &copyable).into(),
             };
             let mut synthesis = match req.constraints.guide {
                 None => inpaint::fill(
