@@ -860,8 +860,12 @@ impl<'a> OverlapSearch<'a> {
         let (nx, ny) = self.positions();
         let (nxu, stride) = (nx as usize, self.sample.width() as usize + 1);
         let ii = &self.shared.integral_sq;
-        let mut sums = vec![0i64; nxu * ny as usize];
-        for (y, row) in sums.chunks_exact_mut(nxu).enumerate() {
+        // Row by row in integers, each row then stored as f64 (the same exact values, without a
+        // second map-sized array).
+        let mut map = vec![0.0f64; nxu * ny as usize];
+        let mut row = vec![0i64; nxu];
+        for (y, out) in map.chunks_exact_mut(nxu).enumerate() {
+            row.fill(0);
             for (&(cy, cx), &coefficient) in &corners {
                 let from = (y + cy) * stride + cx;
                 let corner_row = &ii[from..from + nxu];
@@ -871,8 +875,8 @@ impl<'a> OverlapSearch<'a> {
                     k => row.iter_mut().zip(corner_row).for_each(|(o, &v)| *o += k * v as i64),
                 }
             }
+            out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f64);
         }
-        let map: Vec<f64> = sums.into_iter().map(|v| v as f64).collect();
         self.sum_sq_maps.push((regions.to_vec(), map));
         self.sum_sq_maps.len() - 1
     }
