@@ -1009,6 +1009,31 @@ mod tests {
     }
 
     #[test]
+    fn a_search_sharing_spectra_for_another_block_equals_its_own() {
+        // The spectra made for 20² blocks serve 9² ones (restricted or not, by the region sets'
+        // exact maps and by the mask's FFT): the same sets as a search made for 9², and brute force.
+        let sample = noise(61, 57, 31);
+        let target = noise(90, 90, 32);
+        let first = OverlapSearch::new(&sample, 20, 20);
+        let allowed: Vec<bool> = (0..53 * 49).map(|i| i % 7 != 3).collect();
+        for restricted in [false, true] {
+            let mut shared = first.for_block(9, 9);
+            let mut own = OverlapSearch::new(&sample, 9, 9);
+            if restricted {
+                shared.restrict_to(allowed.clone());
+                own.restrict_to(allowed.clone());
+            }
+            let runs: Vec<Rect> = (0..9).map(|j| Rect::new(j % 3, j, 4 + j % 5, 1)).collect();
+            for (k, regions) in [vec![Rect::new(0, 0, 3, 9)], vec![Rect::new(0, 0, 3, 9), Rect::new(3, 0, 6, 3)], runs].iter().enumerate() {
+                let origin = (5 + 11 * k as u32, 60 - 13 * k as u32);
+                let fast = shared.candidates(&target, origin, regions, 0.1);
+                assert_eq!(fast, own.candidates(&target, origin, regions, 0.1), "regions {k}, restricted {restricted}");
+                assert_eq!(fast, own.candidates_direct(&target, origin, regions, 0.1), "regions {k}, restricted {restricted}");
+            }
+        }
+    }
+
+    #[test]
     fn many_blocks_at_once_equal_one_at_a_time_on_any_pool() {
         // An odd width exercises the half spectrum without a Nyquist column; the empty region set
         // takes the brute-force path.
