@@ -13,6 +13,7 @@
 //! whatever FFT code path the CPU selects.
 
 use super::overlap::{Rect, rect_ssd};
+use super::simd::with_avx2;
 use crate::image::RgbImage;
 use rayon::prelude::*;
 use rustfft::num_complex::Complex64;
@@ -247,6 +248,26 @@ impl<'a> OverlapSearch<'a> {
     /// transformed in `column` just before its product: one column at a time stays in cache,
     /// where whole template spectra would not.
     fn correlate_column(
+        &self,
+        by_frequency: &[Complex64],
+        rows: usize,
+        channels: usize,
+        mask: bool,
+        kx: usize,
+        out: &mut [Complex64],
+        column: &mut [Complex64],
+        fft_scratch: &mut [Complex64],
+    ) {
+        // Its loops with AVX2's wider vectors where the CPU has them (the same bits either way).
+        with_avx2(
+            #[inline(always)]
+            || self.correlate_column_here(by_frequency, rows, channels, mask, kx, out, column, fft_scratch),
+        )
+    }
+
+    /// [`OverlapSearch::correlate_column`]'s work.
+    #[inline(always)]
+    fn correlate_column_here(
         &self,
         by_frequency: &[Complex64],
         rows: usize,
