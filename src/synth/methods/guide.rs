@@ -37,8 +37,19 @@ impl<'a> GuidedSearch<'a> {
         weight: f64,
         allowed: Option<Vec<bool>>,
     ) -> GuidedSearch<'a> {
-        let mut texture = OverlapSearch::new(sample, block, block);
-        let mut by_guide = OverlapSearch::new(source, block, block);
+        GuidedSearch::of(OverlapSearch::new(sample, block, block), OverlapSearch::new(source, block, block), target, block, weight, allowed)
+    }
+
+    /// [`GuidedSearch::new`] from the searches of the sample and of its guide for `block`-sized
+    /// blocks (made by [`OverlapSearch::new`] or shared by [`OverlapSearch::for_block`]).
+    pub(crate) fn of(
+        mut texture: OverlapSearch<'a>,
+        mut by_guide: OverlapSearch<'a>,
+        target: &'a RgbImage,
+        block: u32,
+        weight: f64,
+        allowed: Option<Vec<bool>>,
+    ) -> GuidedSearch<'a> {
         if let Some(a) = allowed {
             texture.restrict_to(a.clone());
             by_guide.restrict_to(a);

@@ -74,6 +74,22 @@ pub(crate) struct Fill<'a> {
     pub engine: Engine,
     /// The stream-label prefix of the method (`quilt`), so that its picks are its own.
     pub label: &'static str,
+    /// The border polish's search, made beforehand from the fill's ([`polish_search`]) so that
+    /// it shares the sample's spectra; taken by the polish. Empty: the polish makes its own.
+    pub polish_search: std::cell::Cell<Option<BlockSearch<'a>>>,
+}
+
+/// The border polish's search over `image` (the request's sample, which `search` must search),
+/// sharing `search`'s spectra: the same search the polish would make itself, without
+/// transforming the sample a second time. `None` where it cannot share (the pyramid) or the
+/// polish searches nothing (no patch fits outside the hole).
+pub(crate) fn polish_search<'a>(search: &BlockSearch<'a>, block: u32, overlap: u32, copyable: &SampleMask) -> Option<BlockSearch<'a>> {
+    let q = polish_side(block, overlap);
+    let allowed = copyable.block_positions(q, q);
+    if !allowed.contains(&true) {
+        return None;
+    }
+    search.for_block(q, allowed)
 }
 
 /// One block of the hole, as a method's pick sees it.
@@ -457,11 +473,16 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
     let (w, h) = region.dimensions();
     let (sw, sh) = image.dimensions();
     let q = polish_side(how.block, how.overlap);
-    let allowed = how.copyable.block_positions(q, q);
-    if !allowed.contains(&true) {
-        return (0, 0);
-    }
-    let mut search = BlockSearch::within(how.engine, image, q, Some(allowed));
+    let mut search = match how.polish_search.take() {
+        Some(search) => search,
+        None => {
+            let allowed = how.copyable.block_positions(q, q);
+            if !allowed.contains(&true) {
+                return (0, 0);
+            }
+            BlockSearch::within(how.engine, image, q, Some(allowed))
+        }
+    };
     let neighbours = |x: u32, y: u32| -> [Option<(u32, u32)>; 4] {
         if req.tileable {
             [((x + w - 1) % w, y), ((x + 1) % w, y), (x, (y + h - 1) % h), (x, (y + 1) % h)].map(Some)

@@ -176,6 +176,20 @@ impl<'a> BlockSearch<'a> {
         search
     }
 
+    /// The exact search of `block × block` blocks of the same sample, copying only from the
+    /// positions `allowed` flags (at least one), sharing this search's spectra of the sample
+    /// instead of transforming it again; `None` for the pyramid (which shares nothing).
+    pub(crate) fn for_block(&self, block: u32, allowed: Vec<bool>) -> Option<BlockSearch<'a>> {
+        match self {
+            BlockSearch::Exact(s, e) => {
+                let mut search = s.for_block(block, block);
+                search.restrict_to(allowed);
+                Some(BlockSearch::Exact(search, *e))
+            }
+            BlockSearch::Pyramid(..) => None,
+        }
+    }
+
     /// The tolerance set of the block at `origin` of `canvas`: the positions whose overlap error
     /// is within `(1 + tolerance)` of the best (for the pyramid, of those it re-scored).
     pub(crate) fn candidates(&mut self, canvas: &RgbImage, origin: (u32, u32), regions: &[Rect], tolerance: f64) -> Candidates {

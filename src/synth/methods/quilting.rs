@@ -17,6 +17,7 @@ use crate::synth::params::{self, Choice, Default, MethodConfig, ParamError, Para
 use crate::synth::primitives::block_grid::{BlockCuts, BlockGrid, OverlapRule, block_cuts, paste_with_cuts};
 use crate::synth::primitives::canvas::Canvas;
 use crate::synth::primitives::overlap::Rect;
+use crate::synth::primitives::overlap_search::OverlapSearch;
 use crate::synth::primitives::torus::TorusGrid;
 use crate::synth::rng::Stream;
 use rayon::prelude::*;
@@ -231,6 +232,7 @@ impl Method for Quilting {
                 copyable: &copyable,
                 engine: cfg.search,
                 label: "quilt",
+                polish_search: inpaint::polish_search(&search, block, overlap, &copyable).into(),
             };
             let mut synthesis = match req.constraints.guide {
                 None => inpaint::fill(
@@ -444,6 +446,9 @@ impl Quilting {
         let mut finished = None;
         let mut pass_diagnostics = Vec::new();
         let copyable = req.constraints.copyable();
+        // The sample's and its guide's spectra, made in the first pass and shared by the later
+        // ones (whose blocks are smaller): the same searches without transforming either again.
+        let mut spectra: Option<(OverlapSearch, OverlapSearch)> = None;
         for pass in 0..passes {
             // Blocks a third smaller each pass, the overlap in proportion; never below 6 px.
             let shrink = (2.0f64 / 3.0).powi(pass as i32);
@@ -464,7 +469,14 @@ impl Quilting {
                 Grid::Torus(_) => (w + block, h + block),
             };
             let target = guide.target_beyond(tw, th, req.tileable);
-            let mut search = super::guide::GuidedSearch::new(sample, &guide.source, &target, block, weight, allowed);
+            let (texture, by_guide) = match &spectra {
+                Some((t, g)) => (t.for_block(block, block), g.for_block(block, block)),
+                None => (OverlapSearch::new(sample, block, block), OverlapSearch::new(&guide.source, block, block)),
+            };
+            if spectra.is_none() {
+                spectra = Some((texture.for_block(block, block), by_guide.for_block(block, block)));
+            }
+            let mut search = super::guide::GuidedSearch::of(texture, by_guide, &target, block, weight, allowed);
             let (cw, ch) = match &grid {
                 Grid::Plain(layout) => layout.canvas(),
                 Grid::Torus(t) => t.size(),

@@ -47,10 +47,15 @@ pub fn min_cut_with_keep_costs(width: usize, height: usize, sides: &[Side], erro
         node[p] = i;
     }
     let (source, sink) = (free.len(), free.len() + 1);
-    let mut flow = Flow::new(free.len() + 2);
+    let mut flow = Flow::new(free.len() + 2, 2 * free.len() + 2);
+    // A pixel's arcs from the source (its known neighbours) and to the sink (its new neighbours,
+    // its cost to keep) are summed into one each, and what both can carry goes straight through
+    // beforehand: every cut then costs the same less one constant, so the cuts of least cost,
+    // and the labels below, are those of the network with every arc apart.
+    let (mut from_source, mut to_sink) = (vec![0u64; free.len()], vec![0u64; free.len()]);
     for (i, &p) in free.iter().enumerate() {
-        if let Some(&c) = keep_cost.get(p).filter(|&&c| c > 0) {
-            flow.add(i, sink, c);
+        if let Some(&c) = keep_cost.get(p) {
+            to_sink[i] += c;
         }
         let (x, y) = (p % width, p / width);
         let neighbours =
@@ -59,9 +64,18 @@ pub fn min_cut_with_keep_costs(width: usize, height: usize, sides: &[Side], erro
             match sides[q] {
                 Side::Free if q > p => flow.add_undirected(i, node[q], error[p] + error[q] + 1),
                 Side::Free => {}
-                Side::Keep => flow.add(source, i, error[p] + error[q] + 1),
-                Side::New => flow.add(i, sink, 2 * error[p] + 1),
+                Side::Keep => from_source[i] += error[p] + error[q] + 1,
+                Side::New => to_sink[i] += 2 * error[p] + 1,
             }
+        }
+    }
+    for (i, (&a, &b)) in from_source.iter().zip(&to_sink).enumerate() {
+        let through = a.min(b);
+        if a > through {
+            flow.add(source, i, a - through);
+        }
+        if b > through {
+            flow.add(i, sink, b - through);
         }
     }
     flow.max_flow(source, sink);
@@ -72,24 +86,39 @@ pub fn min_cut_with_keep_costs(width: usize, height: usize, sides: &[Side], erro
     label
 }
 
-/// A flow network with integer capacities; arcs are stored in pairs (`e`, `e ^ 1` its reverse).
+/// A flow network with integer capacities; arcs are stored in pairs (`e`, `e ^ 1` its reverse),
+/// each node's arcs listed contiguously once the network is complete ([`Flow::index`]).
 struct Flow {
-    adjacency: Vec<Vec<usize>>,
-    to: Vec<usize>,
+    nodes: usize,
+    to: Vec<u32>,
     capacity: Vec<u64>,
+    /// The arcs of node `u` are `arcs[first[u]..first[u + 1]]`, in the order they were added.
+    first: Vec<u32>,
+    arcs: Vec<u32>,
+    /// Breadth-first levels and the queue that finds them, kept between phases.
+    level: Vec<u32>,
+    queue: Vec<u32>,
 }
 
+const UNREACHED: u32 = u32::MAX;
+
 impl Flow {
-    fn new(nodes: usize) -> Flow {
-        Flow { adjacency: vec![Vec::new(); nodes], to: Vec::new(), capacity: Vec::new() }
+    fn new(nodes: usize, arcs: usize) -> Flow {
+        Flow {
+            nodes,
+            to: Vec::with_capacity(2 * arcs),
+            capacity: Vec::with_capacity(2 * arcs),
+            first: Vec::new(),
+            arcs: Vec::new(),
+            level: Vec::new(),
+            queue: Vec::new(),
+        }
     }
 
     fn arc_pair(&mut self, a: usize, b: usize, forward: u64, backward: u64) {
-        self.adjacency[a].push(self.to.len());
-        self.to.push(b);
+        self.to.push(b as u32);
         self.capacity.push(forward);
-        self.adjacency[b].push(self.to.len());
-        self.to.push(a);
+        self.to.push(a as u32);
         self.capacity.push(backward);
     }
 
@@ -101,58 +130,92 @@ impl Flow {
         self.arc_pair(a, b, capacity, capacity);
     }
 
-    /// Breadth-first levels from `source` over arcs with capacity left (`usize::MAX`: unreached).
-    fn levels(&self, source: usize) -> Vec<usize> {
-        let mut level = vec![usize::MAX; self.adjacency.len()];
-        level[source] = 0;
-        let mut queue = std::collections::VecDeque::from([source]);
-        while let Some(u) = queue.pop_front() {
-            for &e in &self.adjacency[u] {
-                let v = self.to[e];
-                if self.capacity[e] > 0 && level[v] == usize::MAX {
-                    level[v] = level[u] + 1;
-                    queue.push_back(v);
+    /// Lists each node's arcs contiguously (a counting sort by tail: arc `e` leaves `to[e ^ 1]`).
+    fn index(&mut self) {
+        let mut first = vec![0u32; self.nodes + 1];
+        for e in 0..self.to.len() {
+            first[self.to[e ^ 1] as usize + 1] += 1;
+        }
+        for u in 0..self.nodes {
+            first[u + 1] += first[u];
+        }
+        let mut at = first.clone();
+        let mut arcs = vec![0u32; self.to.len()];
+        for e in 0..self.to.len() {
+            let u = self.to[e ^ 1] as usize;
+            arcs[at[u] as usize] = e as u32;
+            at[u] += 1;
+        }
+        self.first = first;
+        self.arcs = arcs;
+    }
+
+    /// Breadth-first levels from `source` over arcs with capacity left (`UNREACHED`), in `self.level`.
+    fn levels(&mut self, source: usize) {
+        self.level.clear();
+        self.level.resize(self.nodes, UNREACHED);
+        self.level[source] = 0;
+        self.queue.clear();
+        self.queue.push(source as u32);
+        let mut head = 0;
+        while head < self.queue.len() {
+            let u = self.queue[head] as usize;
+            head += 1;
+            let next = self.level[u] + 1;
+            for &e in &self.arcs[self.first[u] as usize..self.first[u + 1] as usize] {
+                let v = self.to[e as usize] as usize;
+                if self.capacity[e as usize] > 0 && self.level[v] == UNREACHED {
+                    self.level[v] = next;
+                    self.queue.push(v as u32);
                 }
             }
         }
-        level
     }
 
-    fn reachable(&self, source: usize) -> Vec<bool> {
-        self.levels(source).into_iter().map(|l| l != usize::MAX).collect()
+    /// The nodes reached from `source` over arcs with capacity left.
+    fn reachable(&mut self, source: usize) -> Vec<bool> {
+        if self.first.is_empty() {
+            self.index();
+        }
+        self.levels(source);
+        self.level.iter().map(|&l| l != UNREACHED).collect()
     }
 
     /// Dinic: blocking flows along shortest paths until the sink is cut off.
     fn max_flow(&mut self, source: usize, sink: usize) -> u64 {
+        self.index();
         let mut total = 0;
+        let mut next = vec![0u32; self.nodes];
+        let mut path: Vec<u32> = Vec::new();
         loop {
-            let mut level = self.levels(source);
-            if level[sink] == usize::MAX {
+            self.levels(source);
+            if self.level[sink] == UNREACHED {
                 return total;
             }
-            let mut next = vec![0usize; self.adjacency.len()];
-            let mut path: Vec<usize> = Vec::new();
+            next.copy_from_slice(&self.first[..self.nodes]);
+            path.clear();
             let mut u = source;
             loop {
                 if u == sink {
-                    let bottleneck = path.iter().map(|&e| self.capacity[e]).min().expect("a path to the sink has arcs");
+                    let bottleneck = path.iter().map(|&e| self.capacity[e as usize]).min().expect("a path to the sink has arcs");
                     for &e in &path {
-                        self.capacity[e] -= bottleneck;
-                        self.capacity[e ^ 1] += bottleneck;
+                        self.capacity[e as usize] -= bottleneck;
+                        self.capacity[e as usize ^ 1] += bottleneck;
                     }
                     total += bottleneck;
                     // Back to the tail of the first arc the push saturated.
-                    let first_full = path.iter().position(|&e| self.capacity[e] == 0).expect("the bottleneck arc is full");
+                    let first_full = path.iter().position(|&e| self.capacity[e as usize] == 0).expect("the bottleneck arc is full");
                     path.truncate(first_full);
-                    u = path.last().map_or(source, |&e| self.to[e]);
+                    u = path.last().map_or(source, |&e| self.to[e as usize] as usize);
                     continue;
                 }
                 let mut advanced = false;
-                while next[u] < self.adjacency[u].len() {
-                    let e = self.adjacency[u][next[u]];
-                    let v = self.to[e];
-                    if self.capacity[e] > 0 && level[v] == level[u] + 1 {
-                        path.push(e);
+                let end = self.first[u + 1];
+                while next[u] < end {
+                    let e = self.arcs[next[u] as usize] as usize;
+                    let v = self.to[e] as usize;
+                    if self.capacity[e] > 0 && self.level[v] == self.level[u].wrapping_add(1) {
+                        path.push(e as u32);
                         u = v;
                         advanced = true;
                         break;
@@ -163,11 +226,11 @@ impl Flow {
                     continue;
                 }
                 // A dead end: no shortest path goes through `u` any more.
-                level[u] = usize::MAX;
+                self.level[u] = UNREACHED;
                 match path.pop() {
                     None => break,
                     Some(e) => {
-                        u = self.to[e ^ 1];
+                        u = self.to[e as usize ^ 1] as usize;
                         next[u] += 1;
                     }
                 }
@@ -229,6 +292,79 @@ mod tests {
         assert_eq!(min_cut_with_keep_costs(w, h, &sides, &[1, 1, 1], &[0, 50, 0]), vec![false, true, false]);
         // Without a cost to keep it, it stays.
         assert_eq!(min_cut(w, h, &sides, &[1, 1, 1]), vec![false, false, false]);
+    }
+
+    /// The labels by enumeration: of every labelling of the free pixels, those of least cost,
+    /// and among them the one keeping fewest (the cuts of least cost are closed under
+    /// intersection, so it is the intersection of their kept sets), as max flow leaves it.
+    fn brute_force(width: usize, height: usize, sides: &[Side], error: &[u64], keep_cost: &[u64]) -> Vec<bool> {
+        let free: Vec<usize> = (0..sides.len()).filter(|&p| sides[p] == Side::Free).collect();
+        let takes = |p: usize, mask: u32| match sides[p] {
+            Side::Keep => false,
+            Side::New => true,
+            Side::Free => mask >> free.iter().position(|&f| f == p).unwrap() & 1 == 1,
+        };
+        let cost = |mask: u32| {
+            let mut c = 0u64;
+            for p in 0..sides.len() {
+                let (x, y) = (p % width, p / width);
+                if sides[p] == Side::Free && !takes(p, mask) {
+                    c += keep_cost.get(p).copied().unwrap_or(0);
+                }
+                for q in [(x + 1 < width).then(|| p + 1), (y + 1 < height).then(|| p + width)].into_iter().flatten() {
+                    if takes(p, mask) == takes(q, mask) || (sides[p] != Side::Free && sides[q] != Side::Free) {
+                        continue;
+                    }
+                    c += match (sides[p], sides[q]) {
+                        (Side::New, _) => 2 * error[q] + 1,
+                        (_, Side::New) => 2 * error[p] + 1,
+                        _ => error[p] + error[q] + 1,
+                    };
+                }
+            }
+            c
+        };
+        let all = 1u32 << free.len();
+        let best = (0..all).map(cost).min().unwrap();
+        let mut kept = vec![true; sides.len()];
+        for mask in (0..all).filter(|&m| cost(m) == best) {
+            for (p, k) in kept.iter_mut().enumerate() {
+                *k &= !takes(p, mask);
+            }
+        }
+        (0..sides.len()).map(|p| !kept[p]).collect()
+    }
+
+    #[test]
+    fn the_cut_is_the_least_costly_labelling_keeping_fewest() {
+        // Small random regions with few distinct errors, so that ties between cuts are common.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        for case in 0..300 {
+            let (w, h) = (1 + next(5) as usize, 1 + next(4) as usize);
+            let sides: Vec<Side> = (0..w * h)
+                .map(|_| match next(5) {
+                    0 => Side::Keep,
+                    1 => Side::New,
+                    _ => Side::Free,
+                })
+                .collect();
+            if sides.iter().filter(|s| **s == Side::Free).count() > 12 {
+                continue;
+            }
+            let error: Vec<u64> = (0..w * h).map(|_| next(4) * 3).collect();
+            let keep_cost: Vec<u64> = if case % 2 == 0 { Vec::new() } else { (0..w * h).map(|_| next(3) * 4).collect() };
+            assert_eq!(
+                min_cut_with_keep_costs(w, h, &sides, &error, &keep_cost),
+                brute_force(w, h, &sides, &error, &keep_cost),
+                "case {case}: {w}x{h} {sides:?} {error:?} {keep_cost:?}"
+            );
+        }
     }
 
     #[test]

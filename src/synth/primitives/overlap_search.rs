@@ -13,6 +13,7 @@
 //! whatever FFT code path the CPU selects.
 
 use super::overlap::{Rect, rect_ssd};
+use super::simd::with_avx2;
 use crate::image::RgbImage;
 use rayon::prelude::*;
 use rustfft::num_complex::Complex64;
@@ -50,6 +51,23 @@ pub struct OverlapSearch<'a> {
     sample: Cow<'a, RgbImage>,
     block_w: u32,
     block_h: u32,
+    /// What does not depend on the block size (spectra, integral image, plans), shared by the
+    /// searches of one sample for blocks of other sizes ([`OverlapSearch::for_block`]).
+    shared: Arc<Spectra>,
+    /// Reused buffers: allocating megabytes per block costs more than the FFTs.
+    work: Workspace,
+    /// One more workspace per concurrent task of `candidates_many`, kept between calls.
+    spare_work: Vec<Workspace>,
+    /// ΣS² over each region set seen so far, per candidate position (exact integers as f64).
+    sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
+    /// The positions a candidate may come from (row-major flags; a sample mask), or all.
+    allowed: Option<Vec<bool>>,
+}
+
+/// The block-size-independent part of an [`OverlapSearch`]: one sample's spectra, integral image
+/// and FFT plans. Searches for blocks of different sizes over one sample (an inpainting's fill
+/// and its border polish) share it instead of transforming the sample again.
+struct Spectra {
     /// Half spectra of the R, G and B planes, laid out as `forward_real` leaves them.
     spec: Vec<Complex64>,
     /// Integral image of ΣR²+G²+B², `(W+1) × (H+1)`.
@@ -60,14 +78,6 @@ pub struct OverlapSearch<'a> {
     fft_col: Arc<dyn Fft<f64>>,
     ifft_row: Arc<dyn Fft<f64>>,
     ifft_col: Arc<dyn Fft<f64>>,
-    /// Reused buffers: allocating megabytes per block costs more than the FFTs.
-    work: Workspace,
-    /// One more workspace per concurrent task of `candidates_many`, kept between calls.
-    spare_work: Vec<Workspace>,
-    /// ΣS² over each region set seen so far, per candidate position (exact integers as f64).
-    sum_sq_maps: Vec<(Vec<Rect>, Vec<f64>)>,
-    /// The positions a candidate may come from (row-major flags; a sample mask), or all.
-    allowed: Option<Vec<bool>>,
     /// Whether every sample pixel is gray (R = G = B), as guided synthesis's guides are: against
     /// a gray template the three channels' correlations are equal, so one is computed, tripled.
     gray: bool,
@@ -122,29 +132,48 @@ impl<'a> OverlapSearch<'a> {
         }
         let integral_sq = integral_of_squares(&sample);
         let gray = sample.as_raw().chunks_exact(3).all(|p| p[0] == p[1] && p[1] == p[2]);
+        let sample_norm = (integral_sq[integral_sq.len() - 1] as f64).sqrt();
         let mut search = OverlapSearch {
             sample,
             block_w,
             block_h,
-            spec: Vec::new(),
-            integral_sq,
-            sample_norm: 0.0,
-            fft_row,
-            fft_col,
-            ifft_row,
-            ifft_col,
+            shared: Arc::new(Spectra {
+                spec: Vec::new(),
+                integral_sq,
+                sample_norm,
+                fft_row,
+                fft_col,
+                ifft_row,
+                ifft_col,
+                gray,
+                spec_sq: std::sync::OnceLock::new(),
+            }),
             work: Workspace::default(),
             spare_work: Vec::new(),
             sum_sq_maps: Vec::new(),
             allowed: None,
-            gray,
-            spec_sq: std::sync::OnceLock::new(),
         };
         let mut spec = vec![Complex64::new(0.0, 0.0); 3 * (wu / 2 + 1) * hu];
         search.forward_real(&planes, hu, &mut Vec::new(), &mut spec, true);
-        search.spec = spec;
-        search.sample_norm = (search.integral_sq[search.integral_sq.len() - 1] as f64).sqrt();
+        Arc::get_mut(&mut search.shared).expect("not shared yet").spec = spec;
         search
+    }
+
+    /// The search of `block_w × block_h` blocks over the same sample, sharing its spectra (no
+    /// transform of the sample again); unrestricted, with its own caches and workspace.
+    pub fn for_block(&self, block_w: u32, block_h: u32) -> OverlapSearch<'a> {
+        let (w, h) = self.sample.dimensions();
+        assert!(block_w <= w && block_h <= h, "block larger than the sample");
+        OverlapSearch {
+            sample: self.sample.clone(),
+            block_w,
+            block_h,
+            shared: Arc::clone(&self.shared),
+            work: Workspace::default(),
+            spare_work: Vec::new(),
+            sum_sq_maps: Vec::new(),
+            allowed: None,
+        }
     }
 
     /// Restricts the candidate sets ([`OverlapSearch::candidates`] and the like) to the positions
@@ -184,7 +213,7 @@ impl<'a> OverlapSearch<'a> {
                 None => row.iter_mut().zip(a).for_each(|(z, &a)| *z = Complex64::new(a, 0.0)),
             }
         }
-        process_rows(&self.fft_row, pairs, w, parallel);
+        process_rows(&self.shared.fft_row, pairs, w, parallel);
     }
 
     /// Half spectra (`kx ≤ W/2`) of three real `W × H` planes given by their first
@@ -210,7 +239,7 @@ impl<'a> OverlapSearch<'a> {
                 }
             }
         }
-        process_rows(&self.fft_col, spec, h, parallel);
+        process_rows(&self.shared.fft_col, spec, h, parallel);
     }
 
     /// Column `kx` of the summed cross-correlation's half spectrum, `Σ_c Ŝ_c·conj T̂_c` (over the
@@ -219,6 +248,26 @@ impl<'a> OverlapSearch<'a> {
     /// transformed in `column` just before its product: one column at a time stays in cache,
     /// where whole template spectra would not.
     fn correlate_column(
+        &self,
+        by_frequency: &[Complex64],
+        rows: usize,
+        channels: usize,
+        mask: bool,
+        kx: usize,
+        out: &mut [Complex64],
+        column: &mut [Complex64],
+        fft_scratch: &mut [Complex64],
+    ) {
+        // Its loops with AVX2's wider vectors where the CPU has them (the same bits either way).
+        with_avx2(
+            #[inline(always)]
+            || self.correlate_column_here(by_frequency, rows, channels, mask, kx, out, column, fft_scratch),
+        )
+    }
+
+    /// [`OverlapSearch::correlate_column`]'s work.
+    #[inline(always)]
+    fn correlate_column_here(
         &self,
         by_frequency: &[Complex64],
         rows: usize,
@@ -241,7 +290,7 @@ impl<'a> OverlapSearch<'a> {
                 *v = if r % 2 == 1 { (z - m) * Complex64::new(0.0, -0.5) } else { (z + m) * 0.5 };
             }
             column[rows..].fill(Complex64::new(0.0, 0.0));
-            self.fft_col.process_with_scratch(column, fft_scratch);
+            self.shared.fft_col.process_with_scratch(column, fft_scratch);
             if c == channels {
                 // The mask's plane, after the colour planes: −½ · (ΣS² ⋆ mask), so that the
                 // caller's −2 × the sum gives +ΣS² over the regions.
@@ -249,7 +298,7 @@ impl<'a> OverlapSearch<'a> {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o -= s * t.conj() * 0.5);
                 continue;
             }
-            let sample = &self.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
+            let sample = &self.shared.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
             if c == 0 {
                 out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o = s * t.conj());
             } else {
@@ -260,7 +309,7 @@ impl<'a> OverlapSearch<'a> {
 
     /// [`OverlapSearch::spec_sq`]'s spectrum and norm, made on first use.
     fn spec_sq(&self) -> &(Vec<Complex64>, f64) {
-        self.spec_sq.get_or_init(|| {
+        self.shared.spec_sq.get_or_init(|| {
             let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
             let plane: Vec<f64> =
                 self.sample.as_raw().chunks_exact(3).map(|p| p.iter().map(|&c| f64::from(c) * f64::from(c)).sum()).collect();
@@ -276,7 +325,7 @@ impl<'a> OverlapSearch<'a> {
         let stride = self.sample.width() as usize + 1;
         let (x0, y0) = ((x + r.x) as usize, (y + r.y) as usize);
         let (x1, y1) = (x0 + r.w as usize, y0 + r.h as usize);
-        let ii = &self.integral_sq;
+        let ii = &self.shared.integral_sq;
         ii[y1 * stride + x1] + ii[y0 * stride + x0] - ii[y0 * stride + x1] - ii[y1 * stride + x0]
     }
 
@@ -397,7 +446,8 @@ impl<'a> OverlapSearch<'a> {
         // Each product carries its weight and its channel factor (3 for one gray channel).
         let (fa, fb) = (ka * (3 / channels_a) as f64, kb * (3 / channels_b) as f64);
         let zero = Complex64::new(0.0, 0.0);
-        let scratch_len = [&a.fft_col, &a.ifft_col, &b.fft_col].iter().map(|f| f.get_inplace_scratch_len()).max().unwrap_or(0);
+        let scratch_len =
+            [&a.shared.fft_col, &a.shared.ifft_col, &b.shared.fft_col].iter().map(|f| f.get_inplace_scratch_len()).max().unwrap_or(0);
         let (pairs_a, pairs_b) = (&wa.by_frequency, &wb.by_frequency);
         let (sa, sb) = (&*a, &*b);
         let column_back =
@@ -405,7 +455,7 @@ impl<'a> OverlapSearch<'a> {
                 sa.correlate_column(pairs_a, rows, channels_a, false, kx, out, column, scratch);
                 sb.correlate_column(pairs_b, rows, channels_b, false, kx, other, column, scratch);
                 out.iter_mut().zip(other.iter()).for_each(|(o, p)| *o = *o * fa + *p * fb);
-                sa.ifft_col.process_with_scratch(out, scratch);
+                sa.shared.ifft_col.process_with_scratch(out, scratch);
             };
         if parallel {
             wa.product.par_chunks_mut(h).enumerate().for_each_init(
@@ -645,11 +695,11 @@ impl<'a> OverlapSearch<'a> {
         // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
         // back along columns one column at a time.
         let zero = Complex64::new(0.0, 0.0);
-        let scratch_len = self.fft_col.get_inplace_scratch_len().max(self.ifft_col.get_inplace_scratch_len());
+        let scratch_len = self.shared.fft_col.get_inplace_scratch_len().max(self.shared.ifft_col.get_inplace_scratch_len());
         let pairs = &work.by_frequency;
         let column_back = |kx: usize, out: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
             self.correlate_column(pairs, rows, channels, mask, kx, out, column, scratch);
-            self.ifft_col.process_with_scratch(out, scratch);
+            self.shared.ifft_col.process_with_scratch(out, scratch);
         };
         if parallel {
             work.product.par_chunks_mut(h).enumerate().for_each_init(
@@ -707,7 +757,7 @@ impl<'a> OverlapSearch<'a> {
     /// The bound on the FFT's error for a template of energy `sum_t2` (see [`OverlapSearch::approximate`]).
     fn margin(&self, sum_t2: u64) -> f64 {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
-        1e-9 * self.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0
+        1e-9 * self.shared.sample_norm * (sum_t2 as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0
     }
 
     /// The template's row transforms for a block at `origin` of `target` over `regions`, left in
@@ -758,7 +808,7 @@ impl<'a> OverlapSearch<'a> {
         // A gray template on a gray sample: Σ_c S_c ⋆ T_c = 3 · S_0 ⋆ T_0, one channel's work.
         // (The value differs from the three channels' sum by rounding only, well inside `margin`.)
         // The mask's plane follows the three colour planes.
-        let channels = if self.gray && template_gray && !mask { 1 } else { 3 };
+        let channels = if self.shared.gray && template_gray && !mask { 1 } else { 3 };
         self.transform_row_pairs(&work.planes[..(channels + usize::from(mask)) * rows * w], &mut work.pairs, parallel);
         for r in regions {
             for c in 0..3 + usize::from(mask) {
@@ -804,7 +854,7 @@ impl<'a> OverlapSearch<'a> {
                 }
             }
         }
-        process_rows(&self.ifft_row, &mut work.rows, w, parallel);
+        process_rows(&self.shared.ifft_row, &mut work.rows, w, parallel);
     }
 
     /// Index of the ΣS² map for this region set, computing it the first time (exactly, from the
@@ -830,9 +880,13 @@ impl<'a> OverlapSearch<'a> {
         corners.retain(|_, c| *c != 0);
         let (nx, ny) = self.positions();
         let (nxu, stride) = (nx as usize, self.sample.width() as usize + 1);
-        let ii = &self.integral_sq;
-        let mut sums = vec![0i64; nxu * ny as usize];
-        for (y, row) in sums.chunks_exact_mut(nxu).enumerate() {
+        let ii = &self.shared.integral_sq;
+        // Row by row in integers, each row then stored as f64 (the same exact values, without a
+        // second map-sized array).
+        let mut map = vec![0.0f64; nxu * ny as usize];
+        let mut row = vec![0i64; nxu];
+        for (y, out) in map.chunks_exact_mut(nxu).enumerate() {
+            row.fill(0);
             for (&(cy, cx), &coefficient) in &corners {
                 let from = (y + cy) * stride + cx;
                 let corner_row = &ii[from..from + nxu];
@@ -842,8 +896,8 @@ impl<'a> OverlapSearch<'a> {
                     k => row.iter_mut().zip(corner_row).for_each(|(o, &v)| *o += k * v as i64),
                 }
             }
+            out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f64);
         }
-        let map: Vec<f64> = sums.into_iter().map(|v| v as f64).collect();
         self.sum_sq_maps.push((regions.to_vec(), map));
         self.sum_sq_maps.len() - 1
     }
@@ -972,6 +1026,31 @@ mod tests {
             let origin = (k * 9, 100 - k * 7);
             let fast = search.candidates(&target, origin, regions, 0.05 * k as f64);
             assert_eq!(fast, search.candidates_direct(&target, origin, regions, 0.05 * k as f64), "call {k}");
+        }
+    }
+
+    #[test]
+    fn a_search_sharing_spectra_for_another_block_equals_its_own() {
+        // The spectra made for 20² blocks serve 9² ones (restricted or not, by the region sets'
+        // exact maps and by the mask's FFT): the same sets as a search made for 9², and brute force.
+        let sample = noise(61, 57, 31);
+        let target = noise(90, 90, 32);
+        let first = OverlapSearch::new(&sample, 20, 20);
+        let allowed: Vec<bool> = (0..53 * 49).map(|i| i % 7 != 3).collect();
+        for restricted in [false, true] {
+            let mut shared = first.for_block(9, 9);
+            let mut own = OverlapSearch::new(&sample, 9, 9);
+            if restricted {
+                shared.restrict_to(allowed.clone());
+                own.restrict_to(allowed.clone());
+            }
+            let runs: Vec<Rect> = (0..9).map(|j| Rect::new(j % 3, j, 4 + j % 5, 1)).collect();
+            for (k, regions) in [vec![Rect::new(0, 0, 3, 9)], vec![Rect::new(0, 0, 3, 9), Rect::new(3, 0, 6, 3)], runs].iter().enumerate() {
+                let origin = (5 + 11 * k as u32, 60 - 13 * k as u32);
+                let fast = shared.candidates(&target, origin, regions, 0.1);
+                assert_eq!(fast, own.candidates(&target, origin, regions, 0.1), "regions {k}, restricted {restricted}");
+                assert_eq!(fast, own.candidates_direct(&target, origin, regions, 0.1), "regions {k}, restricted {restricted}");
+            }
         }
     }
 

@@ -372,6 +372,7 @@ impl PatchSampling {
             copyable: &copyable,
             engine: settings.engine,
             label: "cpso",
+            polish_search: search.as_ref().and_then(|s| super::inpaint::polish_search(s, block, overlap, &copyable)).into(),
         };
         // With `[guide]`, every block of the hole weighs its match with the pixels around it
         // against the guides' (one pass: a hole is filled once), the target read where the block
