@@ -308,17 +308,29 @@ pub const MAX_COLORS: u32 = 16;
 /// interiors of their own pick their patches away from those earlier tiles took
 /// ([`super::interior::CROWDING`]), and sets of more than two colours split their spread edge
 /// patches between the classes so that the bands average to the sample's mean
-/// ([`super::interior::balance_bands`]). Two colours without an interior of their own make the
+/// ([`super::interior::balance_bands`]). Version 3 (issue #30): tiles with interiors of their own
+/// also pick their patches so that the interiors, averaged over the set, carry no shading of the
+/// sample's ([`super::interior::SHADING`]). Two colours without an interior of their own make the
 /// same pixels as before: version 1, so that their records still verify and keep their content
-/// keys. `colors = "auto"` may resolve to more, so it is version 2.
+/// keys; `interior = "edges"` never has interiors of its own, so it stays at version 2.
+/// `colors = "auto"` may resolve to more, and `interior = "auto"` then to interiors of their own,
+/// so those are version 3.
 pub fn algorithm_version_of(p: &crate::synth::params::Params) -> u32 {
     let two = matches!(colors_param(p), Ok(Some(2)));
-    let own = matches!(p.choice::<InteriorMode>("interior"), Ok(InteriorMode::Own));
-    if two && !own { 1 } else { ALGORITHM_VERSION }
+    let interior = p.choice::<InteriorMode>("interior");
+    let own = matches!(interior, Ok(InteriorMode::Own));
+    let edges = matches!(interior, Ok(InteriorMode::Edges));
+    if two && !own {
+        1
+    } else if edges {
+        2
+    } else {
+        ALGORITHM_VERSION
+    }
 }
 
 /// The tile methods' algorithm version ([`algorithm_version_of`]).
-pub const ALGORITHM_VERSION: u32 = 2;
+pub const ALGORITHM_VERSION: u32 = 3;
 
 /// The `colors` parameter: `Some(K)`, or `None` for `"auto"`.
 pub fn colors_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {
