@@ -316,7 +316,7 @@ impl Shading {
             .filter(|&(x, y)| (x - ox) % 4 == 0 && (y - oy) % 4 == 0)
             .map(|(x, y)| (x, y, (((y - oy) * g / eh) * g + (x - ox) * g / ew) as usize))
             .collect();
-        let mut counts = vec![0usize; SHADING_CELLS * SHADING_CELLS];
+        let mut counts = [0usize; SHADING_CELLS * SHADING_CELLS];
         for p in &points {
             counts[p.2] += 1;
         }
