@@ -308,17 +308,29 @@ pub const MAX_COLORS: u32 = 16;
 /// interiors of their own pick their patches away from those earlier tiles took
 /// ([`super::interior::CROWDING`]), and sets of more than two colours split their spread edge
 /// patches between the classes so that the bands average to the sample's mean
-/// ([`super::interior::balance_bands`]). Two colours without an interior of their own make the
+/// ([`super::interior::balance_bands`]). Version 3 (issue #30): tiles with interiors of their own
+/// also pick their patches so that the interiors, averaged over the set, carry no shading of the
+/// sample's ([`super::interior::SHADING`]). Two colours without an interior of their own make the
 /// same pixels as before: version 1, so that their records still verify and keep their content
-/// keys. `colors = "auto"` may resolve to more, so it is version 2.
+/// keys; `interior = "edges"` never has interiors of its own, so it stays at version 2.
+/// `colors = "auto"` may resolve to more, and `interior = "auto"` then to interiors of their own,
+/// so those are version 3.
 pub fn algorithm_version_of(p: &crate::synth::params::Params) -> u32 {
     let two = matches!(colors_param(p), Ok(Some(2)));
-    let own = matches!(p.choice::<InteriorMode>("interior"), Ok(InteriorMode::Own));
-    if two && !own { 1 } else { ALGORITHM_VERSION }
+    let interior = p.choice::<InteriorMode>("interior");
+    let own = matches!(interior, Ok(InteriorMode::Own));
+    let edges = matches!(interior, Ok(InteriorMode::Edges));
+    if two && !own {
+        1
+    } else if edges {
+        2
+    } else {
+        ALGORITHM_VERSION
+    }
 }
 
 /// The tile methods' algorithm version ([`algorithm_version_of`]).
-pub const ALGORITHM_VERSION: u32 = 2;
+pub const ALGORITHM_VERSION: u32 = 3;
 
 /// The `colors` parameter: `Some(K)`, or `None` for `"auto"`.
 pub fn colors_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {
@@ -499,6 +511,56 @@ pub(crate) mod testing {
             }
         }
         sums.iter().filter(|s| s.1 > 0).map(|s| (s.0 / s.1 as f64 - mean).abs()).fold(0.0, f64::max)
+    }
+
+    /// Issue #30's tile-periodic shading, measured on a tile set: the mean grey level over every
+    /// tile's pixels at each raster position at least `depth` in from every side, and the plane
+    /// fitted to it by least squares; returns how much that plane rises across those pixels' extent
+    /// in `x` and in `y` (grey levels). Every tile of a fill has one of these rasters, so a plane
+    /// that rises across the tile draws a step at every tile edge of the fill. On grass_gray, whose
+    /// left quarter is darker, tiles whose patches were picked without regard to it rose by 6–9
+    /// grey levels from left to right.
+    pub fn interior_shading(rasters: &[&[u8]], side: usize, depth: i32, sides: impl Fn(i32, i32) -> Option<[(i32, i32); 4]>) -> (f64, f64) {
+        let grey = |p: &[u8]| (f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2])) / 3.0;
+        let mut pts = Vec::new();
+        for y in 0..side as i32 {
+            for x in 0..side as i32 {
+                let Some(c) = sides(x, y) else { continue };
+                if c.iter().all(|pq| pq.1 >= depth) {
+                    let i = (y as usize * side + x as usize) * 3;
+                    let v = rasters.iter().map(|r| grey(&r[i..i + 3])).sum::<f64>() / rasters.len() as f64;
+                    pts.push((f64::from(x), f64::from(y), v));
+                }
+            }
+        }
+        let n = pts.len() as f64;
+        let (mx, my, mv) = pts.iter().fold((0.0, 0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n, a.2 + p.2 / n));
+        let (mut sxx, mut sxy, mut syy, mut sxv, mut syv) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(x, y, v) in &pts {
+            let (dx, dy, dv) = (x - mx, y - my, v - mv);
+            (sxx, sxy, syy, sxv, syv) = (sxx + dx * dx, sxy + dx * dy, syy + dy * dy, sxv + dx * dv, syv + dy * dv);
+        }
+        let det = sxx * syy - sxy * sxy;
+        let (a, b) = ((sxv * syy - syv * sxy) / det, (syv * sxx - sxv * sxy) / det);
+        let extent = |f: fn(&(f64, f64, f64)) -> f64| {
+            let (lo, hi) = pts.iter().map(f).fold((f64::MAX, f64::MIN), |m, v| (m.0.min(v), m.1.max(v)));
+            hi - lo + 1.0
+        };
+        (a * extent(|p| p.0), b * extent(|p| p.1))
+    }
+
+    /// A 256² sample of blotchy noise (4×4-pixel blocks of grey 88..168, from `seed`) whose top
+    /// quarter is 30 grey levels darker, fading in over 16 rows, and whose left quarter is 20
+    /// darker likewise: low-frequency shading as a photograph's light leaves it.
+    pub fn shaded_noise(seed: u64) -> RgbImage {
+        let mut st = crate::synth::rng::Stream::new(seed, "test/shaded_noise");
+        let blocks: Vec<u8> = (0..64 * 64).map(|_| 88 + st.below(81) as u8).collect();
+        let ramp = |v: u32| (f64::from(v).clamp(56.0, 72.0) - 72.0) / 16.0;
+        RgbImage::from_fn(256, 256, |x, y| {
+            let v = f64::from(blocks[(y / 4 * 64 + x / 4) as usize]) + 30.0 * ramp(y) + 20.0 * ramp(x);
+            let v = v.round().clamp(0.0, 255.0) as u8;
+            [v, v, v]
+        })
     }
 
     /// The 2×2 tiling of `image`: what a user sees when the output is repeated.

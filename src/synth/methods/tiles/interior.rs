@@ -254,6 +254,99 @@ pub fn band(ov: i32, step: f64) -> (i32, i32) {
     (1, ((f64::from(ov) / 2.0 / step).round() as i32 + 1).max(3))
 }
 
+/// How strongly a tile's patch is steered so that the set's interiors, averaged, have no shading
+/// of their own ([`Shading`], [`choose`]). Measured on grass_gray (issue #30): every patch
+/// position being equally likely, the tile pixel at `x` averages the sample's columns `x ..
+/// x + range`, and the sample is darker along its left quarter, so the tiles' left halves came
+/// out darker than their right halves and a fill showed faint lines at the tile edges: a plane
+/// fitted to a 2048² fill's mean over the tile period (inside the tiles, 8 px from their edges)
+/// fell by 6.0 grey levels across a Wang tile and 8.6 across an RW tile; with 0.5 by 1 or less,
+/// for ring costs about 10% higher (1.0 balanced no better and cost 15%; 0.3 left 1.7).
+pub const SHADING: f64 = 0.5;
+
+/// How many cells each way [`Shading`] divides a tile's patch into.
+pub const SHADING_CELLS: usize = 4;
+
+/// The low-frequency shading of a tile's patch: the mean grey level, less the sample's, in each
+/// of [`SHADING_CELLS`]² cells of the patch (the ring's inner pixels). Measured on 4×4-pixel box
+/// means of the sample (a summed-area table) at every fourth inner pixel each way, so that a
+/// cell's mean is that of (nearly) all its pixels, at a sixteenth of the reads.
+///
+/// Why not correct the shading instead (subtract each patch's low-pass deviation): a tile's
+/// pixels are copies of sample pixels, which its placement (source maps, `texsyn apply`, the
+/// 16-bit and float renderings of a job) records and replays exactly; a shifted pixel is no
+/// sample pixel. Choosing patches keeps every pixel a copy.
+pub struct Shading {
+    /// Summed-area table of `r + g + b`, `(w + 1) × (h + 1)`.
+    sat: Vec<u64>,
+    size: (u32, u32),
+    /// The sample's mean grey level.
+    mean: f64,
+    /// Raster pixels measured, with their cell.
+    points: Vec<(i32, i32, usize)>,
+    /// Each cell's weight in [`Shading::norm`]: its share of the points, times the cell count.
+    weights: Vec<f64>,
+}
+
+/// One patch's shading: per cell, its mean grey level less the sample's.
+pub type Shade = [f64; SHADING_CELLS * SHADING_CELLS];
+
+impl Shading {
+    pub fn new(ring: &Ring, sample: &RgbImage) -> Shading {
+        let (w, h) = sample.dimensions();
+        let mut sat = vec![0u64; (w as usize + 1) * (h as usize + 1)];
+        let row = w as usize + 1;
+        for y in 0..h as usize {
+            let mut acc = 0u64;
+            for x in 0..w as usize {
+                let p = sample.get(x as u32, y as u32);
+                acc += u64::from(p[0]) + u64::from(p[1]) + u64::from(p[2]);
+                sat[(y + 1) * row + x + 1] = sat[y * row + x + 1] + acc;
+            }
+        }
+        let mean = sat[h as usize * row + w as usize] as f64 / 3.0 / (f64::from(w) * f64::from(h)).max(1.0);
+        let g = SHADING_CELLS as i32;
+        let (ox, oy) = ring.origin;
+        let (ew, eh) = (ring.extent.0 as i32, ring.extent.1 as i32);
+        let side = ring.side;
+        let points: Vec<(i32, i32, usize)> = ring
+            .inner
+            .iter()
+            .map(|&(i, _)| ((i % side) as i32, (i / side) as i32))
+            .filter(|&(x, y)| (x - ox) % 4 == 0 && (y - oy) % 4 == 0)
+            .map(|(x, y)| (x, y, (((y - oy) * g / eh) * g + (x - ox) * g / ew) as usize))
+            .collect();
+        let mut counts = [0usize; SHADING_CELLS * SHADING_CELLS];
+        for p in &points {
+            counts[p.2] += 1;
+        }
+        let weights = counts.iter().map(|&c| c as f64 * counts.len() as f64 / points.len().max(1) as f64).collect();
+        Shading { sat, size: (w, h), mean, points, weights }
+    }
+
+    /// The shading of the patch whose raster pixel `(x, y)` copies sample pixel `(x, y) + off`.
+    pub fn of(&self, off: (i32, i32)) -> Shade {
+        let (w, h) = self.size;
+        let row = w as usize + 1;
+        let mut sums = [0f64; SHADING_CELLS * SHADING_CELLS];
+        let mut counts = [0u32; SHADING_CELLS * SHADING_CELLS];
+        for &(x, y, cell) in &self.points {
+            let (x0, y0) = ((x + off.0) as usize, (y + off.1) as usize);
+            let (x1, y1) = ((x0 + 4).min(w as usize), (y0 + 4).min(h as usize));
+            let s = self.sat[y1 * row + x1] + self.sat[y0 * row + x0] - self.sat[y0 * row + x1] - self.sat[y1 * row + x0];
+            let area = ((x1 - x0) * (y1 - y0)) as f64;
+            sums[cell] += s as f64 / 3.0 / area - self.mean;
+            counts[cell] += 1;
+        }
+        std::array::from_fn(|c| if counts[c] == 0 { 0.0 } else { sums[c] / f64::from(counts[c]) })
+    }
+
+    /// The weighted sum of squares of a shading (or a sum of shadings).
+    pub fn norm(&self, v: &Shade) -> f64 {
+        v.iter().zip(&self.weights).map(|(a, w)| w * a * a).sum()
+    }
+}
+
 /// Gives every tile its own interior in `ring` ([`Ring::apply`]); `parts` lends a tile's raster,
 /// labels and interior offset. Each tile's [`CANDIDATES`] patch positions come from stream `label`
 /// (seeded by the job seed), in tile order, before any tile is cut, so the result does not depend
@@ -277,7 +370,9 @@ pub fn give<T: Send>(
             ring.costs(sample, raster, candidates, err)
         })
         .collect();
-    let picks = choose(&draws, &costs, ring.range(sample.dimensions()), CROWDING);
+    let shading = Shading::new(ring, sample);
+    let shades: Vec<Vec<Shade>> = draws.par_iter().map(|cands| cands.iter().map(|&c| shading.of(ring.offset_of(c))).collect()).collect();
+    let picks = choose(&draws, &costs, ring.range(sample.dimensions()), CROWDING, Some((&shading, &shades[..], SHADING)));
     let cut_costs: Vec<u64> = tiles
         .par_iter_mut()
         .zip(draws.par_iter().zip(picks.par_iter()))
@@ -293,9 +388,21 @@ pub fn give<T: Send>(
 
 /// Picks each tile's patch among its candidates, in tile order: the one of least ring cost
 /// times `1 + lambda · crowding`, where crowding is how many earlier tiles took a patch corner
-/// near the candidate's, relative to how many would at uniform density. `range`: how many patch
-/// corners there are each way.
-fn choose(draws: &[Vec<(u32, u32)>], costs: &[Vec<u64>], range: (u32, u32), lambda: f64) -> Vec<usize> {
+/// near the candidate's, relative to how many would at uniform density; with `shading`
+/// (`(measure, each candidate's shade, mu)`), also times `exp(mu · (|S + s|² − |S|²) / ν)`, where
+/// `S` is the sum of the shades earlier tiles took, `s` the candidate's and `ν` the mean `|s|²`
+/// over every candidate: each tile leans towards a patch whose shading cancels what the earlier
+/// ones summed to (and towards flat patches), more strongly the further the sum has drifted, so
+/// that the set's interiors average to no shading at all (a factor bounded like `1 + …` lost its
+/// pull as `S` grew, and left grass_gray's tiles as shaded as before). Scores are compared as
+/// logarithms. `range`: how many patch corners there are each way.
+fn choose(
+    draws: &[Vec<(u32, u32)>],
+    costs: &[Vec<u64>],
+    range: (u32, u32),
+    lambda: f64,
+    shading: Option<(&Shading, &[Vec<Shade>], f64)>,
+) -> Vec<usize> {
     let n = draws.len().max(1);
     let area = f64::from(range.0) * f64::from(range.1);
     let cell = ((area / n as f64).sqrt().floor() as u32).max(1);
@@ -312,21 +419,42 @@ fn choose(draws: &[Vec<(u32, u32)>], costs: &[Vec<u64>], range: (u32, u32), lamb
         sum
     };
     let window = 9.0 * f64::from(cell) * f64::from(cell) / area;
+    // ν: the mean |s|² over every candidate of every tile, summed in tile order.
+    let nu = shading.map_or(1.0, |(m, shades, _)| {
+        let (sum, k) = shades.iter().flatten().fold((0.0, 0usize), |(s, k), v| (s + m.norm(v), k + 1));
+        (sum / k.max(1) as f64).max(1e-9)
+    });
+    let mut total: Shade = [0.0; SHADING_CELLS * SHADING_CELLS];
     draws
         .iter()
         .zip(costs)
         .enumerate()
         .map(|(i, (cands, cost))| {
             let expected = i as f64 * window;
-            let score = |j: usize| cost[j] as f64 * (1.0 + lambda * f64::from(near(&counts, cands[j])) / (expected + 1.0));
+            // The logarithm of the score, so that the shading's factor may grow without bound.
+            let score = |j: usize| {
+                let mut s = (cost[j] as f64).ln() + (1.0 + lambda * f64::from(near(&counts, cands[j])) / (expected + 1.0)).ln();
+                if let Some((m, shades, mu)) = shading {
+                    let v: Shade = std::array::from_fn(|c| total[c] + shades[i][j][c]);
+                    s += mu * (m.norm(&v) - m.norm(&total)) / nu;
+                }
+                s
+            };
             let mut best = 0;
+            let mut best_score = score(0);
             for j in 1..cands.len() {
-                if score(j) < score(best) {
-                    best = j;
+                let sj = score(j);
+                if sj < best_score {
+                    (best, best_score) = (j, sj);
                 }
             }
             let (x, y) = cands[best];
             counts[(y / cell) as usize * gw + (x / cell) as usize] += 1;
+            if let Some((_, shades, _)) = shading {
+                for (t, v) in total.iter_mut().zip(&shades[i][best]) {
+                    *t += v;
+                }
+            }
             best
         })
         .collect()
