@@ -257,13 +257,13 @@ pub const INTERIOR_PARAM: ParamSpec = ParamSpec {
     name: "interior",
     kind: ParamKind::Choice(InteriorMode::NAMES),
     default: Default::Str("auto"),
-    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions, so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, edges otherwise (two colours keep paper 001's pixels; random interiors would break a lattice's phase); the choice recorded as diagnostics.interior",
+    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions (on tiles aligned to a lattice, positions in phase with the tile's edge patches: a lattice translate away, so the texels continue across the seam), so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours or for tiles aligned to a lattice, edges otherwise (two unaligned colours keep paper 001's pixels); the choice recorded as diagnostics.interior",
 };
 
 crate::choice! {
     /// Where a tile's inside comes from (the `interior` parameter).
     pub enum InteriorMode {
-        /// [`InteriorMode::Own`] for more than two colours without lattice alignment, else [`InteriorMode::Edges`].
+        /// [`InteriorMode::Own`] for more than two colours or for tiles aligned to a lattice, else [`InteriorMode::Edges`].
         Auto = "auto",
         /// Every pixel from the edge-colour patches (paper 001).
         Edges = "edges",
@@ -278,7 +278,7 @@ impl InteriorMode {
         match self {
             InteriorMode::Own => true,
             InteriorMode::Edges => false,
-            InteriorMode::Auto => colors > 2 && !aligned,
+            InteriorMode::Auto => colors > 2 || aligned,
         }
     }
 }
@@ -314,23 +314,30 @@ pub const MAX_COLORS: u32 = 16;
 /// same pixels as before: version 1, so that their records still verify and keep their content
 /// keys; `interior = "edges"` never has interiors of its own, so it stays at version 2.
 /// `colors = "auto"` may resolve to more, and `interior = "auto"` then to interiors of their own,
-/// so those are version 3.
+/// so those are version 3. Version 4 (issue #30): tiles aligned to a lattice take interiors of
+/// their own in phase with it ([`super::interior::Ring::draw_in_phase`]), and `interior = "auto"`
+/// gives them such interiors whatever the colours: every job that may be aligned (`align` other
+/// than `"none"`: whether `"auto"` aligns depends on the sample) and may have interiors of its own
+/// (`interior` other than `"edges"`) is version 4.
 pub fn algorithm_version_of(p: &crate::synth::params::Params) -> u32 {
     let two = matches!(colors_param(p), Ok(Some(2)));
     let interior = p.choice::<InteriorMode>("interior");
     let own = matches!(interior, Ok(InteriorMode::Own));
     let edges = matches!(interior, Ok(InteriorMode::Edges));
-    if two && !own {
+    let may_align = !matches!(p.choice::<super::align::Align>("align"), Ok(super::align::Align::None));
+    if may_align && !edges {
+        ALGORITHM_VERSION
+    } else if two && !own {
         1
     } else if edges {
         2
     } else {
-        ALGORITHM_VERSION
+        3
     }
 }
 
 /// The tile methods' algorithm version ([`algorithm_version_of`]).
-pub const ALGORITHM_VERSION: u32 = 3;
+pub const ALGORITHM_VERSION: u32 = 4;
 
 /// The `colors` parameter: `Some(K)`, or `None` for `"auto"`.
 pub fn colors_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {

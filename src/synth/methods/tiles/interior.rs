@@ -20,6 +20,7 @@
 //! tile edges. (A closed shortest path through the ring, B4, joins the sides more freely, but it
 //! made a 2048² fill about 1.5 times slower than these four cuts.)
 
+use super::align::Alignment;
 use super::common::{InteriorMode, PixelError};
 use crate::image::RgbImage;
 use crate::synth::primitives::shortest_path::flood4;
@@ -135,6 +136,49 @@ impl Ring {
                 (x, y)
             })
             .collect()
+    }
+
+    /// [`CANDIDATES`] patch corners for one tile of a set aligned to `lattice`, in phase with the
+    /// tile's band: among the corners whose offset (raster pixel to sample pixel) is one of
+    /// `bands` (the offsets of the tile's four edge patches, which alignment put within its
+    /// tolerance of each other's lattice translates) plus a lattice vector, and whose patch fits
+    /// in the sample, drawn without replacement (one `below` draw each; all of them when there
+    /// are fewer). So the interior's texels continue the band's across the cut, where an
+    /// arbitrary position would put them out of phase and show the cut as a straight seam (issue
+    /// #30). With no such corner at all, the corners nearest to one.
+    pub fn draw_in_phase(&self, st: &mut Stream, sample: (u32, u32), lattice: &Alignment, bands: &[(i32, i32); 4]) -> Vec<(u32, u32)> {
+        let (rw, rh) = self.range(sample);
+        let hi = (i64::from(rw) - 1, i64::from(rh) - 1);
+        let mut pool: Vec<(i64, i64)> = bands
+            .iter()
+            .flat_map(|o| lattice.translates((i64::from(o.0 + self.origin.0), i64::from(o.1 + self.origin.1)), (0, 0), hi))
+            .collect();
+        pool.sort_by_key(|p| (p.1, p.0));
+        pool.dedup();
+        if pool.is_empty() {
+            // A patch nearly as large as the sample has only a few corners, maybe none a lattice
+            // translate away: the [`CANDIDATES`] nearest to one (ties row-major), no draws.
+            let off = |o: &(i32, i32)| (i64::from(o.0 + self.origin.0), i64::from(o.1 + self.origin.1));
+            let miss = |c: (i64, i64)| {
+                bands
+                    .iter()
+                    .map(|o| {
+                        let r = lattice.residual((c.0 - off(o).0, c.1 - off(o).1));
+                        r.0 * r.0 + r.1 * r.1
+                    })
+                    .min()
+                    .expect("four bands")
+            };
+            let mut all: Vec<(i64, (i64, i64))> = (0..=hi.1).flat_map(|y| (0..=hi.0).map(move |x| (x, y))).map(|c| (miss(c), c)).collect();
+            all.sort_by_key(|&(m, c)| (m, c.1, c.0));
+            return all.iter().take(CANDIDATES).map(|&(_, (x, y))| (x as u32, y as u32)).collect();
+        }
+        let n = CANDIDATES.min(pool.len());
+        for i in 0..n {
+            let j = i + st.below((pool.len() - i) as u64) as usize;
+            pool.swap(i, j);
+        }
+        pool[..n].iter().map(|&(x, y)| (x as u32, y as u32)).collect()
     }
 
     /// The DP cut of strip `k` through `error` (per raster pixel): the cut depth at each position.
@@ -350,7 +394,10 @@ impl Shading {
 /// Gives every tile its own interior in `ring` ([`Ring::apply`]); `parts` lends a tile's raster,
 /// labels and interior offset. Each tile's [`CANDIDATES`] patch positions come from stream `label`
 /// (seeded by the job seed), in tile order, before any tile is cut, so the result does not depend
-/// on the thread count. Returns the seams' total cost.
+/// on the thread count. With `phase` (a set aligned to a lattice: the lattice and each tile's four
+/// edge-patch offsets), the candidates are in phase with the tile's band ([`Ring::draw_in_phase`]).
+/// Returns the seams' total cost.
+#[allow(clippy::too_many_arguments)]
 pub fn give<T: Send>(
     tiles: &mut [T],
     ring: &Ring,
@@ -358,10 +405,14 @@ pub fn give<T: Send>(
     err: PixelError,
     seed: u64,
     label: &str,
+    phase: Option<(&Alignment, &[[(i32, i32); 4]])>,
     parts: impl Fn(&mut T) -> (&mut [u8], &mut [u8], &mut Option<(i32, i32)>) + Sync,
 ) -> u64 {
     let mut st = Stream::new(seed, label);
-    let draws: Vec<Vec<(u32, u32)>> = tiles.iter().map(|_| ring.draw(&mut st, sample.dimensions())).collect();
+    let draws: Vec<Vec<(u32, u32)>> = match phase {
+        None => tiles.iter().map(|_| ring.draw(&mut st, sample.dimensions())).collect(),
+        Some((lattice, bands)) => bands.iter().map(|b| ring.draw_in_phase(&mut st, sample.dimensions(), lattice, b)).collect(),
+    };
     let costs: Vec<Vec<u64>> = tiles
         .par_iter_mut()
         .zip(draws.par_iter())
@@ -572,7 +623,7 @@ pub fn balance_bands(
 /// `diagnostics.interior` of a job whose tiles have interiors of their own.
 pub fn record(mode: InteriorMode, (d0, d1): (i32, i32), seam_cost: u64) -> serde_json::Value {
     let how = match mode {
-        InteriorMode::Auto => "auto: own, for more than two colours without lattice alignment",
+        InteriorMode::Auto => "auto: own, for more than two colours or tiles aligned to a lattice (in phase with it)",
         _ => "own, as set",
     };
     serde_json::json!({ "interior": "own", "ring_depths": [d0, d1], "candidates": CANDIDATES, "seam_cost": seam_cost, "how": how })

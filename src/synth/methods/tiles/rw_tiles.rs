@@ -446,8 +446,26 @@ fn rhombus_sides(g: &Geometry) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `rwtiles/interiors`. Returns the seams' total cost.
-pub fn give_interiors(set: &mut RwTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
-    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", |tile| {
+/// With `lattice` (an aligned set), each tile's patch is in phase with its blocks
+/// ([`interior::Ring::draw_in_phase`]).
+pub fn give_interiors(
+    set: &mut RwTileSet,
+    ring: &interior::Ring,
+    sample: &RgbImage,
+    err: PixelError,
+    seed: u64,
+    lattice: Option<&Alignment>,
+) -> u64 {
+    let g = set.geometry;
+    let bands: Vec<[(i32, i32); 4]> = set
+        .tiles
+        .iter()
+        .map(|tile| {
+            let p = patches_of(tile.colours, &set.pa, &set.pb);
+            std::array::from_fn(|k| (p[k].0 as i32 - g.origin(k).0, p[k].1 as i32 - g.origin(k).1))
+        })
+        .collect();
+    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
 }
@@ -926,7 +944,8 @@ impl RwTiles {
         }
         let (mut tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
-        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
+        let interiors =
+            ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed, align.as_ref().map(|a| &a.lattice)));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);

@@ -613,8 +613,26 @@ fn square_sides(t: i32) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `wang/interiors`. Returns the seams' total cost.
-pub fn give_interiors(set: &mut WangTileSet, ring: &interior::Ring, sample: &RgbImage, err: PixelError, seed: u64) -> u64 {
-    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", |tile| {
+/// With `lattice` (an aligned set), each tile's patch is in phase with its diamonds
+/// ([`interior::Ring::draw_in_phase`]).
+pub fn give_interiors(
+    set: &mut WangTileSet,
+    ring: &interior::Ring,
+    sample: &RgbImage,
+    err: PixelError,
+    seed: u64,
+    lattice: Option<&Alignment>,
+) -> u64 {
+    let g = set.geometry;
+    let bands: Vec<[(i32, i32); 4]> = set
+        .tiles
+        .iter()
+        .map(|tile| {
+            let q = diamonds_of(tile.colours, &set.dn, &set.de);
+            std::array::from_fn(|d| (q[d].0 as i32 - g.centre(d).0, q[d].1 as i32 - g.centre(d).1))
+        })
+        .collect();
+    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
     })
 }
@@ -837,7 +855,8 @@ impl WangTiles {
             align.as_ref(),
             ring.as_ref().map(|r| r.reach()),
         )?;
-        let interiors = ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed));
+        let interiors =
+            ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed, align.as_ref().map(|a| &a.lattice)));
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
