@@ -23,4 +23,5 @@ mod shards;
 mod signals;
 mod synth;
 mod tile_export;
+mod tile_interiors;
 mod tileable;

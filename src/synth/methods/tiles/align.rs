@@ -180,6 +180,11 @@ impl Alignment {
         best.2
     }
 
+    /// The length of the lattice's shortest vector, in pixels.
+    pub fn shortest(&self) -> f64 {
+        norm(self.reduced.0)
+    }
+
     /// `v` minus its nearest lattice vector: how far out of phase `v` puts a pattern.
     pub fn residual(&self, v: V) -> V {
         sub(v, self.nearest(v))

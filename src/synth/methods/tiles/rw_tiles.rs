@@ -423,6 +423,11 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
 }
 
+/// [`interior_ring`] with the ring's depths `(q0, q1)` given ([`interior::aligned_band`]).
+pub fn interior_ring_in(g: &Geometry, sample: (u32, u32), (q0, q1): (i32, i32)) -> Option<interior::Ring> {
+    interior::Ring::new(g.f as usize, q0, q1, rhombus_sides(g)).filter(|r| r.fits(sample))
+}
+
 /// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
 /// [`interior`]), cut along the four sides of the rhombus (depths in steps of `x + y` or `y − x`,
 /// √2/2 px each); `None` when the tile has no room for it or a `sample`-sized sample none for its
@@ -447,7 +452,10 @@ fn rhombus_sides(g: &Geometry) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `rwtiles/interiors`. Returns the seams' total cost.
 /// With `lattice` (an aligned set), each tile's patch is in phase with its blocks
-/// ([`interior::Ring::draw_in_phase`]).
+/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): when some tile of
+/// an aligned set has no patch position in phase with its band in the sample (a tile nearly as
+/// large as the sample, on a large lattice), no tile gets an interior (`None`, the set untouched):
+/// one out of phase would show its seam as a line through every texel it crosses.
 pub fn give_interiors(
     set: &mut RwTileSet,
     ring: &interior::Ring,
@@ -455,7 +463,8 @@ pub fn give_interiors(
     err: PixelError,
     seed: u64,
     lattice: Option<&Alignment>,
-) -> u64 {
+    only_in_phase: bool,
+) -> Option<u64> {
     let g = set.geometry;
     let bands: Vec<[(i32, i32); 4]> = set
         .tiles
@@ -465,9 +474,15 @@ pub fn give_interiors(
             std::array::from_fn(|k| (p[k].0 as i32 - g.origin(k).0, p[k].1 as i32 - g.origin(k).1))
         })
         .collect();
-    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
+    if let Some(l) = lattice
+        && only_in_phase
+        && bands.iter().any(|b| ring.in_phase(sample.dimensions(), l, b).is_empty())
+    {
+        return None;
+    }
+    Some(interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    })
+    }))
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.
@@ -938,14 +953,32 @@ impl RwTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
-        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&Geometry::new(tile, ov), dims) } else { None };
+        let ring = if cfg.interior.own(k, align.is_some()) {
+            let g = Geometry::new(tile, ov);
+            align
+                .as_ref()
+                .and_then(|a| interior_ring_in(&g, dims, interior::aligned_band(ov, std::f64::consts::FRAC_1_SQRT_2, &a.lattice)))
+                .or_else(|| interior_ring(&g, dims))
+        } else {
+            None
+        };
         if cfg.interior == InteriorMode::Own && ring.is_none() {
             return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
         }
         let (mut tiles, chosen) =
             build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
-        let interiors =
-            ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed, align.as_ref().map(|a| &a.lattice)));
+        let ring_depths = ring.as_ref().map(|r| r.depths());
+        let interiors = ring.as_ref().and_then(|r| {
+            give_interiors(
+                &mut tiles,
+                r,
+                req.sample,
+                cfg.pixel_error,
+                req.seed,
+                align.as_ref().map(|a| &a.lattice),
+                cfg.interior == InteriorMode::Auto,
+            )
+        });
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
@@ -984,7 +1017,7 @@ impl RwTiles {
             diagnostics["colors_choice"] = c;
         }
         if let Some(cost) = interiors {
-            diagnostics["interior"] = interior::record(cfg.interior, interior::band(ov, std::f64::consts::FRAC_1_SQRT_2), cost);
+            diagnostics["interior"] = interior::record(cfg.interior, ring_depths.expect("a ring"), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),

@@ -595,6 +595,12 @@ fn build_tile_within(
     Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
 }
 
+/// [`interior_ring`] with the ring's depths `(q0, q1)` given ([`interior::aligned_band`]).
+pub fn interior_ring_in(g: &Geometry, sample: (u32, u32), (q0, q1): (i32, i32)) -> Option<interior::Ring> {
+    let t = g.t;
+    interior::Ring::new(t as usize, q0, q1, square_sides(t)).filter(|r| r.fits(sample))
+}
+
 /// The ring in which a tile of geometry `g` takes an interior of its own (`interior = "own"`,
 /// [`interior`]), cut along the four sides of the square; `None` when the tile has no room for
 /// it or a `sample`-sized sample none for its patch.
@@ -614,7 +620,10 @@ fn square_sides(t: i32) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `wang/interiors`. Returns the seams' total cost.
 /// With `lattice` (an aligned set), each tile's patch is in phase with its diamonds
-/// ([`interior::Ring::draw_in_phase`]).
+/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): when some tile of
+/// an aligned set has no patch position in phase with its band in the sample (a tile nearly as
+/// large as the sample, on a large lattice), no tile gets an interior (`None`, the set untouched):
+/// one out of phase would show its seam as a line through every texel it crosses.
 pub fn give_interiors(
     set: &mut WangTileSet,
     ring: &interior::Ring,
@@ -622,7 +631,8 @@ pub fn give_interiors(
     err: PixelError,
     seed: u64,
     lattice: Option<&Alignment>,
-) -> u64 {
+    only_in_phase: bool,
+) -> Option<u64> {
     let g = set.geometry;
     let bands: Vec<[(i32, i32); 4]> = set
         .tiles
@@ -632,9 +642,15 @@ pub fn give_interiors(
             std::array::from_fn(|d| (q[d].0 as i32 - g.centre(d).0, q[d].1 as i32 - g.centre(d).1))
         })
         .collect();
-    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
+    if let Some(l) = lattice
+        && only_in_phase
+        && bands.iter().any(|b| ring.in_phase(sample.dimensions(), l, b).is_empty())
+    {
+        return None;
+    }
+    Some(interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    })
+    }))
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
@@ -839,24 +855,50 @@ impl WangTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let ring = if cfg.interior.own(k, align.is_some()) { interior_ring(&Geometry::new(t, ov), dims) } else { None };
+        let ring = if cfg.interior.own(k, align.is_some()) {
+            let g = Geometry::new(t, ov);
+            align
+                .as_ref()
+                .and_then(|a| interior_ring_in(&g, dims, interior::aligned_band(ov, 1.0, &a.lattice)))
+                .or_else(|| interior_ring(&g, dims))
+        } else {
+            None
+        };
         if cfg.interior == InteriorMode::Own && ring.is_none() {
             return Err(SynthError::param("interior", common::no_interior(t, ov, dims)));
         }
-        let (mut tiles, chosen) = build_tile_set_aligned(
-            req.sample,
-            t,
-            ov,
-            set,
-            cfg.cut,
-            cfg.pixel_error,
-            req.seed,
-            cfg.patch_candidates as usize,
-            align.as_ref(),
-            ring.as_ref().map(|r| r.reach()),
-        )?;
-        let interiors =
-            ring.map(|r| give_interiors(&mut tiles, &r, req.sample, cfg.pixel_error, req.seed, align.as_ref().map(|a| &a.lattice)));
+        let build_set = |reach: Option<i32>| {
+            build_tile_set_aligned(
+                req.sample,
+                t,
+                ov,
+                set,
+                cfg.cut,
+                cfg.pixel_error,
+                req.seed,
+                cfg.patch_candidates as usize,
+                align.as_ref(),
+                reach,
+            )
+        };
+        let (mut tiles, mut chosen) = build_set(ring.as_ref().map(|r| r.reach()))?;
+        let ring_depths = ring.as_ref().map(|r| r.depths());
+        let interiors = ring.as_ref().and_then(|r| {
+            give_interiors(
+                &mut tiles,
+                r,
+                req.sample,
+                cfg.pixel_error,
+                req.seed,
+                align.as_ref().map(|a| &a.lattice),
+                cfg.interior == InteriorMode::Auto,
+            )
+        });
+        if ring.is_some() && interiors.is_none() {
+            // Declined (no in-phase patch for some tile): the tiles were built only as deep as the
+            // ring; build them whole, as without interiors.
+            (tiles, chosen) = build_set(None)?;
+        }
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
@@ -894,7 +936,7 @@ impl WangTiles {
             diagnostics["colors_choice"] = c;
         }
         if let Some(cost) = interiors {
-            diagnostics["interior"] = interior::record(cfg.interior, interior::band(ov, 1.0), cost);
+            diagnostics["interior"] = interior::record(cfg.interior, ring_depths.expect("a ring"), cost);
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),

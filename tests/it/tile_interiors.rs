@@ -1,0 +1,69 @@
+//! Tile interiors of their own on lattice-aligned tile sets (issue #30): with their defaults on a
+//! brick wall, `wang-tiles` and `rw-tiles` align to the lattice and used to fill with a handful
+//! of large tiles repeated (repetition 2–2.7 times quilting's); their interiors now come from
+//! in-phase patches of their own.
+
+use super::common::*;
+
+fn repetition(sample: &Path, out: &Path) -> f64 {
+    let o = run_ok(texsyn().arg("eval").arg(sample).arg(out).args(["--metrics", "repetition"]));
+    let t = text(&o);
+    let line = t.lines().find(|l| l.starts_with("repetition")).unwrap_or_else(|| panic!("no repetition in {t}"));
+    line.split_whitespace().nth(1).unwrap().parse().unwrap()
+}
+
+/// Runs quilting and both tile methods with their defaults on `sample` at 512², seed 1: the tile
+/// jobs' records and repetition, and quilting's repetition.
+fn fills(tag: &str, sample: &Path) -> (Value, f64, Vec<(String, f64)>) {
+    let dir = scratch(tag);
+    for m in ["quilting", "wang-tiles", "rw-tiles"] {
+        write(
+            &dir.join("jobs").join(format!("{m}.toml")),
+            &format!(
+                "sample = {:?}\nmethod = \"{m}\"\nseed = 1\n[output]\npath = \"{m}.png\"\nwidth = 512\nheight = 512\n",
+                sample.display().to_string()
+            ),
+        );
+    }
+    let out = dir.join("out");
+    run_ok(texsyn().arg("run").arg(dir.join("jobs")).arg("-o").arg(&out).arg("-q"));
+    let q = repetition(sample, &out.join("quilting.png"));
+    let tiles = ["wang-tiles", "rw-tiles"].iter().map(|m| (m.to_string(), repetition(sample, &out.join(format!("{m}.png"))))).collect();
+    (manifest(&out), q, tiles)
+}
+
+fn job<'a>(m: &'a Value, method: &str) -> &'a Value {
+    m["jobs"].as_array().unwrap().iter().find(|j| j["method"] == method).unwrap()
+}
+
+/// On city_bricks the Wang tiles (128 px, two colours) now take in-phase interiors (repetition
+/// was 1.96 times quilting's, now about 1.6); the RW tiles (254 px on the 256² sample) have no
+/// in-phase patch position and keep their edge patches, as before. On stk_generic_brickRoad_a
+/// both take them (RW was 2.67 times quilting's, now about 1.9).
+#[test]
+fn aligned_tiles_take_in_phase_interiors_and_repeat_at_most_twice_as_much_as_quilting() {
+    let city = repo().join("tests/fixtures/structured/city_bricks.png");
+    let (m, q, tiles) = fills("tile_interiors_city", &city);
+    let wang = job(&m, "wang-tiles");
+    assert!(wang["diagnostics"]["align_choice"].as_str().unwrap().starts_with("auto: lattice"), "{}", wang["diagnostics"]["align_choice"]);
+    assert_eq!(wang["diagnostics"]["interior"]["interior"], "own", "{}", wang["diagnostics"]);
+    assert!(
+        wang["diagnostics"]["interior"]["how"].as_str().unwrap().contains("aligned to a lattice"),
+        "{}",
+        wang["diagnostics"]["interior"]
+    );
+    assert_eq!(wang["algorithm_version"], 4);
+    let w = tiles[0].1;
+    eprintln!("city_bricks: wang-tiles {w:.3}, rw-tiles {:.3}, quilting {q:.3}", tiles[1].1);
+    assert!(w <= 1.75 * q, "city_bricks wang-tiles: repetition {w:.3} against quilting's {q:.3}");
+    assert!(job(&m, "rw-tiles")["diagnostics"].get("interior").is_none(), "city_bricks rw-tiles: no in-phase room");
+
+    let road = repo().join("tests/fixtures/structured/stk_generic_brickRoad_a.png");
+    let (m, q, tiles) = fills("tile_interiors_road", &road);
+    for (method, r) in &tiles {
+        let d = &job(&m, method)["diagnostics"];
+        assert_eq!(d["interior"]["interior"], "own", "{method}: {d}");
+        eprintln!("brickRoad {method}: repetition {r:.3}, quilting {q:.3} ({:.2}x)", r / q);
+        assert!(*r <= 2.0 * q, "brickRoad {method}: repetition {r:.3} against quilting's {q:.3}");
+    }
+}
