@@ -953,7 +953,7 @@ impl RwTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| RwAlign::new(l, &Geometry::new(tile, ov)));
-        let ring = if cfg.interior.own(k, align.is_some()) {
+        let ring = if cfg.interior.own(k, align.is_some()) && !(cfg.interior == InteriorMode::Auto && align.is_some() && req.tileable) {
             let g = Geometry::new(tile, ov);
             align
                 .as_ref()

@@ -855,7 +855,7 @@ impl WangTiles {
         }
         let (set, order) = (cfg.tile_set.with_colors(k as u8), cfg.tiling);
         let align = lattice.map(|l| WangAlign::new(l, &Geometry::new(t, ov)));
-        let ring = if cfg.interior.own(k, align.is_some()) {
+        let ring = if cfg.interior.own(k, align.is_some()) && !(cfg.interior == InteriorMode::Auto && align.is_some() && req.tileable) {
             let g = Geometry::new(t, ov);
             align
                 .as_ref()
