@@ -257,13 +257,13 @@ pub const INTERIOR_PARAM: ParamSpec = ParamSpec {
     name: "interior",
     kind: ParamKind::Choice(InteriorMode::NAMES),
     default: Default::Str("auto"),
-    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions (on tiles aligned to a lattice, positions in phase with the tile's edge patches: a lattice translate away, so the texels continue across the seam), so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours or for tiles aligned to a lattice (not for a tileable output of aligned tiles, whose wrap lines then stood out against the tile joints on bricks_gray), edges otherwise (two unaligned colours keep paper 001's pixels); the choice recorded as diagnostics.interior",
+    doc: "own: each tile keeps only a narrow band along its edges (1 to about overlap/2 + 1 px deep, cut by a DP seam along each side) from its edge-colour patches and takes everything inside the seams from a sample patch of its own, the best-matching of 16 random positions (on tiles aligned to a lattice, positions in phase with the tile's edge patches: a lattice translate away, so the texels continue across the seam), so tiles that share an edge colour share only that band (not in the paper); edges: every pixel from the four edge-colour patches (paper 001). auto (default): own for more than two colours on tiles not aligned to a lattice, and for Wang tiles aligned to one (in phase; not for a tileable output, whose wrap lines then stood out against the tile joints on bricks_gray); edges otherwise (two unaligned colours keep paper 001's pixels; aligned RW tiles keep their edge patches, whose in-phase interiors chopped bricks); the choice recorded as diagnostics.interior",
 };
 
 crate::choice! {
     /// Where a tile's inside comes from (the `interior` parameter).
     pub enum InteriorMode {
-        /// [`InteriorMode::Own`] for more than two colours or for tiles aligned to a lattice, else [`InteriorMode::Edges`].
+        /// [`InteriorMode::Own`] for more than two colours or for tiles aligned to a lattice (each method may decline the latter), else [`InteriorMode::Edges`].
         Auto = "auto",
         /// Every pixel from the edge-colour patches (paper 001).
         Edges = "edges",
