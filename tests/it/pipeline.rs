@@ -185,7 +185,9 @@ fn golden_bless_reports_changes_and_check_catches_them() {
 #[test]
 fn a_killed_run_resumes_without_redoing_finished_jobs() {
     let d = scratch("crash");
-    let seeds = 40;
+    // Enough jobs that the run outlasts several of the manifest's writes (at most one per 250 ms):
+    // 40 finished between two writes once the jobs got faster, and the kill came too late.
+    let seeds = 150;
     let jobs = small_job_dir(&d, seeds);
     let out = d.join("out");
     let mut child = texsyn()
@@ -247,7 +249,8 @@ fn a_killed_run_resumes_without_redoing_finished_jobs() {
 #[test]
 fn a_second_run_on_the_same_output_directory_is_refused() {
     let d = scratch("lock");
-    let jobs = small_job_dir(&d, 30);
+    // Enough jobs that the first run is still going when the second one starts.
+    let jobs = small_job_dir(&d, 120);
     let out = d.join("out");
     let mut child = texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-j", "1", "-q"]).spawn().unwrap();
     let deadline = Instant::now() + Duration::from_secs(60);
