@@ -435,8 +435,19 @@ pub fn give<T: Send>(
     seed: u64,
     label: &str,
     phase: Option<(&Alignment, &[[(i32, i32); 4]])>,
+    only_in_phase: bool,
     parts: impl Fn(&mut T) -> (&mut [u8], &mut [u8], &mut Option<(i32, i32)>) + Sync,
-) -> u64 {
+) -> Option<u64> {
+    // `only_in_phase` (`interior = "auto"`): when some tile of an aligned set has no patch
+    // position in phase with its band in the sample (a tile nearly as large as the sample, on a
+    // large lattice), no tile gets an interior (`None`, the tiles untouched): one out of phase
+    // would show its seam as a line through every texel it crosses.
+    if let Some((lattice, bands)) = phase
+        && only_in_phase
+        && bands.iter().any(|b| ring.in_phase(sample.dimensions(), lattice, b).is_empty())
+    {
+        return None;
+    }
     let mut st = Stream::new(seed, label);
     let draws: Vec<Vec<(u32, u32)>> = match phase {
         None => tiles.iter().map(|_| ring.draw(&mut st, sample.dimensions())).collect(),
@@ -463,7 +474,7 @@ pub fn give<T: Send>(
             got.cost
         })
         .collect();
-    cut_costs.iter().sum()
+    Some(cut_costs.iter().sum())
 }
 
 /// Picks each tile's patch among its candidates, in tile order: the one of least ring cost

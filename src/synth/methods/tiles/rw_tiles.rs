@@ -452,10 +452,8 @@ fn rhombus_sides(g: &Geometry) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `rwtiles/interiors`. Returns the seams' total cost.
 /// With `lattice` (an aligned set), each tile's patch is in phase with its blocks
-/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): when some tile of
-/// an aligned set has no patch position in phase with its band in the sample (a tile nearly as
-/// large as the sample, on a large lattice), no tile gets an interior (`None`, the set untouched):
-/// one out of phase would show its seam as a line through every texel it crosses.
+/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): `None`, the set untouched,
+/// when some tile has no patch position in phase ([`interior::give`]).
 pub fn give_interiors(
     set: &mut RwTileSet,
     ring: &interior::Ring,
@@ -474,15 +472,9 @@ pub fn give_interiors(
             std::array::from_fn(|k| (p[k].0 as i32 - g.origin(k).0, p[k].1 as i32 - g.origin(k).1))
         })
         .collect();
-    if let Some(l) = lattice
-        && only_in_phase
-        && bands.iter().any(|b| ring.in_phase(sample.dimensions(), l, b).is_empty())
-    {
-        return None;
-    }
-    Some(interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "rwtiles/interiors", lattice.map(|l| (l, &bands[..])), only_in_phase, |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    }))
+    })
 }
 
 /// A strip (0..4: N, E, S, W) with the corners of the patches on its sides A and B.

@@ -620,10 +620,8 @@ fn square_sides(t: i32) -> impl Fn(i32, i32) -> Option<[(i32, i32); 4]> {
 /// Gives every tile an interior of its own in `ring` ([`interior_ring`]); patch positions from
 /// stream `wang/interiors`. Returns the seams' total cost.
 /// With `lattice` (an aligned set), each tile's patch is in phase with its diamonds
-/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): when some tile of
-/// an aligned set has no patch position in phase with its band in the sample (a tile nearly as
-/// large as the sample, on a large lattice), no tile gets an interior (`None`, the set untouched):
-/// one out of phase would show its seam as a line through every texel it crosses.
+/// ([`interior::Ring::draw_in_phase`]). `only_in_phase` (`interior = "auto"`): `None`, the set untouched,
+/// when some tile has no patch position in phase ([`interior::give`]).
 pub fn give_interiors(
     set: &mut WangTileSet,
     ring: &interior::Ring,
@@ -642,15 +640,9 @@ pub fn give_interiors(
             std::array::from_fn(|d| (q[d].0 as i32 - g.centre(d).0, q[d].1 as i32 - g.centre(d).1))
         })
         .collect();
-    if let Some(l) = lattice
-        && only_in_phase
-        && bands.iter().any(|b| ring.in_phase(sample.dimensions(), l, b).is_empty())
-    {
-        return None;
-    }
-    Some(interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", lattice.map(|l| (l, &bands[..])), |tile| {
+    interior::give(&mut set.tiles, ring, sample, err, seed, "wang/interiors", lattice.map(|l| (l, &bands[..])), only_in_phase, |tile| {
         (&mut tile.raster[..], &mut tile.labels[..], &mut tile.interior)
-    }))
+    })
 }
 
 /// Bands around the tile edges (`k·T − ov/2 ..= k·T + ov/2`), where the diagonal cuts meet the
