@@ -31,13 +31,13 @@ pub struct Args {
     mask: Option<PathBuf>,
     /// Texture transfer: follow TARGET's light and dark (an image of the output's size; with no
     /// --size, the output takes TARGET's size). With --inpaint, TARGET has IMAGE's size and
-    /// leads the fill of the hole (quilting).
+    /// leads the fill of the hole (quilting and patch-sampling).
     #[arg(long, value_name = "TARGET")]
     guide: Option<PathBuf>,
     /// With --guide: the sample's guide (default: the sample's luminance).
     #[arg(long, value_name = "SOURCE", requires = "guide")]
     guide_source: Option<PathBuf>,
-    /// With --guide: the guide's share of a block's error, 0..=1 (default 0.5).
+    /// With --guide: the guide's share of a block's error, 0..=1 (default 0.7).
     #[arg(long, value_name = "W", requires = "guide")]
     guide_weight: Option<f64>,
     /// With --guide: passes of the iteration, 1..=8 (default 3).

@@ -150,8 +150,11 @@ impl Flow {
         self.arcs = arcs;
     }
 
-    /// Breadth-first levels from `source` over arcs with capacity left (`UNREACHED`), in `self.level`.
-    fn levels(&mut self, source: usize) {
+    /// Breadth-first levels from `source` over arcs with capacity left (`UNREACHED`), in
+    /// `self.level`. With a `sink`, the search stops once the sink's level is done: a node as
+    /// deep as the sink or deeper lies on no shortest path to it, so Dinic's phase never enters
+    /// it (it would be a dead end), and leaving it unreached changes no augmenting path.
+    fn levels(&mut self, source: usize, sink: Option<usize>) {
         self.level.clear();
         self.level.resize(self.nodes, UNREACHED);
         self.level[source] = 0;
@@ -161,6 +164,9 @@ impl Flow {
         while head < self.queue.len() {
             let u = self.queue[head] as usize;
             head += 1;
+            if sink.is_some_and(|t| self.level[t] <= self.level[u]) {
+                break;
+            }
             let next = self.level[u] + 1;
             for &e in &self.arcs[self.first[u] as usize..self.first[u + 1] as usize] {
                 let v = self.to[e as usize] as usize;
@@ -177,7 +183,7 @@ impl Flow {
         if self.first.is_empty() {
             self.index();
         }
-        self.levels(source);
+        self.levels(source, None);
         self.level.iter().map(|&l| l != UNREACHED).collect()
     }
 
@@ -188,7 +194,7 @@ impl Flow {
         let mut next = vec![0u32; self.nodes];
         let mut path: Vec<u32> = Vec::new();
         loop {
-            self.levels(source);
+            self.levels(source, Some(sink));
             if self.level[sink] == UNREACHED {
                 return total;
             }
