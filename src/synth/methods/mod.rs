@@ -78,6 +78,18 @@ pub(crate) const INPAINT_VERSION: u32 = 3;
 /// pyramid); a guide with its own `source` keeps the versions above.
 pub(crate) const LUMINANCE_GUIDE_VERSION: u32 = 5;
 
+/// The algorithm version of quilting's and patch sampling's syntheses led by a luminance guide
+/// (not hole fills) since their later passes follow the previous pass through the target instead
+/// of pixel by pixel ([`crate::synth::constraints::Guide::after_pass`]; 8 with the pyramid). A
+/// single pass makes the same pixels as version 5, but the passes are not among a method's
+/// parameters, so every such synthesis says 7.
+pub(crate) const LUMINANCE_TRANSFER_VERSION: u32 = 7;
+
+/// The base version of a quilting or patch sampling output led by a luminance guide.
+pub(crate) fn luminance_guide_version(uses: crate::synth::method::Uses) -> u32 {
+    if uses.inpaint { LUMINANCE_GUIDE_VERSION } else { LUMINANCE_TRANSFER_VERSION }
+}
+
 /// A method's algorithm version for the [`Engine`] parameter `key` (resolved): its own, plus
 /// [`PYRAMID_VERSION`] when the pyramid makes the pixels.
 pub(crate) fn engine_version(params: &Params, key: &str, base: u32) -> u32 {

@@ -163,9 +163,10 @@ impl Method for Quilting {
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting prefers blocks that repeat little of what the hole already copied
         // (`inpaint::Reuse`, issue #28); version 5: a luminance guide is compared at a block's
-        // scale; plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
+        // scale (7 for syntheses, whose later passes follow the previous one through the target);
+        // plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
         let base = if uses.luminance_guide {
-            super::LUMINANCE_GUIDE_VERSION
+            super::luminance_guide_version(uses)
         } else if uses.inpaint {
             super::INPAINT_VERSION
         } else {
@@ -426,7 +427,9 @@ impl Quilting {
     /// Guided quilting (texture transfer): the same raster of blocks and cuts, each block chosen
     /// by its overlap error weighed against its guide error (`methods::guide`), one at a time;
     /// with several passes (Efros and Freeman's iteration), each pass's blocks a third smaller and
-    /// matched over the whole block against the previous pass, under a guide weighing less.
+    /// held to the previous pass: through the target with luminance guides
+    /// ([`crate::synth::constraints::Guide::after_pass`]), else matched over the whole block
+    /// against it. The guide keeps its weight in every pass.
     /// Tileable, every pass is laid on its own torus (`synthesize_torus`'s sides and cuts) and
     /// the target guide wraps with it.
     fn synthesize_guided(
@@ -468,7 +471,11 @@ impl Quilting {
                 Grid::Plain(layout) => layout.canvas(),
                 Grid::Torus(_) => (w + block, h + block),
             };
-            let target = guide.target_beyond(tw, th, req.tileable);
+            // A luminance guide's later passes follow the previous pass through the target; a
+            // given source's match it pixel by pixel over the whole block (`Guide::passes`).
+            let after = previous.as_ref().filter(|_| guide.luminance).map(|prev| guide.after_pass(prev, sample, cfg.block));
+            let whole_block = previous.is_some() && after.is_none();
+            let target = after.as_ref().unwrap_or(guide).target_beyond(tw, th, req.tileable);
             let (texture, by_guide) = match &spectra {
                 Some((t, g)) => (t.for_block(block, block), g.for_block(block, block)),
                 None => (OverlapSearch::new(sample, block, block), OverlapSearch::new(&guide.source, block, block)),
@@ -502,7 +509,7 @@ impl Quilting {
                     for bi in 0..layout.rows {
                         for bj in 0..layout.cols {
                             let origin = layout.origin(bi, bj);
-                            let regions = if previous.is_some() { whole() } else { layout.overlap_regions(bi, bj) };
+                            let regions = if whole_block { whole() } else { layout.overlap_regions(bi, bj) };
                             let src = choose(&mut search, &canvas.image, origin, &regions, origin, bi, bj);
                             let cut = block_cuts(&canvas.image, sample, src, origin, block, overlap, bj > 0, bi > 0, rule);
                             paste_with_cuts(&mut canvas, sample, src, origin, block, overlap, bj > 0, bi > 0, rule, &cut);
@@ -514,7 +521,7 @@ impl Quilting {
                     for (bi, bj) in torus.raster() {
                         let sides = torus.sides(&done, bi, bj);
                         let window = torus.window(&canvas.image, bi, bj);
-                        let regions = if previous.is_some() { whole() } else { torus.regions(bi, bj, sides) };
+                        let regions = if whole_block { whole() } else { torus.regions(bi, bj, sides) };
                         let src = choose(&mut search, &window, (0, 0), &regions, torus.origin(bi, bj), bi, bj);
                         torus.paste(&mut canvas, sample, src, bi, bj, sides, rule);
                         done[torus.index(bi, bj)] = true;

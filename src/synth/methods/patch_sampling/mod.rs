@@ -204,10 +204,10 @@ impl Method for PatchSampling {
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting cuts its patches into earlier fill (it feathered them), and with
         // turned copies continuations are always scored and twins left out (issue #28); version 5:
-        // a luminance guide is compared at a block's scale; plain
-        // syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
+        // a luminance guide is compared at a block's scale (7 for syntheses, whose later passes
+        // follow the previous one through the target); plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
         let base = if uses.luminance_guide {
-            super::LUMINANCE_GUIDE_VERSION
+            super::luminance_guide_version(uses)
         } else if uses.inpaint || uses.copies {
             super::INPAINT_VERSION
         } else {
@@ -431,7 +431,9 @@ impl PatchSampling {
     /// Guided synthesis (texture transfer, Efros & Freeman 2001 §3): each block minimises its
     /// zone error weighed against its guide error ([`GuideTerm`]), with the method's own search;
     /// then, as quilting does, `passes − 1` more passes with blocks a third smaller (never below
-    /// 6 px), each matched over the whole block against the previous pass, at the same weight.
+    /// 6 px), at the same weight, each held to the previous pass: through the target with
+    /// luminance guides ([`crate::synth::constraints::Guide::after_pass`]; the pass is then made
+    /// as the first is), else matched over the whole block against it.
     fn synthesize_guided(
         &self,
         req: &Request,
@@ -460,9 +462,11 @@ impl PatchSampling {
             // Past the output the target goes on as its own edge (the last blocks are cropped),
             // or wraps with a tileable output's torus.
             let (cw, ch) = if req.tileable { (w + block, h + block) } else { BlockGrid::new(block, overlap, w, h).canvas() };
-            let target = guide.target_beyond(cw, ch, req.tileable);
+            let after = previous.as_ref().filter(|_| guide.luminance).map(|prev| guide.after_pass(prev, sample, cfg.block));
+            let target = after.as_ref().unwrap_or(guide).target_beyond(cw, ch, req.tileable);
             let term = GuideTerm { source: &guide.source, lines: SampleLines::new(&guide.source), target, weight: guide.weight };
-            let mut synthesis = self.grid(req, &settings, block, overlap, previous.as_ref(), Some(&term))?;
+            let whole_block = previous.as_ref().filter(|_| after.is_none());
+            let mut synthesis = self.grid(req, &settings, block, overlap, whole_block, Some(&term))?;
             passes.push(json!({ "block": block, "overlap": overlap, "weight": guide.weight, "mean_rms_error": synthesis.diagnostics["mean_rms_error"].clone() }));
             previous = Some(synthesis.image.clone());
             synthesis.diagnostics["guided"] = json!({ "weight": guide.weight });
