@@ -318,15 +318,21 @@ pub const MAX_COLORS: u32 = 16;
 /// their own in phase with it ([`super::interior::Ring::draw_in_phase`]), and `interior = "auto"`
 /// gives them such interiors whatever the colours: every job that may be aligned (`align` other
 /// than `"none"`: whether `"auto"` aligns depends on the sample) and may have interiors of its own
-/// (`interior` other than `"edges"`) is version 4.
-pub fn algorithm_version_of(p: &crate::synth::params::Params) -> u32 {
+/// (`interior` other than `"edges"`) is version 4. Version 5 (issue #30), RW tiles only (`rw`):
+/// an aligned two-colour set's patches are placed apart ([`super::align::Alignment::place_apart`];
+/// the two "\" patches on a brick wall were one patch drawn twice), whatever the interior: every
+/// RW job that may be aligned is version 5 (`colors = "auto"` may resolve to two); Wang tiles place
+/// theirs as before.
+pub fn algorithm_version_of(p: &crate::synth::params::Params, rw: bool) -> u32 {
     let two = matches!(colors_param(p), Ok(Some(2)));
     let interior = p.choice::<InteriorMode>("interior");
     let own = matches!(interior, Ok(InteriorMode::Own));
     let edges = matches!(interior, Ok(InteriorMode::Edges));
     let may_align = !matches!(p.choice::<super::align::Align>("align"), Ok(super::align::Align::None));
-    if may_align && !edges {
+    if rw && may_align {
         ALGORITHM_VERSION
+    } else if may_align && !edges {
+        WANG_ALGORITHM_VERSION
     } else if two && !own {
         1
     } else if edges {
@@ -336,8 +342,11 @@ pub fn algorithm_version_of(p: &crate::synth::params::Params) -> u32 {
     }
 }
 
-/// The tile methods' algorithm version ([`algorithm_version_of`]).
-pub const ALGORITHM_VERSION: u32 = 4;
+/// The tile methods' newest algorithm version ([`algorithm_version_of`]): RW tiles'.
+pub const ALGORITHM_VERSION: u32 = 5;
+
+/// Wang tiles' newest algorithm version ([`algorithm_version_of`]).
+pub const WANG_ALGORITHM_VERSION: u32 = 4;
 
 /// The `colors` parameter: `Some(K)`, or `None` for `"auto"`.
 pub fn colors_param(p: &crate::synth::params::Params) -> Result<Option<u32>, crate::synth::error::SynthError> {

@@ -304,7 +304,7 @@ impl WangAlign {
             }
         }
         let ideal_e = (psi_a.0 - self.offset.0, psi_a.1 - self.offset.1 + m);
-        self.lattice.place_classes(sample, st, dn0, ideal_e, (lo, hi), r, &overlaps, k)
+        self.lattice.place_classes(sample, st, dn0, ideal_e, (lo, hi), r, &overlaps, k, None)
     }
 
     /// The `diagnostics.align` record, with up to 5 suggested tile sizes for this overlap and sample.
@@ -682,10 +682,10 @@ impl Method for WangTiles {
         if params.bool("export_tiles").unwrap_or(false) { vec!["tiles"] } else { Vec::new() }
     }
     fn algorithm_version(&self) -> u32 {
-        common::ALGORITHM_VERSION
+        common::WANG_ALGORITHM_VERSION
     }
     fn algorithm_version_of(&self, params: &Params, _uses: Uses) -> u32 {
-        common::algorithm_version_of(params)
+        common::algorithm_version_of(params, false)
     }
     fn summary(&self) -> &'static str {
         "Cohen et al. Wang tiles (paper 001's baseline): diamond samples, DP or shortest-path cuts, keyed scanline tiling"
