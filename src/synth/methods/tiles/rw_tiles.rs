@@ -216,7 +216,7 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(RwTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, tile, ov, set.into(), err, seed, candidates, None)
+    build_tile_set_aligned(sample, tile, ov, set.into(), err, seed, candidates, None, None)
 }
 
 /// `align = "lattice"` for RW-Tiles (phase analysis in [`super::align`]). Class A are the
@@ -324,6 +324,7 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&RwAlign>,
+    core: Option<&[bool]>,
 ) -> Result<(RwTileSet, usize), SynthError> {
     let g = Geometry::new(tile, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
@@ -358,7 +359,7 @@ pub fn build_tile_set_aligned(
         .collect();
     let choices = choices?;
     let built: Result<Vec<RwTileSet>, SynthError> =
-        choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+        choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb, core)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let fit: Vec<bool> =
@@ -367,7 +368,8 @@ pub fn build_tile_set_aligned(
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
 
-/// Builds every tile of `set` from the given patch corners.
+/// Builds every tile of `set` from the given patch corners, leaving out of its raster the `core`
+/// pixels (when given) that an interior of its own will replace ([`finish_tile`]).
 ///
 /// A strip's seam (§3.3) depends only on the two patches on its sides, so each strip of each pair
 /// of patches is cut once ([`cut_strip`]) and shared by the tiles that hold that pair: `4K²` cuts
@@ -380,6 +382,7 @@ pub fn build_from_patches(
     err: PixelError,
     pa: &[(u32, u32)],
     pb: &[(u32, u32)],
+    core: Option<&[bool]>,
 ) -> Result<RwTileSet, SynthError> {
     let frame = Frame::new(g);
     let blocks: Vec<[(u32, u32); 4]> = (0..set.len()).map(|t| patches_of(set.colours(t), pa, pb)).collect();
@@ -405,7 +408,7 @@ pub fn build_from_patches(
         .into_par_iter()
         .map(|t| {
             let strips = tile_keys[t].map(|i| &cuts[i]);
-            finish_tile(sample, g, &frame, blocks[t], strips, err).map(|mut tile| {
+            finish_tile(sample, g, &frame, blocks[t], strips, err, core).map(|mut tile| {
                 tile.colours = set.colours(t);
                 tile
             })
@@ -420,7 +423,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let cuts: Result<Vec<StripCut>, SynthError> =
         (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
     let cuts = cuts?;
-    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err, None)
 }
 
 /// [`interior_ring`] with the ring's depths `(q0, q1)` given ([`interior::aligned_band`]).
@@ -483,6 +486,8 @@ type StripKey = (usize, (u32, u32), (u32, u32));
 /// What every tile of one geometry shares before any cut (§3.2): the labels of the locked edge
 /// pixels and of the corners only one block covers, the locks, and the four strips.
 struct Frame {
+    /// The rhombus' pixels, `(x, y, index)` in raster order.
+    pixels: Vec<(i32, i32, usize)>,
     labels: Vec<u8>,
     locked: Vec<u8>,
     strips: [Strip; 4],
@@ -494,12 +499,14 @@ impl Frame {
         let n = (f * f) as usize;
         let mut labels = vec![UNSET; n];
         let mut locked = vec![UNSET; n];
+        let mut pixels = Vec::new();
         for y in 0..f {
             for x in 0..f {
                 if !g.in_r(x, y) {
                     continue;
                 }
                 let i = g.idx(x, y);
+                pixels.push((x, y, i));
                 if let Some(k) = g.lock(x, y) {
                     locked[i] = k as u8;
                     labels[i] = k as u8;
@@ -515,7 +522,7 @@ impl Frame {
             Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
             Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
         ];
-        Frame { labels, locked, strips }
+        Frame { pixels, labels, locked, strips }
     }
 }
 
@@ -624,7 +631,9 @@ fn cut_strip(
 
 /// A tile from its four strip seams: the centre (§3.4) and the raster (step 8). The centre's
 /// paths and pockets stay inside `O_c = [h, s)²`, so they are found on that `ov × ov` grid (row-major
-/// like the framework, hence the same tie rules and paths).
+/// like the framework, hence the same tie rules and paths). Pixels marked in `core` are labelled
+/// but left black: every tile takes an interior of its own over them ([`give_interiors`]), and
+/// composing them was a large part of building a set.
 fn finish_tile(
     sample: &RgbImage,
     g: &Geometry,
@@ -632,6 +641,7 @@ fn finish_tile(
     patches: [(u32, u32); 4],
     strips: [&StripCut; 4],
     err: PixelError,
+    core: Option<&[bool]>,
 ) -> Result<RwTile, SynthError> {
     let (f, h, s) = (g.f, g.h, g.s);
     let n = (f * f) as usize;
@@ -726,18 +736,15 @@ fn finish_tile(
 
     // Step 8: compose.
     let mut raster = vec![0u8; n * 3];
-    for y in 0..f {
-        for x in 0..f {
-            if !g.in_r(x, y) {
-                continue;
-            }
-            let i = g.idx(x, y);
-            let k = labels[i];
-            if k == UNSET {
-                return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
-            }
-            raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
+    for &(x, y, i) in &frame.pixels {
+        let k = labels[i];
+        if k == UNSET {
+            return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
         }
+        if core.is_some_and(|c| c[i]) {
+            continue;
+        }
+        raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
     }
     Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, interior: None, strip_costs, pocket_costs, sources: Vec::new() })
 }
@@ -962,8 +969,21 @@ impl RwTiles {
         if cfg.interior == InteriorMode::Own && ring.is_none() {
             return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
         }
-        let (mut tiles, chosen) =
-            build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
+        let build_set = |core: Option<&[bool]>| {
+            build_tile_set_aligned(
+                req.sample,
+                tile,
+                ov,
+                set,
+                cfg.pixel_error,
+                req.seed,
+                cfg.patch_candidates as usize,
+                align.as_ref(),
+                core,
+            )
+        };
+        // Tiles that will take interiors of their own are built without their cores.
+        let (mut tiles, mut chosen) = build_set(ring.as_ref().map(|r| r.core()))?;
         let ring_depths = ring.as_ref().map(|r| r.depths());
         let interiors = ring.as_ref().and_then(|r| {
             give_interiors(
@@ -976,6 +996,11 @@ impl RwTiles {
                 cfg.interior == InteriorMode::Auto,
             )
         });
+        if ring.is_some() && interiors.is_none() {
+            // Declined (no in-phase patch for some tile; `interior = "auto"` gives an aligned set
+            // no ring, so this is for safety): build them whole, as without interiors.
+            (tiles, chosen) = build_set(None)?;
+        }
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
