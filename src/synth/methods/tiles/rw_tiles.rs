@@ -491,6 +491,9 @@ struct Frame {
     labels: Vec<u8>,
     locked: Vec<u8>,
     strips: [Strip; 4],
+    /// Per strip, what its region labelling floods from (side A's corner region in R and A's
+    /// locked strip pixels, in raster order) and through (A's corner region and the strip).
+    regions: [(Vec<usize>, Vec<bool>); 4],
 }
 
 impl Frame {
@@ -522,7 +525,24 @@ impl Frame {
             Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
             Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
         ];
-        Frame { pixels, labels, locked, strips }
+        let regions = std::array::from_fn(|k| {
+            let st = &strips[k];
+            let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
+            let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
+            let mut seeds = Vec::new();
+            let mut region = vec![false; n];
+            for y in 0..f {
+                for x in 0..f {
+                    let i = g.idx(x, y);
+                    if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
+                        seeds.push(i);
+                    }
+                    region[i] = corner_a(x, y) || in_strip(x, y);
+                }
+            }
+            (seeds, region)
+        });
+        Frame { pixels, labels, locked, strips, regions }
     }
 }
 
@@ -595,20 +615,8 @@ fn cut_strip(
         on_path[p] = true;
     }
     // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
-    let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
-    let mut seeds = Vec::new();
-    for y in 0..f {
-        for x in 0..f {
-            let i = g.idx(x, y);
-            if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
-                seeds.push(i);
-            }
-        }
-    }
-    let reached = flood4(f as usize, f as usize, &seeds, |i| {
-        let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
-        (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
-    });
+    let (seeds, region) = &frame.regions[k];
+    let reached = flood4(f as usize, f as usize, seeds, |i| region[i] && !on_path[i] && locked[i] != st.b as u8);
     let mut labels = Vec::new();
     for y in st.ys.0..st.ys.1 {
         for x in st.xs.0..st.xs.1 {
