@@ -573,16 +573,21 @@ fn cut_strip(
         sample.get(sx, sy)
     };
     let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
-    let mut domain = vec![false; n];
-    let mut targets = vec![false; n];
-    let mut error = vec![0u32; n];
+    // The seam is searched on the strip's own box, row-major like the framework: the same tie
+    // rules and paths as on the whole frame (nothing outside the strip is passable), without
+    // clearing the frame's grids for each of the 4K² strips.
+    let (bw, bh) = ((st.xs.1 - st.xs.0) as usize, (st.ys.1 - st.ys.0) as usize);
+    let local = |x: i32, y: i32| (y - st.ys.0) as usize * bw + (x - st.xs.0) as usize;
+    let mut domain = vec![false; bw * bh];
+    let mut targets = vec![false; bw * bh];
+    let mut error = vec![0u32; bw * bh];
     let mut start: Option<(i32, i32)> = None;
     for y in st.ys.0..st.ys.1 {
         for x in st.xs.0..st.xs.1 {
             if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
                 continue;
             }
-            let i = g.idx(x, y);
+            let i = local(x, y);
             domain[i] = true;
             error[i] = err.eval(px(st.a, pa, x, y), px(st.b, pb, x, y));
             // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
@@ -606,8 +611,11 @@ fn cut_strip(
         }
     }
     let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
-    let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
+    let mut path = shortest_path(bw, bh, &domain, &error, local(sx, sy), &targets)
         .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
+    for p in path.pixels.iter_mut() {
+        *p = g.idx(st.xs.0 + (*p % bw) as i32, st.ys.0 + (*p / bw) as i32);
+    }
     let last = *path.pixels.last().expect("non-empty path");
     let end = ((last % f as usize) as i32, (last / f as usize) as i32);
     let mut on_path = vec![false; n];
