@@ -260,19 +260,16 @@ impl Ring {
         let nq = (self.q1 - self.q0) as usize;
         let mut cost = vec![u64::MAX; st.positions * nq];
         for p in 0..st.positions {
-            for q in 0..nq {
-                let i = st.at[p * nq + q];
+            let (done, row) = cost.split_at_mut(p * nq);
+            let prev = done.get((p.max(1) - 1) * nq..).unwrap_or(&[]);
+            for (q, (c, &i)) in row[..nq].iter_mut().zip(&st.at[p * nq..(p + 1) * nq]).enumerate() {
                 if i == NONE {
                     continue;
                 }
-                let before = if p == 0 {
-                    0
-                } else {
-                    let lo = q.saturating_sub(1);
-                    (lo..=(q + 1).min(nq - 1)).map(|q2| cost[(p - 1) * nq + q2]).min().expect("a depth")
-                };
+                let before =
+                    if p == 0 { 0 } else { prev[q.saturating_sub(1)..=(q + 1).min(nq - 1)].iter().copied().min().expect("a depth") };
                 if before != u64::MAX {
-                    cost[p * nq + q] = before + u64::from(error[i]);
+                    *c = before + u64::from(error[i]);
                 }
             }
         }
