@@ -16,6 +16,8 @@ use crate::image::RgbImage;
 use crate::metrics::{AcfForm, AcfPlanner, centred_gray};
 use crate::synth::error::SynthError;
 use crate::synth::params::{Default, ParamKind, ParamSpec, Params};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// `t1_x, t1_y, t2_x, t2_y`: the lattice a job may give instead of having it extracted. Declared
 /// once here for every method that uses a lattice (co-evolution, TES, lattice-aligned tiles).
@@ -272,21 +274,46 @@ pub fn extract(img: &RgbImage, opts: &LatticeOptions) -> Result<Lattice, SynthEr
 }
 
 /// [`extract`] of a sample of at least 8 × 8 pixels given as its [`centred_gray`] plane.
+///
+/// The fallback views are tried while the gray plane is, and each other (on other threads when
+/// there are some): a stochastic sample, which has no lattice, needs all three, and they were a
+/// quarter of a tile method's call on one (issue #30). A view not yet started when the gray
+/// plane has given a lattice is skipped, and the result is the one of trying them in order,
+/// whichever finishes first.
 pub(crate) fn extract_centred(plane: &[f64], w: usize, h: usize, opts: &LatticeOptions) -> Result<Lattice, SynthError> {
-    let mut planner = AcfPlanner::new();
-    let gray_reason = match extract_from(plane, w, h, opts, &mut planner, None) {
-        Ok(l) => return Ok(l),
-        Err(e) => e,
-    };
-    let longest = w.min(h) as f64 / 3.0;
-    let fine = grain_free(plane, w, h);
-    for view in FallbackView::ALL {
-        let viewed = view.of_grain_free(plane, &fine, w, h);
-        if let Ok(l) = extract_from(&viewed, w, h, opts, &mut planner, Some(longest)) {
-            return Ok(Lattice { found_in: Some(view.name()), ..l });
-        }
+    let found = AtomicBool::new(false);
+    let (gray, fallback) = rayon::join(
+        || {
+            let r = extract_from(plane, w, h, opts, &mut AcfPlanner::new(), None);
+            found.store(r.is_ok(), Ordering::Relaxed);
+            r
+        },
+        || {
+            if found.load(Ordering::Relaxed) {
+                return None;
+            }
+            let longest = w.min(h) as f64 / 3.0;
+            let fine = grain_free(plane, w, h);
+            let found_in: Vec<Option<Lattice>> = FallbackView::ALL
+                .par_iter()
+                .map(|&view| {
+                    if found.load(Ordering::Relaxed) {
+                        return None;
+                    }
+                    let viewed = view.of_grain_free(plane, &fine, w, h);
+                    extract_from(&viewed, w, h, opts, &mut AcfPlanner::new(), Some(longest))
+                        .ok()
+                        .map(|l| Lattice { found_in: Some(view.name()), ..l })
+                })
+                .collect();
+            found_in.into_iter().flatten().next()
+        },
+    );
+    match (gray, fallback) {
+        (Ok(l), _) => Ok(l),
+        (Err(_), Some(l)) => Ok(l),
+        (Err(e), None) => Err(e),
     }
-    Err(gray_reason)
 }
 
 /// The squared distance from `(px, py)` to the nearest point of the `aw × ah` grid `values`

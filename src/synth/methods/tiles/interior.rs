@@ -58,8 +58,20 @@ pub struct Ring {
     inner: Vec<(usize, [(i32, i32); 4])>,
     /// Pixels of depth `q0 .. q1` (the smallest `q` over the sides), in raster order.
     ring: Vec<usize>,
-    /// Pixels of depth `q1` or more: beyond every cut.
-    core: Vec<usize>,
+    /// The ring's pixels with their side coordinates: the only ones a cut can leave out.
+    ring_sides: Vec<(usize, [(i32, i32); 4])>,
+    /// Whether each raster pixel is in the core.
+    is_core: Vec<bool>,
+    /// The core pixels with a 4-neighbour outside the core: a flood from the core can leave it
+    /// only through them.
+    core_border: Vec<usize>,
+    /// The core as runs along raster rows (first pixel, length): copied from a patch a row
+    /// slice at a time.
+    core_runs: Vec<(usize, usize)>,
+    /// The ring's pixels as `(x, y)`, in the order of `ring`.
+    ring_xy: Vec<(i32, i32)>,
+    /// Every third ring pixel ([`Ring::ring_cost`]), as `(x, y)`.
+    probes: Vec<(i32, i32)>,
     /// Top-left of the bounding box of the inner pixels, and its size: what one patch covers.
     origin: (i32, i32),
     extent: (u32, u32),
@@ -88,8 +100,9 @@ impl Ring {
         }
         let inner: Vec<(usize, [(i32, i32); 4])> =
             coords.iter().enumerate().filter_map(|(i, c)| c.filter(|c| depth(c) >= q0).map(|c| (i, c))).collect();
-        let ring = inner.iter().filter(|(_, c)| depth(c) < q1).map(|&(i, _)| i).collect();
-        let core = inner.iter().filter(|(_, c)| depth(c) >= q1).map(|&(i, _)| i).collect();
+        let ring: Vec<usize> = inner.iter().filter(|(_, c)| depth(c) < q1).map(|&(i, _)| i).collect();
+        // Pixels of depth `q1` or more: beyond every cut.
+        let core: Vec<usize> = inner.iter().filter(|(_, c)| depth(c) >= q1).map(|&(i, _)| i).collect();
         let strips = std::array::from_fn(|k| {
             let ps = coords.iter().flatten().map(|c| c[k].0);
             let (p_lo, p_hi) = (ps.clone().min().expect("tile pixels"), ps.max().expect("tile pixels"));
@@ -109,12 +122,57 @@ impl Ring {
         let ys = inner.iter().map(|&(i, _)| (i / side) as i32);
         let (x0, x1) = (xs.clone().min()?, xs.max()?);
         let (y0, y1) = (ys.clone().min()?, ys.max()?);
-        Some(Ring { side, q0, q1, strips, inner, ring, core, origin: (x0, y0), extent: ((x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32) })
+        let ring_sides: Vec<(usize, [(i32, i32); 4])> = inner.iter().filter(|(_, c)| depth(c) < q1).copied().collect();
+        let mut is_core = vec![false; side * side];
+        for &i in &core {
+            is_core[i] = true;
+        }
+        let core_border = core
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let (x, y) = (i % side, i / side);
+                (x > 0 && !is_core[i - 1])
+                    || (x + 1 < side && !is_core[i + 1])
+                    || (y > 0 && !is_core[i - side])
+                    || (y + 1 < side && !is_core[i + side])
+            })
+            .collect();
+        let mut core_runs: Vec<(usize, usize)> = Vec::new();
+        for &i in &core {
+            match core_runs.last_mut() {
+                Some((start, len)) if *start + *len == i && i % side != 0 => *len += 1,
+                _ => core_runs.push((i, 1)),
+            }
+        }
+        let ring_xy: Vec<(i32, i32)> = ring.iter().map(|&i| ((i % side) as i32, (i / side) as i32)).collect();
+        let probes = ring_xy.iter().step_by(3).copied().collect();
+        Some(Ring {
+            side,
+            q0,
+            q1,
+            strips,
+            inner,
+            ring,
+            ring_sides,
+            ring_xy,
+            is_core,
+            core_border,
+            core_runs,
+            probes,
+            origin: (x0, y0),
+            extent: ((x1 - x0 + 1) as u32, (y1 - y0 + 1) as u32),
+        })
     }
 
     /// The ring's depths `(q0, q1)`.
     pub fn depths(&self) -> (i32, i32) {
         (self.q0, self.q1)
+    }
+
+    /// Whether each raster pixel lies beyond every cut: what a tile's own interior always replaces.
+    pub fn core(&self) -> &[bool] {
+        &self.is_core
     }
 
     /// The depth from which every pixel is interior: what a tile's own composition must reach.
@@ -202,19 +260,16 @@ impl Ring {
         let nq = (self.q1 - self.q0) as usize;
         let mut cost = vec![u64::MAX; st.positions * nq];
         for p in 0..st.positions {
-            for q in 0..nq {
-                let i = st.at[p * nq + q];
+            let (done, row) = cost.split_at_mut(p * nq);
+            let prev = done.get((p.max(1) - 1) * nq..).unwrap_or(&[]);
+            for (q, (c, &i)) in row[..nq].iter_mut().zip(&st.at[p * nq..(p + 1) * nq]).enumerate() {
                 if i == NONE {
                     continue;
                 }
-                let before = if p == 0 {
-                    0
-                } else {
-                    let lo = q.saturating_sub(1);
-                    (lo..=(q + 1).min(nq - 1)).map(|q2| cost[(p - 1) * nq + q2]).min().expect("a depth")
-                };
+                let before =
+                    if p == 0 { 0 } else { prev[q.saturating_sub(1)..=(q + 1).min(nq - 1)].iter().copied().min().expect("a depth") };
                 if before != u64::MAX {
-                    cost[p * nq + q] = before + u64::from(error[i]);
+                    *c = before + u64::from(error[i]);
                 }
             }
         }
@@ -235,17 +290,10 @@ impl Ring {
     /// The pixel error between the tile's band and the patch at `offset`, over every third ring
     /// pixel: how well a candidate agrees with the band. Every third ring pixel tells the
     /// candidates apart about as well as all of them, for a third of the cost (the choice is a
-    /// large part of a 2048² fill's time).
-    fn ring_cost(&self, sample: &RgbImage, raster: &[u8], off: (i32, i32), err: PixelError) -> u64 {
-        let side = self.side;
-        self.ring
-            .iter()
-            .step_by(3)
-            .map(|&i| {
-                let p = sample.get(((i % side) as i32 + off.0) as u32, ((i / side) as i32 + off.1) as u32);
-                u64::from(err.eval([raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]], p))
-            })
-            .sum()
+    /// large part of a 2048² fill's time). `band`: the tile's colours at [`Ring::probes`];
+    /// `reads`: where each probe's pixel lies in the sample's raw bytes, less the patch's start.
+    fn ring_cost(band: &[[u8; 3]], reads: &[usize], data: &[u8], start: usize, err: PixelError) -> u64 {
+        band.iter().zip(reads).map(|(&b, &r)| u64::from(err.eval(b, [data[start + r], data[start + r + 1], data[start + r + 2]]))).sum()
     }
 
     fn offset_of(&self, c: (u32, u32)) -> (i32, i32) {
@@ -254,7 +302,22 @@ impl Ring {
 
     /// Each candidate's [`Ring::ring_cost`] against the tile's band.
     pub fn costs(&self, sample: &RgbImage, raster: &[u8], candidates: &[(u32, u32)], err: PixelError) -> Vec<u64> {
-        candidates.iter().map(|&c| self.ring_cost(sample, raster, self.offset_of(c), err)).collect()
+        let w = sample.width() as usize;
+        let (ox, oy) = (self.origin.0 as usize, self.origin.1 as usize);
+        let band: Vec<[u8; 3]> = self
+            .probes
+            .iter()
+            .map(|&(x, y)| {
+                let i = 3 * (y as usize * self.side + x as usize);
+                [raster[i], raster[i + 1], raster[i + 2]]
+            })
+            .collect();
+        // Probes lie in the patch's box (from `origin`), so these never go below the patch's start.
+        let reads: Vec<usize> = self.probes.iter().map(|&(x, y)| 3 * ((y as usize - oy) * w + (x as usize - ox))).collect();
+        candidates
+            .iter()
+            .map(|&(cx, cy)| Ring::ring_cost(&band, &reads, sample.as_raw(), 3 * (cy as usize * w + cx as usize), err))
+            .collect()
     }
 
     /// Gives the tile (`raster`, RGB, and `labels`, both `side × side`) the interior of the
@@ -273,22 +336,34 @@ impl Ring {
         let patch = |off: (i32, i32), i: usize| sample.get(((i % side) as i32 + off.0) as u32, ((i / side) as i32 + off.1) as u32);
         let band = |raster: &[u8], i: usize| [raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]];
         let best = self.offset_of(corner);
+        let (w, data) = (sample.width() as usize, sample.as_raw());
         let mut error = vec![0u32; side * side];
-        for &i in &self.ring {
-            error[i] = err.eval(band(raster, i), patch(best, i));
+        for (&i, &(x, y)) in self.ring.iter().zip(&self.ring_xy) {
+            let j = 3 * (((y + best.1) as u32) as usize * w + ((x + best.0) as u32) as usize);
+            error[i] = err.eval(band(raster, i), [data[j], data[j + 1], data[j + 2]]);
         }
         let cuts: Vec<(Vec<i32>, u64)> = (0..4).map(|k| self.cut(k, &error)).collect();
+        // The core lies deeper than any cut, so only the ring's pixels can fall short of one.
         let mut beyond = vec![false; side * side];
-        for &(i, c) in &self.inner {
+        for &(i, c) in &self.ring_sides {
             beyond[i] = (0..4).all(|k| c[k].1 >= cuts[k].0[(c[k].0 - self.strips[k].p_lo) as usize]);
         }
         // Where two sides meet, both cuts may run shallow and leave a corner pocket beyond both
-        // but cut off from the rest: only what joins the core is interior.
-        for (i, inside) in flood4(side, side, &self.core, |i| beyond[i]).into_iter().enumerate() {
-            if inside {
+        // but cut off from the rest: only what joins the core is interior. A path out of the core
+        // leaves it last through a border pixel, so flooding the ring from those alone reaches
+        // the same pixels as flooding from the whole core.
+        let joined = flood4(side, side, &self.core_border, |i| beyond[i] && !self.is_core[i]);
+        for &(i, _) in &self.ring_sides {
+            if joined[i] {
                 raster[3 * i..3 * i + 3].copy_from_slice(&patch(best, i));
                 labels[i] = INTERIOR;
             }
+        }
+        for &(i, len) in &self.core_runs {
+            let (x, y) = ((i % side) as i32 + best.0, (i / side) as i32 + best.1);
+            let j = 3 * ((y as u32) as usize * w + (x as u32) as usize);
+            raster[3 * i..3 * (i + len)].copy_from_slice(&data[j..j + 3 * len]);
+            labels[i..i + len].fill(INTERIOR);
         }
         Interior { offset: best, cost: cuts.iter().map(|c| c.1).sum() }
     }
@@ -357,6 +432,11 @@ pub struct Shading {
     mean: f64,
     /// Raster pixels measured, with their cell.
     points: Vec<(i32, i32, usize)>,
+    /// The ring's `origin`, and each point's index in the table relative to it.
+    origin: (i32, i32),
+    at: Vec<usize>,
+    /// One past the largest `x` and `y` a point's box reaches before the patch's offset.
+    reach: (i32, i32),
     /// Each cell's weight in [`Shading::norm`]: its share of the points, times the cell count.
     weights: Vec<f64>,
 }
@@ -394,7 +474,9 @@ impl Shading {
             counts[p.2] += 1;
         }
         let weights = counts.iter().map(|&c| c as f64 * counts.len() as f64 / points.len().max(1) as f64).collect();
-        Shading { sat, size: (w, h), mean, points, weights }
+        let at = points.iter().map(|&(x, y, _)| (y - oy) as usize * row + (x - ox) as usize).collect();
+        let reach = points.iter().fold((0, 0), |(rx, ry), &(x, y, _)| (rx.max(x + 4), ry.max(y + 4)));
+        Shading { sat, size: (w, h), mean, points, origin: ring.origin, at, reach, weights }
     }
 
     /// The shading of the patch whose raster pixel `(x, y)` copies sample pixel `(x, y) + off`.
@@ -403,6 +485,19 @@ impl Shading {
         let row = w as usize + 1;
         let mut sums = [0f64; SHADING_CELLS * SHADING_CELLS];
         let mut counts = [0u32; SHADING_CELLS * SHADING_CELLS];
+        if self.reach.0 + off.0 <= w as i32 && self.reach.1 + off.1 <= h as i32 {
+            // No box is clipped by the sample's edge: the same sums over whole 4×4 boxes, from
+            // table offsets found once.
+            let base = (off.1 + self.origin.1) as usize * row + (off.0 + self.origin.0) as usize;
+            let (dx, dy) = (4, 4 * row);
+            for (&at, &(_, _, cell)) in self.at.iter().zip(&self.points) {
+                let i = base + at;
+                let s = self.sat[i + dy + dx] + self.sat[i] - self.sat[i + dx] - self.sat[i + dy];
+                sums[cell] += s as f64 / 3.0 / 16.0 - self.mean;
+                counts[cell] += 1;
+            }
+            return std::array::from_fn(|c| if counts[c] == 0 { 0.0 } else { sums[c] / f64::from(counts[c]) });
+        }
         for &(x, y, cell) in &self.points {
             let (x0, y0) = ((x + off.0) as usize, (y + off.1) as usize);
             let (x1, y1) = ((x0 + 4).min(w as usize), (y0 + 4).min(h as usize));

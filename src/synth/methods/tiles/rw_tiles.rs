@@ -216,7 +216,7 @@ pub fn build_tile_set_searched(
     seed: u64,
     candidates: usize,
 ) -> Result<(RwTileSet, usize), SynthError> {
-    build_tile_set_aligned(sample, tile, ov, set.into(), err, seed, candidates, None)
+    build_tile_set_aligned(sample, tile, ov, set.into(), err, seed, candidates, None, None)
 }
 
 /// `align = "lattice"` for RW-Tiles (phase analysis in [`super::align`]). Class A are the
@@ -331,6 +331,7 @@ pub fn build_tile_set_aligned(
     seed: u64,
     candidates: usize,
     align: Option<&RwAlign>,
+    core: Option<&[bool]>,
 ) -> Result<(RwTileSet, usize), SynthError> {
     let g = Geometry::new(tile, ov);
     let (sw, sh) = (sample.width() as i32, sample.height() as i32);
@@ -365,7 +366,7 @@ pub fn build_tile_set_aligned(
         .collect();
     let choices = choices?;
     let built: Result<Vec<RwTileSet>, SynthError> =
-        choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb)).collect();
+        choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb, core)).collect();
     let built = built?;
     let costs: Vec<u64> = built.iter().map(seam_cost).collect();
     let fit: Vec<bool> =
@@ -374,7 +375,8 @@ pub fn build_tile_set_aligned(
     Ok((built.into_iter().nth(best).expect("index in range"), best))
 }
 
-/// Builds every tile of `set` from the given patch corners.
+/// Builds every tile of `set` from the given patch corners, leaving out of its raster the `core`
+/// pixels (when given) that an interior of its own will replace ([`finish_tile`]).
 ///
 /// A strip's seam (§3.3) depends only on the two patches on its sides, so each strip of each pair
 /// of patches is cut once ([`cut_strip`]) and shared by the tiles that hold that pair: `4K²` cuts
@@ -387,6 +389,7 @@ pub fn build_from_patches(
     err: PixelError,
     pa: &[(u32, u32)],
     pb: &[(u32, u32)],
+    core: Option<&[bool]>,
 ) -> Result<RwTileSet, SynthError> {
     let frame = Frame::new(g);
     let blocks: Vec<[(u32, u32); 4]> = (0..set.len()).map(|t| patches_of(set.colours(t), pa, pb)).collect();
@@ -412,7 +415,7 @@ pub fn build_from_patches(
         .into_par_iter()
         .map(|t| {
             let strips = tile_keys[t].map(|i| &cuts[i]);
-            finish_tile(sample, g, &frame, blocks[t], strips, err).map(|mut tile| {
+            finish_tile(sample, g, &frame, blocks[t], strips, err, core).map(|mut tile| {
                 tile.colours = set.colours(t);
                 tile
             })
@@ -427,7 +430,7 @@ pub fn build_tile(sample: &RgbImage, g: &Geometry, patches: [(u32, u32); 4], err
     let cuts: Result<Vec<StripCut>, SynthError> =
         (0..4).map(|k| cut_strip(sample, g, &frame, k, patches[frame.strips[k].a], patches[frame.strips[k].b], err)).collect();
     let cuts = cuts?;
-    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err)
+    finish_tile(sample, g, &frame, patches, [&cuts[0], &cuts[1], &cuts[2], &cuts[3]], err, None)
 }
 
 /// [`interior_ring`] with the ring's depths `(q0, q1)` given ([`interior::aligned_band`]).
@@ -490,9 +493,14 @@ type StripKey = (usize, (u32, u32), (u32, u32));
 /// What every tile of one geometry shares before any cut (§3.2): the labels of the locked edge
 /// pixels and of the corners only one block covers, the locks, and the four strips.
 struct Frame {
+    /// The rhombus' pixels, `(x, y, index)` in raster order.
+    pixels: Vec<(i32, i32, usize)>,
     labels: Vec<u8>,
     locked: Vec<u8>,
     strips: [Strip; 4],
+    /// Per strip, what its region labelling floods from (side A's corner region in R and A's
+    /// locked strip pixels, in raster order) and through (A's corner region and the strip).
+    regions: [(Vec<usize>, Vec<bool>); 4],
 }
 
 impl Frame {
@@ -501,12 +509,14 @@ impl Frame {
         let n = (f * f) as usize;
         let mut labels = vec![UNSET; n];
         let mut locked = vec![UNSET; n];
+        let mut pixels = Vec::new();
         for y in 0..f {
             for x in 0..f {
                 if !g.in_r(x, y) {
                     continue;
                 }
                 let i = g.idx(x, y);
+                pixels.push((x, y, i));
                 if let Some(k) = g.lock(x, y) {
                     locked[i] = k as u8;
                     labels[i] = k as u8;
@@ -522,7 +532,24 @@ impl Frame {
             Strip { xs: (h, s), ys: (s, f), a: 3, b: 2, path_label: 3 }, // O_s: B4 west / B3 east
             Strip { xs: (0, h), ys: (h, s), a: 0, b: 3, path_label: 0 }, // O_w: B1 north / B4 south
         ];
-        Frame { labels, locked, strips }
+        let regions = std::array::from_fn(|k| {
+            let st = &strips[k];
+            let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
+            let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
+            let mut seeds = Vec::new();
+            let mut region = vec![false; n];
+            for y in 0..f {
+                for x in 0..f {
+                    let i = g.idx(x, y);
+                    if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
+                        seeds.push(i);
+                    }
+                    region[i] = corner_a(x, y) || in_strip(x, y);
+                }
+            }
+            (seeds, region)
+        });
+        Frame { pixels, labels, locked, strips, regions }
     }
 }
 
@@ -553,16 +580,21 @@ fn cut_strip(
         sample.get(sx, sy)
     };
     let in_strip = |x: i32, y: i32| x >= st.xs.0 && x < st.xs.1 && y >= st.ys.0 && y < st.ys.1 && g.in_r(x, y);
-    let mut domain = vec![false; n];
-    let mut targets = vec![false; n];
-    let mut error = vec![0u32; n];
+    // The seam is searched on the strip's own box, row-major like the framework: the same tie
+    // rules and paths as on the whole frame (nothing outside the strip is passable), without
+    // clearing the frame's grids for each of the 4K² strips.
+    let (bw, bh) = ((st.xs.1 - st.xs.0) as usize, (st.ys.1 - st.ys.0) as usize);
+    let local = |x: i32, y: i32| (y - st.ys.0) as usize * bw + (x - st.xs.0) as usize;
+    let mut domain = vec![false; bw * bh];
+    let mut targets = vec![false; bw * bh];
+    let mut error = vec![0u32; bw * bh];
     let mut start: Option<(i32, i32)> = None;
     for y in st.ys.0..st.ys.1 {
         for x in st.xs.0..st.xs.1 {
             if !in_strip(x, y) || locked[g.idx(x, y)] != UNSET {
                 continue;
             }
-            let i = g.idx(x, y);
+            let i = local(x, y);
             domain[i] = true;
             error[i] = err.eval(px(st.a, pa, x, y), px(st.b, pb, x, y));
             // Start rule (smallest y / largest x / largest y / smallest x, ties as in §3.3)
@@ -586,8 +618,11 @@ fn cut_strip(
         }
     }
     let (sx, sy) = start.ok_or_else(|| SynthError::Failed(format!("strip {k} has no free pixel (tile too small for the overlap)")))?;
-    let path = shortest_path(f as usize, f as usize, &domain, &error, g.idx(sx, sy), &targets)
+    let mut path = shortest_path(bw, bh, &domain, &error, local(sx, sy), &targets)
         .ok_or_else(|| SynthError::Failed(format!("no seam through strip {k}")))?;
+    for p in path.pixels.iter_mut() {
+        *p = g.idx(st.xs.0 + (*p % bw) as i32, st.ys.0 + (*p / bw) as i32);
+    }
     let last = *path.pixels.last().expect("non-empty path");
     let end = ((last % f as usize) as i32, (last / f as usize) as i32);
     let mut on_path = vec![false; n];
@@ -595,20 +630,8 @@ fn cut_strip(
         on_path[p] = true;
     }
     // Region labelling (B4): seeds = side A's corner region in R plus A's locked strip pixels.
-    let corner_a = |x: i32, y: i32| g.in_r(x, y) && g.single(x, y) == Some(st.a);
-    let mut seeds = Vec::new();
-    for y in 0..f {
-        for x in 0..f {
-            let i = g.idx(x, y);
-            if corner_a(x, y) || (in_strip(x, y) && locked[i] == st.a as u8) {
-                seeds.push(i);
-            }
-        }
-    }
-    let reached = flood4(f as usize, f as usize, &seeds, |i| {
-        let (x, y) = ((i % f as usize) as i32, (i / f as usize) as i32);
-        (corner_a(x, y) || in_strip(x, y)) && !on_path[i] && locked[i] != st.b as u8
-    });
+    let (seeds, region) = &frame.regions[k];
+    let reached = flood4(f as usize, f as usize, seeds, |i| region[i] && !on_path[i] && locked[i] != st.b as u8);
     let mut labels = Vec::new();
     for y in st.ys.0..st.ys.1 {
         for x in st.xs.0..st.xs.1 {
@@ -631,7 +654,9 @@ fn cut_strip(
 
 /// A tile from its four strip seams: the centre (§3.4) and the raster (step 8). The centre's
 /// paths and pockets stay inside `O_c = [h, s)²`, so they are found on that `ov × ov` grid (row-major
-/// like the framework, hence the same tie rules and paths).
+/// like the framework, hence the same tie rules and paths). Pixels marked in `core` are labelled
+/// but left black: every tile takes an interior of its own over them ([`give_interiors`]), and
+/// composing them was a large part of building a set.
 fn finish_tile(
     sample: &RgbImage,
     g: &Geometry,
@@ -639,6 +664,7 @@ fn finish_tile(
     patches: [(u32, u32); 4],
     strips: [&StripCut; 4],
     err: PixelError,
+    core: Option<&[bool]>,
 ) -> Result<RwTile, SynthError> {
     let (f, h, s) = (g.f, g.h, g.s);
     let n = (f * f) as usize;
@@ -733,18 +759,15 @@ fn finish_tile(
 
     // Step 8: compose.
     let mut raster = vec![0u8; n * 3];
-    for y in 0..f {
-        for x in 0..f {
-            if !g.in_r(x, y) {
-                continue;
-            }
-            let i = g.idx(x, y);
-            let k = labels[i];
-            if k == UNSET {
-                return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
-            }
-            raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
+    for &(x, y, i) in &frame.pixels {
+        let k = labels[i];
+        if k == UNSET {
+            return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
         }
+        if core.is_some_and(|c| c[i]) {
+            continue;
+        }
+        raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
     }
     Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, interior: None, strip_costs, pocket_costs, sources: Vec::new() })
 }
@@ -971,8 +994,21 @@ impl RwTiles {
         if cfg.interior == InteriorMode::Own && ring.is_none() {
             return Err(SynthError::param("interior", common::no_interior(tile, ov, dims)));
         }
-        let (mut tiles, chosen) =
-            build_tile_set_aligned(req.sample, tile, ov, set, cfg.pixel_error, req.seed, cfg.patch_candidates as usize, align.as_ref())?;
+        let build_set = |core: Option<&[bool]>| {
+            build_tile_set_aligned(
+                req.sample,
+                tile,
+                ov,
+                set,
+                cfg.pixel_error,
+                req.seed,
+                cfg.patch_candidates as usize,
+                align.as_ref(),
+                core,
+            )
+        };
+        // Tiles that will take interiors of their own are built without their cores.
+        let (mut tiles, mut chosen) = build_set(ring.as_ref().map(|r| r.core()))?;
         let ring_depths = ring.as_ref().map(|r| r.depths());
         let interiors = ring.as_ref().and_then(|r| {
             give_interiors(
@@ -985,6 +1021,11 @@ impl RwTiles {
                 cfg.interior == InteriorMode::Auto,
             )
         });
+        if ring.is_some() && interiors.is_none() {
+            // Declined (no in-phase patch for some tile; `interior = "auto"` gives an aligned set
+            // no ring, so this is for safety): build them whole, as without interiors.
+            (tiles, chosen) = build_set(None)?;
+        }
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);

@@ -402,11 +402,12 @@ pub fn build_from_diamonds(
     de: &[(u32, u32)],
     reach: Option<i32>,
 ) -> Result<WangTileSet, SynthError> {
+    let frame = Frame::new(g, reach);
     let tiles: Result<Vec<WangTile>, SynthError> = (0..set.len())
         .into_par_iter()
         .map(|k| {
             let c = set.colours(k);
-            build_tile_within(sample, g, diamonds_of(c, dn, de), cut, err, reach).map(|mut tile| {
+            build_tile_within(sample, g, &frame, diamonds_of(c, dn, de), cut, err).map(|mut tile| {
                 tile.colours = c;
                 tile
             })
@@ -460,62 +461,112 @@ fn dp_cut(t: i32, corner: (i32, i32), centre: (i32, i32), domain: &[bool], error
 
 /// Builds one tile from the sample centres of its N, E, S, W diamonds.
 pub fn build_tile(sample: &RgbImage, g: &Geometry, q: [(u32, u32); 4], cut: Cut, err: PixelError) -> Result<WangTile, SynthError> {
-    build_tile_within(sample, g, q, cut, err, None)
+    build_tile_within(sample, g, &Frame::new(g, None), q, cut, err)
 }
 
-/// [`build_tile`], composing only the pixels closer than `reach` to the tile's nearest side when
-/// it is given: a tile that takes an interior of its own ([`give_interiors`]) replaces everything
-/// deeper, so its cuts run only from each corner to the point `reach − 1` pixels in along the
-/// diagonal (which still splits the corner of the band between its two diamonds), and the
-/// floods stay in the band. The deeper pixels are filled from their first covering diamond.
+/// What every tile of one geometry and reach shares before its diamonds are known: which pixels
+/// are composed, which diamonds cover each, the locked edges and each corner's cut domain. Found
+/// once per set instead of once per tile (the tiles are many and small).
+struct Frame {
+    reach: Option<i32>,
+    /// Pixels closer than `reach` to the tile's nearest side (all of them without a reach),
+    /// `(x, y, index)` in raster order.
+    band: Vec<(i32, i32, usize)>,
+    near: Vec<bool>,
+    /// Bit `d` set where diamond `d` covers the pixel.
+    cover: Vec<u8>,
+    locked: Vec<u8>,
+    /// Each diamond's band pixels that no other diamond covers, in raster order.
+    single: [Vec<usize>; 4],
+    /// Each corner's cut domain (pixels in both diamonds, in the corner's `reach × reach` square
+    /// with a reach) as a mask and as `(x, y, index)` in raster order.
+    domains: [(Vec<bool>, Vec<(i32, i32, usize)>); 4],
+}
+
+impl Frame {
+    fn new(g: &Geometry, reach: Option<i32>) -> Frame {
+        let t = g.t;
+        let n = (t * t) as usize;
+        let near_at = |x: i32, y: i32| reach.is_none_or(|r| x.min(y).min(t - 1 - x).min(t - 1 - y) < r);
+        let mut band = Vec::new();
+        let mut near = vec![false; n];
+        let mut cover = vec![0u8; n];
+        let mut locked = vec![UNSET; n];
+        let mut single: [Vec<usize>; 4] = std::array::from_fn(|_| Vec::new());
+        for y in 0..t {
+            for x in 0..t {
+                let i = (y * t + x) as usize;
+                if let Some(d) = g.lock(x, y) {
+                    locked[i] = d as u8;
+                }
+                cover[i] = (0..4).filter(|&d| g.in_diamond(d, x, y)).fold(0, |m, d| m | 1 << d);
+                if near_at(x, y) {
+                    near[i] = true;
+                    band.push((x, y, i));
+                    if cover[i].count_ones() == 1 {
+                        single[cover[i].trailing_zeros() as usize].push(i);
+                    }
+                }
+            }
+        }
+        let domains = std::array::from_fn(|k| {
+            let (d1, d2) = (k, (k + 1) % 4);
+            let corner = g.corner(k);
+            let (xs, ys) = match reach {
+                Some(r) => {
+                    let span = |c: i32| if c == 0 { 0..r.min(t) } else { (t - r).max(0)..t };
+                    (span(corner.0), span(corner.1))
+                }
+                None => (0..t, 0..t),
+            };
+            let mut mask = vec![false; n];
+            let mut list = Vec::new();
+            for y in ys {
+                for x in xs.clone() {
+                    let i = (y * t + x) as usize;
+                    if cover[i] & (1 << d1) != 0 && cover[i] & (1 << d2) != 0 && near[i] {
+                        mask[i] = true;
+                        list.push((x, y, i));
+                    }
+                }
+            }
+            (mask, list)
+        });
+        Frame { reach, band, near, cover, locked, single, domains }
+    }
+}
+
+/// [`build_tile`], composing only the pixels closer than the frame's `reach` to the tile's
+/// nearest side when it has one: a tile that takes an interior of its own ([`give_interiors`])
+/// replaces everything deeper, so its cuts run only from each corner to the point `reach − 1`
+/// pixels in along the diagonal (which still splits the corner of the band between its two
+/// diamonds), and the floods stay in the band. The deeper pixels are left unset (label `N`).
 fn build_tile_within(
     sample: &RgbImage,
     g: &Geometry,
+    frame: &Frame,
     q: [(u32, u32); 4],
     cut: Cut,
     err: PixelError,
-    reach: Option<i32>,
 ) -> Result<WangTile, SynthError> {
     let t = g.t;
     let n = (t * t) as usize;
-    let near = |x: i32, y: i32| reach.is_none_or(|r| x.min(y).min(t - 1 - x).min(t - 1 - y) < r);
+    let reach = frame.reach;
     let px = |d: usize, x: i32, y: i32| -> [u8; 3] {
         let (sx, sy) = g.sample_pixel(d, q[d], x, y);
         sample.get(sx, sy)
     };
     let mut labels = vec![UNSET; n];
     let mut is_cut = vec![false; n];
-    let mut locked = vec![UNSET; n];
-    for y in 0..t {
-        for x in 0..t {
-            if let Some(d) = g.lock(x, y) {
-                locked[(y * t + x) as usize] = d as u8;
-            }
-        }
-    }
     let centre = (t / 2, t / 2);
     let mut cut_costs = [0u64; 4];
+    let mut error = vec![0u32; n];
     for (k, cut_cost) in cut_costs.iter_mut().enumerate() {
         let (d1, d2) = (k, (k + 1) % 4);
         let corner = g.corner(k);
-        let mut domain = vec![false; n];
-        let mut error = vec![0u32; n];
-        // With a reach, the cut runs only in the corner's `reach × reach` square.
-        let (xs, ys) = match reach {
-            Some(r) => {
-                let span = |c: i32| if c == 0 { 0..r.min(t) } else { (t - r).max(0)..t };
-                (span(corner.0), span(corner.1))
-            }
-            None => (0..t, 0..t),
-        };
-        for y in ys {
-            for x in xs.clone() {
-                if g.in_diamond(d1, x, y) && g.in_diamond(d2, x, y) && near(x, y) {
-                    let i = (y * t + x) as usize;
-                    domain[i] = true;
-                    error[i] = err.eval(px(d1, x, y), px(d2, x, y));
-                }
-            }
+        let (domain, pixels) = &frame.domains[k];
+        for &(x, y, i) in pixels {
+            error[i] = err.eval(px(d1, x, y), px(d2, x, y));
         }
         let ci = (corner.1 * t + corner.0) as usize;
         if !domain[ci] {
@@ -527,11 +578,11 @@ fn build_tile_within(
         };
         let centre_i = (end.1 * t + end.0) as usize;
         let path = match cut {
-            Cut::Dp => dp_cut(t, corner, end, &domain, &error),
+            Cut::Dp => dp_cut(t, corner, end, domain, &error),
             Cut::ShortestPath => {
                 let mut target = vec![false; n];
                 target[centre_i] = true;
-                shortest_path(t as usize, t as usize, &domain, &error, ci, &target).map(|p| p.pixels)
+                shortest_path(t as usize, t as usize, domain, &error, ci, &target).map(|p| p.pixels)
             }
         }
         .ok_or_else(|| SynthError::Failed(format!("no cut between diamonds {d1} and {d2}")))?;
@@ -542,55 +593,45 @@ fn build_tile_within(
                 labels[p] = d1 as u8;
             }
         }
+        // Each corner's cut reads only its own domain's errors.
+        for &(_, _, i) in pixels {
+            error[i] = 0;
+        }
     }
-    for i in 0..n {
-        if locked[i] != UNSET {
-            labels[i] = locked[i];
+    for (label, &lock) in labels.iter_mut().zip(&frame.locked) {
+        if lock != UNSET {
+            *label = lock;
         }
     }
     // Floods from each diamond's single-coverage region, bounded by the cuts.
     for d in 0..4 {
-        let mut seeds = Vec::new();
-        for y in 0..t {
-            for x in 0..t {
-                let i = (y * t + x) as usize;
-                if !near(x, y) {
-                    continue;
-                }
-                let single = (0..4).all(|o| (o == d) == g.in_diamond(o, x, y));
-                if single && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8) {
-                    seeds.push(i);
-                }
-            }
-        }
-        let reached = flood4(t as usize, t as usize, &seeds, |i| {
-            let (x, y) = ((i % t as usize) as i32, (i / t as usize) as i32);
-            g.in_diamond(d, x, y) && near(x, y) && !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8)
-        });
-        for i in 0..n {
+        let free = |labels: &[u8], i: usize| !is_cut[i] && (labels[i] == UNSET || labels[i] == d as u8);
+        let seeds: Vec<usize> = frame.single[d].iter().copied().filter(|&i| free(&labels, i)).collect();
+        let reached = flood4(t as usize, t as usize, &seeds, |i| frame.cover[i] & (1 << d) != 0 && frame.near[i] && free(&labels, i));
+        for &(_, _, i) in &frame.band {
             if reached[i] && labels[i] == UNSET {
                 labels[i] = d as u8;
             }
         }
     }
+    if reach.is_some() {
+        // Replaced by the tile's own interior: no need to compose it.
+        for (label, &near) in labels.iter_mut().zip(&frame.near) {
+            if !near {
+                *label = N as u8;
+            }
+        }
+    }
     let mut fallback_pixels = 0;
     let mut raster = vec![0u8; n * 3];
-    for y in 0..t {
-        for x in 0..t {
-            let i = (y * t + x) as usize;
-            if !near(x, y) {
-                // Replaced by the tile's own interior: no need to compose it.
-                labels[i] = N as u8;
-                continue;
-            }
-            if labels[i] == UNSET {
-                fallback_pixels += 1;
-                labels[i] = (0..4)
-                    .find(|&d| g.in_diamond(d, x, y))
-                    .ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
-            }
-            raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
+    for &(x, y, i) in &frame.band {
+        if labels[i] == UNSET {
+            fallback_pixels += 1;
+            labels[i] = (0..4)
+                .find(|&d| frame.cover[i] & (1 << d) != 0)
+                .ok_or_else(|| SynthError::Failed(format!("pixel ({x},{y}) in no diamond")))? as u8;
         }
+        raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
     }
     Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
 }
