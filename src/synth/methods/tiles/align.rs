@@ -211,12 +211,10 @@ impl Alignment {
         out
     }
 
-    /// A lattice translate of `ideal` inside `lo ..= hi`, drawn from `st` (one `below` draw) among
-    /// the *near* ones not in `used` (at most two longer basis vectors from `ideal`, so that the
-    /// lattice's approximation error, which grows with distance, stays within [`refine`]'s
-    /// reach). When none is, the nearest unused one; when all are used, any near one. `Err` when
-    /// none fits.
-    pub fn place(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V]) -> Result<V, SynthError> {
+    /// The lattice translates of `ideal` inside `lo ..= hi`, nearest first (ties by row, then
+    /// column), and how many of them are *near* (within two longer basis vectors; at least one),
+    /// the ones [`Alignment::place`] and [`Alignment::place_apart`] draw from. `Err` when none fits.
+    fn by_distance(&self, ideal: V, lo: V, hi: V) -> Result<(Vec<V>, usize), SynthError> {
         let mut all = self.translates(ideal, lo, hi);
         if all.is_empty() {
             return Err(SynthError::Failed(format!("no lattice translate fits in the sample (patch positions {lo:?}..={hi:?})")));
@@ -225,6 +223,16 @@ impl Alignment {
         let reach = 4 * dot(self.reduced.1, self.reduced.1);
         all.sort_by_key(|p| (d2(p), p.1, p.0));
         let near = all.iter().take_while(|p| d2(p) <= reach).count().max(1);
+        Ok((all, near))
+    }
+
+    /// A lattice translate of `ideal` inside `lo ..= hi`, drawn from `st` (one `below` draw) among
+    /// the *near* ones not in `used` (at most two longer basis vectors from `ideal`, so that the
+    /// lattice's approximation error, which grows with distance, stays within [`refine`]'s
+    /// reach). When none is, the nearest unused one; when all are used, any near one. `Err` when
+    /// none fits.
+    pub fn place(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V]) -> Result<V, SynthError> {
+        let (all, near) = self.by_distance(ideal, lo, hi)?;
         let unused = |p: &&V| !used.contains(p);
         let mut pool: Vec<V> = all[..near].iter().filter(unused).copied().collect();
         if pool.is_empty() {
@@ -243,14 +251,7 @@ impl Alignment {
     /// quilting's with RW's defaults at 512²) but joined terracotta tiles whose grout differs, and
     /// the seams showed as grout lines that jog or double (tiles/rw_tiles_tiles_terracotta_aligned).
     pub fn place_apart(&self, st: &mut Stream, ideal: V, lo: V, hi: V, used: &[V], side: i64) -> Result<V, SynthError> {
-        let mut all = self.translates(ideal, lo, hi);
-        if all.is_empty() {
-            return Err(SynthError::Failed(format!("no lattice translate fits in the sample (patch positions {lo:?}..={hi:?})")));
-        }
-        let d2 = |p: &V| dot(sub(*p, ideal), sub(*p, ideal));
-        let reach = 4 * dot(self.reduced.1, self.reduced.1);
-        all.sort_by_key(|p| (d2(p), p.1, p.0));
-        let near = all.iter().take_while(|p| d2(p) <= reach).count().max(1);
+        let (all, near) = self.by_distance(ideal, lo, hi)?;
         let pool: Vec<V> = all[..near].iter().filter(|p| !used.contains(p)).copied().collect();
         if pool.is_empty() {
             return self.place(st, ideal, lo, hi, used);
