@@ -365,6 +365,9 @@ pub fn build_tile_set_aligned(
         })
         .collect();
     let choices = choices?;
+    // Several candidates are told apart by their whole seam cost, pockets under the core
+    // included, as they always were: only a single one may leave those pockets uncut.
+    let core = core.map(|pixels| Core { pixels, priced: choices.len() > 1 });
     let built: Result<Vec<RwTileSet>, SynthError> =
         choices.par_iter().map(|(pa, pb)| build_from_patches(sample, &g, set, err, pa, pb, core)).collect();
     let built = built?;
@@ -373,6 +376,16 @@ pub fn build_tile_set_aligned(
         choices.iter().map(|(pa, pb)| representative(sample, &pa.iter().chain(pb).copied().collect::<Vec<_>>(), g.s as u32)).collect();
     let best = pick_candidate(&costs, &fit);
     Ok((built.into_iter().nth(best).expect("index in range"), best))
+}
+
+/// The pixels of every tile that an interior of its own will replace ([`finish_tile`]).
+#[derive(Clone, Copy)]
+pub struct Core<'a> {
+    /// `f × f`, row-major: true where the interior replaces the edge patches' pixels.
+    pub pixels: &'a [bool],
+    /// Whether the set's seam cost is compared with other candidates' ([`seam_cost`]): then the
+    /// centre's pockets are cut even where the core hides them.
+    pub priced: bool,
 }
 
 /// Builds every tile of `set` from the given patch corners, leaving out of its raster the `core`
@@ -389,7 +402,7 @@ pub fn build_from_patches(
     err: PixelError,
     pa: &[(u32, u32)],
     pb: &[(u32, u32)],
-    core: Option<&[bool]>,
+    core: Option<Core>,
 ) -> Result<RwTileSet, SynthError> {
     let frame = Frame::new(g);
     let blocks: Vec<[(u32, u32); 4]> = (0..set.len()).map(|t| patches_of(set.colours(t), pa, pb)).collect();
@@ -656,7 +669,8 @@ fn cut_strip(
 /// paths and pockets stay inside `O_c = [h, s)²`, so they are found on that `ov × ov` grid (row-major
 /// like the framework, hence the same tie rules and paths). Pixels marked in `core` are labelled
 /// but left black: every tile takes an interior of its own over them ([`give_interiors`]), and
-/// composing them was a large part of building a set.
+/// composing them was a large part of building a set. A centre wholly inside the core gets no
+/// pockets (`pocket_costs` is empty; unless [`Core::priced`]): its pixels are all the interior's.
 fn finish_tile(
     sample: &RgbImage,
     g: &Geometry,
@@ -664,7 +678,7 @@ fn finish_tile(
     patches: [(u32, u32); 4],
     strips: [&StripCut; 4],
     err: PixelError,
-    core: Option<&[bool]>,
+    core: Option<Core>,
 ) -> Result<RwTile, SynthError> {
     let (f, h, s) = (g.f, g.h, g.s);
     let n = (f * f) as usize;
@@ -708,7 +722,11 @@ fn finish_tile(
     let entries = [(q[3], q[0]), (q[0], q[1]), (q[1], q[2]), (q[2], q[3])];
     let c_domain = vec![true; c * c];
     let mut pocket_costs = Vec::with_capacity(3);
-    for step in 1..4 {
+    // When the core covers the whole centre, the interior replaces every pixel the pockets
+    // would decide: their paths cost time (about a tenth of a default 2048² fill) and change
+    // nothing in the image, so they are not cut and no pocket cost is recorded.
+    let hidden = core.is_some_and(|core| !core.priced && (h..s).all(|y| (h..s).all(|x| core.pixels[g.idx(x, y)])));
+    for step in (1..4).filter(|_| !hidden) {
         let j = (centre + step) % 4;
         let (e1, e2) = entries[j];
         if !in_c(e1.0, e1.1) || !in_c(e2.0, e2.1) {
@@ -764,7 +782,7 @@ fn finish_tile(
         if k == UNSET {
             return Err(SynthError::Failed(format!("tile pixel ({x},{y}) got no block")));
         }
-        if core.is_some_and(|c| c[i]) {
+        if core.is_some_and(|c| c.pixels[i]) {
             continue;
         }
         raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
@@ -1533,6 +1551,36 @@ mod tests {
             }
         }
         assert!(inside_same < 512 * 512 / 4, "{inside_same} pixels off the edges unchanged");
+    }
+
+    #[test]
+    fn a_centre_hidden_by_the_core_is_not_cut_unless_its_cost_is_compared() {
+        let sample = coded(120, 110);
+        let g = Geometry::new(64, 8);
+        let ring = interior_ring(&g, sample.dimensions()).expect("room for an interior");
+        let (h, s) = (g.h, g.s);
+        assert!((h..s).all(|y| (h..s).all(|x| ring.core()[g.idx(x, y)])), "the centre lies in the core");
+        let (pa, pb) = (vec![(3, 5), (40, 20)], vec![(60, 61), (11, 50)]);
+        let build =
+            |core: Option<Core>| build_from_patches(&sample, &g, TileSet::Minimal.into(), PixelError::Squared, &pa, &pb, core).unwrap();
+        let whole = build(None);
+        let hidden = build(Some(Core { pixels: ring.core(), priced: false }));
+        let priced = build(Some(Core { pixels: ring.core(), priced: true }));
+        for ((w, hd), p) in whole.tiles.iter().zip(&hidden.tiles).zip(&priced.tiles) {
+            assert!(hd.pocket_costs.is_empty());
+            assert_eq!((&p.pocket_costs, p.centre_block), (&w.pocket_costs, w.centre_block));
+            assert_eq!(w.pocket_costs.len(), 3);
+            // Outside the core every pixel and label is the whole tile's; inside, nothing is drawn.
+            for i in 0..(g.f * g.f) as usize {
+                if ring.core()[i] {
+                    assert_eq!(&hd.raster[3 * i..3 * i + 3], &[0, 0, 0]);
+                } else {
+                    assert_eq!((&hd.raster[3 * i..3 * i + 3], hd.labels[i]), (&w.raster[3 * i..3 * i + 3], w.labels[i]), "pixel {i}");
+                    assert_eq!(&p.raster[3 * i..3 * i + 3], &w.raster[3 * i..3 * i + 3]);
+                }
+            }
+        }
+        assert!(seam_cost(&hidden) < seam_cost(&priced) && seam_cost(&priced) == seam_cost(&whole));
     }
 
     #[test]
