@@ -1000,6 +1000,17 @@ impl RwTiles {
         // (`interior = "own"`), they are in phase. With edges, placing the patches apart (version
         // 5, `Alignment::place_apart`) brings brickRoad to 1.91 and city_bricks to 1.71 times
         // quilting's at 512² without a cut through a brick.
+        // A per-sample choice between the two (build both, keep own where its seams are the less
+        // visible) was tried and not kept: measured on each output's seam pixels (through its
+        // source map: pixel error, 5x5 and 7x7 colour means, the same masked by the local
+        // contrast, edge-strength mismatch, how much of the seams runs where the texels differ
+        // from their lattice translates), own's seams were never clearly cheaper than the edge
+        // patches' on brickRoad (1.05 to 1.17 times theirs per output pixel), while on
+        // tiles_terracotta and stk_generic_greyWall_a, where own looked plainly worse (tiles and
+        // stones in two shades, diamond bands), several of these measures favoured own (0.6 to
+        // 0.9 times); no threshold separated brickRoad from the samples own spoils. What own does
+        // buy on brickRoad is repetition (512², seeds 1-3: 1.31, 0.74, 0.96 times quilting's
+        // against 1.91, 1.14, 1.11; 2048²: 1.79, 1.60, 1.46 against 1.98, 2.14, 1.97).
         let ring = if cfg.interior.own(k, align.is_some()) && !(cfg.interior == InteriorMode::Auto && align.is_some()) {
             let g = Geometry::new(tile, ov);
             align
