@@ -525,8 +525,9 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
     // cut can change here (matching the whole known part of the window spreads the error over
     // pixels that stay anyway; on a 1024² pebbles hole the border step was 19.6 against 15.8
     // with a 3-px band). Known pixels are never written, so no patch changes what a later one
-    // matches: all the searches are made up front, together, from the canvas as it stands
-    // (the exact search then reads the sample's spectra once for several).
+    // matches: all the searches are made up front, one after another, from the canvas as it
+    // stands, while the sample's spectra stay in cache (interleaved with the cuts, a 512²
+    // inpainting took 5 % longer).
     let origins: Vec<(u32, u32)> = centres.iter().map(|&(cx, cy)| (origin(cx, w), origin(cy, h))).collect();
     let searches: Vec<(RgbImage, Vec<Rect>)> = origins
         .iter()
@@ -536,7 +537,7 @@ fn polish(req: &Request, region: &FillRegion, how: &Fill, canvas: &mut Canvas, s
             (window_at(canvas, (ox, oy)), content_runs(q, |i, j| !hole(i, j) && band[(j * q + i) as usize]))
         })
         .collect();
-    let found = search.candidates_each(&searches, how.tolerance);
+    let found: Vec<_> = searches.iter().map(|(window, known)| search.candidates(window, (0, 0), known, how.tolerance)).collect();
     drop(searches);
     let mut replaced = 0u64;
     for (k, (&(ox, oy), c)) in origins.iter().zip(found).enumerate() {

@@ -249,17 +249,6 @@ impl<'a> BlockSearch<'a> {
         }
     }
 
-    /// [`BlockSearch::candidates`] of several blocks, each its own small `canvas` with its regions
-    /// at the origin, in the order given: the exact FFT search makes them in batches
-    /// ([`OverlapSearch::candidates_batch`]), the others one by one.
-    pub(crate) fn candidates_each(&mut self, queries: &[(RgbImage, Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
-        match self {
-            BlockSearch::Exact(s, Engine::Direct) => queries.iter().map(|(c, r)| s.candidates_direct(c, (0, 0), r, tolerance)).collect(),
-            BlockSearch::Exact(s, _) => s.candidates_batch(queries, tolerance),
-            BlockSearch::Pyramid(..) => queries.iter().map(|(c, r)| self.candidates(c, (0, 0), r, tolerance)).collect(),
-        }
-    }
-
     /// The pyramid's coarse level, for diagnostics (`None` for the exact search).
     pub(crate) fn coarse_level(&self) -> Option<u32> {
         match self {

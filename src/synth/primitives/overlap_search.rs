@@ -30,11 +30,6 @@ const MAX_CACHED_MAPS: usize = 16;
 /// every position per corner; a grid method's few region sets keep their exact maps.
 const MASK_BY_FFT_FROM: usize = 8;
 
-/// How many blocks [`OverlapSearch::candidates_batch`] correlates together: the sample's spectra
-/// are read once per group instead of once per block, and the group's products (a half spectrum
-/// each, 2 MB for a 512² sample) are held together.
-const BATCH: usize = 8;
-
 /// Candidates whose exact SSD is within `(1 + tolerance)` of the minimum, in row-major order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Candidates {
@@ -467,8 +462,6 @@ impl<'a> OverlapSearch<'a> {
         let (t2a, channels_a) = a.template(&mut wa, target_a, origin_a, regions_a, false, parallel);
         let (t2b, channels_b) = b.template(&mut wb, target_b, origin_b, regions_b, false, parallel);
         let (w, h) = (a.sample.width() as usize, a.sample.height() as usize);
-        // Every entry is written below: resized, never cleared.
-        wa.product.resize((w / 2 + 1) * h, Complex64::new(0.0, 0.0));
         let rows = a.block_h as usize;
         // Each product carries its weight and its channel factor (3 for one gray channel).
         let (fa, fb) = (ka * (3 / channels_a) as f64, kb * (3 / channels_b) as f64);
@@ -497,7 +490,7 @@ impl<'a> OverlapSearch<'a> {
                 column_back(kx, out, &mut wb.column, &mut wa.column, &mut wa.fft_scratch);
             }
         }
-        a.rows_back(&wa.product, 1, 0, &mut wa.rows, parallel);
+        a.rows_back(&mut wa, parallel);
         let scale = 1.0 / (w * h) as f64;
         let nxu = a.positions().0 as usize;
         let (s2a, s2b) = (&a.sum_sq_maps[maps[0]].1, &b.sum_sq_maps[maps[1]].1);
@@ -581,67 +574,6 @@ impl<'a> OverlapSearch<'a> {
         found.into_iter().flatten().collect()
     }
 
-    /// The candidate sets of several blocks, each given as its own small `target` image with its
-    /// `regions` at the origin, in the order given: the same sets as [`OverlapSearch::candidates`]
-    /// of each in turn. The blocks' correlations are made in groups ([`BATCH`]), column by column
-    /// for the whole group ([`OverlapSearch::columns_back`]): where many blocks are searched in
-    /// one sample and their targets are all known beforehand (an inpainting's border polish),
-    /// the sample's spectra are read once per group instead of once per block.
-    pub fn candidates_batch(&mut self, queries: &[(RgbImage, Vec<Rect>)], tolerance: f64) -> Vec<Candidates> {
-        let parallel = rayon::current_num_threads() > 1;
-        let mut work = std::mem::take(&mut self.work);
-        let (mut by_frequency, mut product): (Vec<Vec<Complex64>>, Vec<Complex64>) = (Vec::new(), Vec::new());
-        let mut found = Vec::with_capacity(queries.len());
-        for group in queries.chunks(BATCH) {
-            // ΣS² as `candidates` takes it: a cached map, by FFT for many rectangles, else a new
-            // map; the cache starts again before the group rather than during it, so that the
-            // group's indices into it stay valid.
-            if self.sum_sq_maps.len() + group.len() > MAX_CACHED_MAPS {
-                self.sum_sq_maps.clear();
-            }
-            let maps: Vec<Option<usize>> = group
-                .iter()
-                .map(|(_, regions)| {
-                    let empty = regions.iter().map(|r| r.area()).sum::<u64>() == 0;
-                    let cached = self.sum_sq_maps.iter().any(|(r, _)| r == regions);
-                    (!empty && (cached || regions.len() < MASK_BY_FFT_FROM)).then(|| self.sum_sq_map(regions))
-                })
-                .collect();
-            // The blocks with something to compare, by FFT (the others by direct sums).
-            let by_fft: Vec<usize> = (0..group.len()).filter(|&i| group[i].1.iter().map(|r| r.area()).sum::<u64>() > 0).collect();
-            by_frequency.resize_with(by_fft.len().max(by_frequency.len()), Vec::new);
-            let mut templates = Vec::with_capacity(by_fft.len());
-            for (&i, spectrum) in by_fft.iter().zip(&mut by_frequency) {
-                let (target, regions) = &group[i];
-                let (sum_t2, channels) = self.template(&mut work, target, (0, 0), regions, maps[i].is_none(), parallel);
-                std::mem::swap(&mut work.by_frequency, spectrum);
-                templates.push((sum_t2, channels));
-            }
-            let spectra: Vec<(&[Complex64], usize, bool)> = by_fft
-                .iter()
-                .zip(&by_frequency)
-                .zip(&templates)
-                .map(|((&i, f), &(_, channels))| (&f[..], channels, maps[i].is_none()))
-                .collect();
-            self.columns_back(&spectra, &mut product, parallel);
-            let mut group_found: Vec<Option<Candidates>> = vec![None; group.len()];
-            for (j, (&i, &(sum_t2, channels))) in by_fft.iter().zip(&templates).enumerate() {
-                let (target, regions) = &group[i];
-                self.rows_back(&product, by_fft.len(), j, &mut work.rows, parallel);
-                let margin = self.approximate_from_rows(&mut work, sum_t2, channels, regions, maps[i], parallel);
-                group_found[i] = Some(self.decide(&work.approx, margin, target, (0, 0), regions, tolerance, parallel));
-            }
-            found.extend(
-                group_found
-                    .into_iter()
-                    .zip(group)
-                    .map(|(c, (target, regions))| c.unwrap_or_else(|| self.candidates_direct(target, (0, 0), regions, tolerance))),
-            );
-        }
-        self.work = work;
-        found
-    }
-
     /// The `count` positions of smallest exact SSD for each of several blocks, each given as its
     /// own small `target` image with its `regions` at the origin, in the order given; ties are
     /// broken by position (`y`, then `x`), so the result is the same whatever the thread count.
@@ -701,25 +633,9 @@ impl<'a> OverlapSearch<'a> {
         parallel: bool,
     ) -> Candidates {
         let margin = self.approximate(work, target, origin, regions, map_index, parallel);
-        self.decide(&work.approx, margin, target, origin, regions, tolerance, parallel)
-    }
-
-    /// The candidate set from the approximate map `approx` and its error bound `margin`: every
-    /// position that may be within the tolerance of the best is re-scored exactly, and the set is
-    /// decided on those integers.
-    fn decide(
-        &self,
-        approx: &[f64],
-        margin: f64,
-        target: &RgbImage,
-        origin: (u32, u32),
-        regions: &[Rect],
-        tolerance: f64,
-        parallel: bool,
-    ) -> Candidates {
-        let amin = smallest(approx, self.allowed.as_deref());
+        let amin = smallest(&work.approx, self.allowed.as_deref());
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
-        let mut rechecked = self.recheck(approx, threshold, target, origin, regions, parallel);
+        let mut rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
         if self.allowed.is_some() {
             rechecked.retain(|&(x, y, _)| self.allows(x, y));
         }
@@ -763,13 +679,22 @@ impl<'a> OverlapSearch<'a> {
     ) -> Vec<(u32, u32, u64)> {
         let (nx, ny) = self.positions();
         let nxu = nx as usize;
+        // Few positions pass: a row is scanned a run of positions at a time, without a branch
+        // per position (so that it vectorises), and only a run holding one is looked into.
+        const RUN: usize = 8;
         let recheck_row = |y: u32| {
             let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
-            row.iter()
-                .enumerate()
-                .filter(|(_, a)| **a <= threshold)
-                .map(|(x, _)| (x as u32, y, self.exact_ssd(x as u32, y, target, origin, regions)))
-                .collect::<Vec<_>>()
+            let mut found = Vec::new();
+            for (r, run) in row.chunks(RUN).enumerate() {
+                if run.iter().fold(false, |any, &a| any | (a <= threshold)) {
+                    let passing = run.iter().enumerate().filter(|(_, a)| **a <= threshold);
+                    found.extend(passing.map(|(i, _)| {
+                        let x = (r * RUN + i) as u32;
+                        (x, y, self.exact_ssd(x, y, target, origin, regions))
+                    }));
+                }
+            }
+            found
         };
         if parallel { (0..ny).into_par_iter().flat_map_iter(recheck_row).collect() } else { (0..ny).flat_map(recheck_row).collect() }
     }
@@ -786,80 +711,46 @@ impl<'a> OverlapSearch<'a> {
         map_index: Option<usize>,
         parallel: bool,
     ) -> f64 {
-        let (sum_t2, channels) = self.template(work, target, origin, regions, map_index.is_none(), parallel);
-        let mut product = std::mem::take(&mut work.product);
-        self.columns_back(&[(&work.by_frequency[..], channels, map_index.is_none())], &mut product, parallel);
-        self.rows_back(&product, 1, 0, &mut work.rows, parallel);
-        work.product = product;
-        self.approximate_from_rows(work, sum_t2, channels, regions, map_index, parallel)
-    }
-
-    /// The correlations of one or more templates with the sample, transformed back along
-    /// columns, into `product`: for each column `kx`, one column per template, in the order given
-    /// (template `i`'s at `(kx·n + i)·H`, of `n` templates). Each template is `(by_frequency,
-    /// channels, mask)` as [`OverlapSearch::template`] leaves it. Σ_c S_c ⋆ T_c has the half
-    /// spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed back one column at a time, for
-    /// all templates before the next column, so that the sample's spectra are read from memory
-    /// once for all of them rather than once per template (a 512² sample's are 8 MB; the products
-    /// are bound by reading them).
-    fn columns_back(&self, templates: &[(&[Complex64], usize, bool)], product: &mut Vec<Complex64>, parallel: bool) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
-        let (rows, n) = (self.block_h as usize, templates.len());
-        if templates.iter().any(|t| t.2) {
+        let rows = self.block_h as usize;
+        let mask = map_index.is_none();
+        let (sum_t2, channels) = self.template(work, target, origin, regions, mask, parallel);
+        if mask {
             self.spec_sq();
         }
+        // Σ_c S_c ⋆ T_c has the half spectrum Σ_c Ŝ_c·conj T̂_c; it is formed and transformed
+        // back along columns one column at a time.
         let zero = Complex64::new(0.0, 0.0);
-        // Every entry is written below: resized, never cleared.
-        product.resize((w / 2 + 1) * n * h, zero);
         let scratch_len = self.shared.fft_col.get_inplace_scratch_len().max(self.shared.ifft_col.get_inplace_scratch_len());
+        let pairs = &work.by_frequency;
         let column_back = |kx: usize, out: &mut [Complex64], columns: &mut [Complex64], scratch: &mut [Complex64]| {
-            for (&(by_frequency, channels, mask), out) in templates.iter().zip(out.chunks_exact_mut(h)) {
-                self.correlate_column(by_frequency, rows, channels, mask, kx, out, columns, scratch);
-                self.shared.ifft_col.process_with_scratch(out, scratch);
-            }
+            self.correlate_column(pairs, rows, channels, mask, kx, out, columns, scratch);
+            self.shared.ifft_col.process_with_scratch(out, scratch);
         };
-        let buffers = || (vec![zero; 4 * h], vec![zero; scratch_len]);
         if parallel {
-            product
-                .par_chunks_mut(n * h)
-                .enumerate()
-                .for_each_init(buffers, |(columns, scratch), (kx, out)| column_back(kx, out, columns, scratch));
+            work.product.par_chunks_mut(h).enumerate().for_each_init(
+                || (vec![zero; 4 * h], vec![zero; scratch_len]),
+                |(columns, scratch), (kx, out)| column_back(kx, out, columns, scratch),
+            );
         } else {
-            let (mut columns, mut scratch) = buffers();
-            for (kx, out) in product.chunks_exact_mut(n * h).enumerate() {
-                column_back(kx, out, &mut columns, &mut scratch);
+            work.column.resize(4 * h, zero);
+            work.fft_scratch.resize(scratch_len, zero);
+            for (kx, out) in work.product.chunks_exact_mut(h).enumerate() {
+                column_back(kx, out, &mut work.column, &mut work.fft_scratch);
             }
         }
-    }
-
-    /// [`OverlapSearch::approximate`]'s last step: every position's approximate SSD into
-    /// `work.approx`, from the correlation's rows (`work.rows`, [`OverlapSearch::rows_back`]) of a
-    /// template of energy `sum_t2` over `regions` (`channels` as [`OverlapSearch::template`]
-    /// says), and the bound on its error.
-    fn approximate_from_rows(
-        &self,
-        work: &mut Workspace,
-        sum_t2: u64,
-        channels: usize,
-        regions: &[Rect],
-        map_index: Option<usize>,
-        parallel: bool,
-    ) -> f64 {
-        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        self.rows_back(work, parallel);
         let scale = (3 / channels) as f64 / (w * h) as f64;
 
         // approx(p) = ΣS²(p) − 2·corr(p) + ΣT², within `margin` of the exact SSD. The margin is a
         // generous bound on the FFT's absolute error (the usual one is ~1e-16·log n·‖S‖‖T‖).
         let mut margin = self.margin(sum_t2);
-        if map_index.is_none() {
+        if mask {
             // ΣS² ⋆ mask's own error, bounded as the cross term's (the mask's norm is √area).
             let area: u64 = regions.iter().map(|r| r.area()).sum();
             margin += 1e-9 * self.spec_sq().1 * (area as f64).sqrt() * ((w * h) as f64).log2().max(1.0) + 1.0;
         }
-        let (nx, ny) = self.positions();
-        let nxu = nx as usize;
-        // Every entry is written below: resized, never cleared.
-        work.approx.resize(nxu * ny as usize, 0.0);
+        let nxu = self.positions().0 as usize;
         let sum_sq = map_index.map(|m| &self.sum_sq_maps[m].1);
         let pairs = &work.rows;
         let approx_row = |(y, row): (usize, &mut [f64])| {
@@ -907,10 +798,15 @@ impl<'a> OverlapSearch<'a> {
         mask: bool,
         parallel: bool,
     ) -> (u64, usize) {
-        let w = self.sample.width() as usize;
+        let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
+        let (nx, ny) = self.positions();
+        let (nxu, nyu) = (nx as usize, ny as usize);
         let rows = self.block_h as usize;
-        if work.planes.len() != 4 * rows * w {
+        let half = w / 2 + 1;
+        if work.product.len() != half * h {
             work.planes = vec![0.0; 4 * rows * w];
+            work.product = vec![Complex64::new(0.0, 0.0); half * h];
+            work.approx = vec![0.0; nxu * nyu];
         }
         // Template planes: the target's overlap pixels at their block offsets, zero elsewhere (the
         // planes are kept zero between blocks: only the pixels written here are cleared after).
@@ -954,10 +850,9 @@ impl<'a> OverlapSearch<'a> {
         (sum_t2, channels)
     }
 
-    /// The correlation's rows from its columns transformed back (template `i` of `n` in `product`,
-    /// laid out as [`OverlapSearch::columns_back`] leaves it), transformed back along rows into
-    /// `rows`: row pair `p` holds real rows `2p` (re) and `2p + 1` (im).
-    fn rows_back(&self, product: &[Complex64], n: usize, i: usize, rows: &mut Vec<Complex64>, parallel: bool) {
+    /// The correlation's rows from its columns transformed back (`work.product`), transformed
+    /// back along rows into `work.rows`: row pair `p` holds real rows `2p` (re) and `2p + 1` (im).
+    fn rows_back(&self, work: &mut Workspace, parallel: bool) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
         let nyu = self.positions().1 as usize;
         let half = w / 2 + 1;
@@ -965,14 +860,14 @@ impl<'a> OverlapSearch<'a> {
         // its spectrum is X₁(k) + i·X₂(k), each X completed by X(W−k) = X̄(k).
         let row_pairs = nyu.div_ceil(2);
         // Every entry is written below (`k` and its mirror cover the row): resized, never cleared.
-        rows.resize(row_pairs * w, Complex64::new(0.0, 0.0));
+        work.rows.resize(row_pairs * w, Complex64::new(0.0, 0.0));
         let i_unit = Complex64::new(0.0, 1.0);
         // A few row pairs at a time, so that the writes stay in cache.
         const PAIRS_PER_PASS: usize = 8;
-        for (band, rows_out) in rows.chunks_mut(PAIRS_PER_PASS * w).enumerate() {
+        for (band, rows_out) in work.rows.chunks_mut(PAIRS_PER_PASS * w).enumerate() {
             let first = band * PAIRS_PER_PASS;
             for k in 0..half {
-                let column = &product[(k * n + i) * h..(k * n + i + 1) * h];
+                let column = &work.product[k * h..(k + 1) * h];
                 let mirror = w - k;
                 for (p, row) in rows_out.chunks_exact_mut(w).enumerate() {
                     let y = 2 * (first + p);
@@ -985,7 +880,7 @@ impl<'a> OverlapSearch<'a> {
                 }
             }
         }
-        process_rows(&self.shared.ifft_row, rows, w, parallel);
+        process_rows(&self.shared.ifft_row, &mut work.rows, w, parallel);
     }
 
     /// Index of the ΣS² map for this region set, computing it the first time (exactly, from the
@@ -1239,68 +1134,6 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let many = pool.install(|| search.candidates_many(&target, &queries, 0.2));
             assert_eq!(many, one_by_one, "{threads} threads");
-        }
-    }
-
-    #[test]
-    fn a_batch_of_blocks_equals_one_at_a_time_on_any_pool() {
-        // More blocks than a group, of random windows: few rectangles (ΣS² maps), many row runs
-        // (ΣS² by FFT), an empty set (direct sums), gray windows on a colour sample; unrestricted
-        // and restricted, as the border polish searches.
-        let (b, seed) = (13u32, 41);
-        let sample = noise(47, 39, seed);
-        let mut s = Stream::new(seed, "test/batch");
-        let queries: Vec<(RgbImage, Vec<Rect>)> = (0..2 * BATCH as u32 + 3)
-            .map(|k| {
-                let mut window = noise(b, b, seed + 1 + u64::from(k));
-                if k % 5 == 1 {
-                    window = RgbImage::from_fn(b, b, |x, y| [window.get(x, y)[0]; 3]);
-                }
-                // A strong match now and then: part of the window is the sample's.
-                let (sx, sy) = (s.below(47 - b as u64 + 1) as u32, s.below(39 - b as u64 + 1) as u32);
-                if k % 3 == 0 {
-                    for y in 0..b {
-                        for x in 0..4 {
-                            window.put(x, y, sample.get(sx + x, sy + y));
-                        }
-                    }
-                }
-                let regions = match k % 4 {
-                    0 => vec![Rect::new(0, 0, 4, b)],
-                    1 => vec![Rect::new(0, 0, 4, b), Rect::new(4, 0, b - 4, 3)],
-                    2 if k == 6 => vec![],
-                    _ => (0..b).map(|j| Rect::new(j % 3, j, 1 + (j + k) % 7, 1)).collect(),
-                };
-                (window, regions)
-            })
-            .collect();
-        let allowed: Vec<bool> = (0..(47 - b + 1) * (39 - b + 1)).map(|i| i % 5 != 2).collect();
-        for restricted in [false, true] {
-            let mut search = OverlapSearch::new(&sample, b, b);
-            if restricted {
-                search.restrict_to(allowed.clone());
-            }
-            let one_by_one: Vec<Candidates> = queries.iter().map(|(t, r)| search.candidates(t, (0, 0), r, 0.15)).collect();
-            for (q, c) in queries.iter().zip(&one_by_one) {
-                assert_eq!(*c, search.candidates_direct(&q.0, (0, 0), &q.1, 0.15));
-            }
-            for threads in [1, 3] {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                let batch = pool.install(|| search.candidates_batch(&queries, 0.15));
-                assert_eq!(batch, one_by_one, "{threads} threads, restricted {restricted}");
-            }
-        }
-    }
-
-    #[test]
-    fn the_smallest_value_is_found_in_lanes() {
-        let values: Vec<f64> = (0..37).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
-        let flags: Vec<bool> = (0..37).map(|i| i % 3 != 0).collect();
-        for n in [0, 1, 7, 8, 9, 16, 37] {
-            let all = values[..n].iter().copied().fold(f64::INFINITY, f64::min);
-            let some = values[..n].iter().zip(&flags).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min);
-            assert_eq!(smallest(&values[..n], None), all);
-            assert_eq!(smallest(&values[..n], Some(&flags[..n])), some);
         }
     }
 
