@@ -1138,6 +1138,18 @@ mod tests {
     }
 
     #[test]
+    fn the_smallest_value_is_found_in_lanes() {
+        let values: Vec<f64> = (0..37).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
+        let flags: Vec<bool> = (0..37).map(|i| i % 3 != 0).collect();
+        for n in [0, 1, 7, 8, 9, 16, 37] {
+            let all = values[..n].iter().copied().fold(f64::INFINITY, f64::min);
+            let some = values[..n].iter().zip(&flags).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min);
+            assert_eq!(smallest(&values[..n], None), all);
+            assert_eq!(smallest(&values[..n], Some(&flags[..n])), some);
+        }
+    }
+
+    #[test]
     fn a_unique_exact_match_is_found_with_zero_error() {
         let sample = noise(40, 40, 9);
         let target = sample.crop(10, 12, 20, 20);
