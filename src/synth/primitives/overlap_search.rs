@@ -98,7 +98,7 @@ struct Workspace {
     rows: Vec<Complex64>,
     /// The summed cross-correlation's half spectrum, transformed back along columns.
     product: Vec<Complex64>,
-    /// One template column and the column transforms' scratch.
+    /// Template columns (one per plane, up to four) and the column transforms' scratch.
     column: Vec<Complex64>,
     fft_scratch: Vec<Complex64>,
     approx: Vec<f64>,
@@ -245,7 +245,7 @@ impl<'a> OverlapSearch<'a> {
     /// Column `kx` of the summed cross-correlation's half spectrum, `Σ_c Ŝ_c·conj T̂_c` (over the
     /// first `channels`), into `out` (the caller transforms it back along `y`); `by_frequency` holds the template's row-pair
     /// transforms transposed (all pairs at frequency 0, then at 1, …), so a column reads two runs. The template's column of each channel is
-    /// transformed in `column` just before its product: one column at a time stays in cache,
+    /// transformed in `columns` (room for four) just before the product: a few columns at a time stay in cache,
     /// where whole template spectra would not.
     fn correlate_column(
         &self,
@@ -255,13 +255,13 @@ impl<'a> OverlapSearch<'a> {
         mask: bool,
         kx: usize,
         out: &mut [Complex64],
-        column: &mut [Complex64],
+        columns: &mut [Complex64],
         fft_scratch: &mut [Complex64],
     ) {
         // Its loops with AVX2's wider vectors where the CPU has them (the same bits either way).
         with_avx2(
             #[inline(always)]
-            || self.correlate_column_here(by_frequency, rows, channels, mask, kx, out, column, fft_scratch),
+            || self.correlate_column_here(by_frequency, rows, channels, mask, kx, out, columns, fft_scratch),
         )
     }
 
@@ -275,7 +275,7 @@ impl<'a> OverlapSearch<'a> {
         mask: bool,
         kx: usize,
         out: &mut [Complex64],
-        column: &mut [Complex64],
+        columns: &mut [Complex64],
         fft_scratch: &mut [Complex64],
     ) {
         let (w, h) = (self.sample.width() as usize, self.sample.height() as usize);
@@ -283,7 +283,8 @@ impl<'a> OverlapSearch<'a> {
         let pair_count = by_frequency.len() / w;
         let at = &by_frequency[kx * pair_count..(kx + 1) * pair_count];
         let mirrored = &by_frequency[(w - kx) % w * pair_count..((w - kx) % w + 1) * pair_count];
-        for c in 0..channels + usize::from(mask) {
+        let planes = channels + usize::from(mask);
+        for (c, column) in columns.chunks_exact_mut(h).take(planes).enumerate() {
             for (y, v) in column[..rows].iter_mut().enumerate() {
                 let r = c * rows + y;
                 let (z, m) = (at[r / 2], mirrored[r / 2].conj());
@@ -291,19 +292,38 @@ impl<'a> OverlapSearch<'a> {
             }
             column[rows..].fill(Complex64::new(0.0, 0.0));
             self.shared.fft_col.process_with_scratch(column, fft_scratch);
-            if c == channels {
-                // The mask's plane, after the colour planes: −½ · (ΣS² ⋆ mask), so that the
-                // caller's −2 × the sum gives +ΣS² over the regions.
-                let sample = &self.spec_sq().0[kx * h..(kx + 1) * h];
-                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o -= s * t.conj() * 0.5);
-                continue;
+        }
+        // One pass over the column for all planes, summed in channel order, then the mask's
+        // plane: −½ · (ΣS² ⋆ mask), so that the caller's −2 × the sum gives +ΣS² over the regions.
+        // (The same operations in the same order as a pass per plane, so the same bits.)
+        // Every slice is cut to `h` first, so that the indexed loops need no bounds checks.
+        let sample = |c: usize| &self.shared.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
+        let template = |c: usize| &columns[c * h..(c + 1) * h];
+        let out = &mut out[..h];
+        match (channels, mask) {
+            (1, false) => out.iter_mut().zip(sample(0).iter().zip(template(0))).for_each(|(o, (s, t))| *o = s * t.conj()),
+            (3, _) => {
+                let (s0, s1, s2) = (sample(0), sample(1), sample(2));
+                let (t0, t1, t2) = (template(0), template(1), template(2));
+                if mask {
+                    let (sq, t3) = (&self.spec_sq().0[kx * h..(kx + 1) * h], template(3));
+                    for y in 0..h {
+                        let mut v = s0[y] * t0[y].conj();
+                        v += s1[y] * t1[y].conj();
+                        v += s2[y] * t2[y].conj();
+                        v -= sq[y] * t3[y].conj() * 0.5;
+                        out[y] = v;
+                    }
+                } else {
+                    for y in 0..h {
+                        let mut v = s0[y] * t0[y].conj();
+                        v += s1[y] * t1[y].conj();
+                        v += s2[y] * t2[y].conj();
+                        out[y] = v;
+                    }
+                }
             }
-            let sample = &self.shared.spec[c * plane + kx * h..c * plane + (kx + 1) * h];
-            if c == 0 {
-                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o = s * t.conj());
-            } else {
-                out.iter_mut().zip(sample.iter().zip(column.iter())).for_each(|(o, (s, t))| *o += s * t.conj());
-            }
+            _ => unreachable!("one gray channel, or three with or without the mask"),
         }
     }
 
@@ -451,19 +471,19 @@ impl<'a> OverlapSearch<'a> {
         let (pairs_a, pairs_b) = (&wa.by_frequency, &wb.by_frequency);
         let (sa, sb) = (&*a, &*b);
         let column_back =
-            |kx: usize, out: &mut [Complex64], other: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
-                sa.correlate_column(pairs_a, rows, channels_a, false, kx, out, column, scratch);
-                sb.correlate_column(pairs_b, rows, channels_b, false, kx, other, column, scratch);
+            |kx: usize, out: &mut [Complex64], other: &mut [Complex64], columns: &mut [Complex64], scratch: &mut [Complex64]| {
+                sa.correlate_column(pairs_a, rows, channels_a, false, kx, out, columns, scratch);
+                sb.correlate_column(pairs_b, rows, channels_b, false, kx, other, columns, scratch);
                 out.iter_mut().zip(other.iter()).for_each(|(o, p)| *o = *o * fa + *p * fb);
                 sa.shared.ifft_col.process_with_scratch(out, scratch);
             };
         if parallel {
             wa.product.par_chunks_mut(h).enumerate().for_each_init(
-                || (vec![zero; h], vec![zero; h], vec![zero; scratch_len]),
-                |(other, column, scratch), (kx, out)| column_back(kx, out, other, column, scratch),
+                || (vec![zero; h], vec![zero; 4 * h], vec![zero; scratch_len]),
+                |(other, columns, scratch), (kx, out)| column_back(kx, out, other, columns, scratch),
             );
         } else {
-            wa.column.resize(h, zero);
+            wa.column.resize(4 * h, zero);
             wa.fft_scratch.resize(scratch_len, zero);
             wb.column.resize(h, zero);
             for (kx, out) in wa.product.chunks_exact_mut(h).enumerate() {
@@ -613,10 +633,7 @@ impl<'a> OverlapSearch<'a> {
         parallel: bool,
     ) -> Candidates {
         let margin = self.approximate(work, target, origin, regions, map_index, parallel);
-        let amin = match &self.allowed {
-            None => work.approx.iter().copied().fold(f64::INFINITY, f64::min),
-            Some(allowed) => work.approx.iter().zip(allowed).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min),
-        };
+        let amin = smallest(&work.approx, self.allowed.as_deref());
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
         let mut rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
         if self.allowed.is_some() {
@@ -662,13 +679,22 @@ impl<'a> OverlapSearch<'a> {
     ) -> Vec<(u32, u32, u64)> {
         let (nx, ny) = self.positions();
         let nxu = nx as usize;
+        // Few positions pass: a row is scanned a run of positions at a time, without a branch
+        // per position (so that it vectorises), and only a run holding one is looked into.
+        const RUN: usize = 8;
         let recheck_row = |y: u32| {
             let row = &approx[y as usize * nxu..(y as usize + 1) * nxu];
-            row.iter()
-                .enumerate()
-                .filter(|(_, a)| **a <= threshold)
-                .map(|(x, _)| (x as u32, y, self.exact_ssd(x as u32, y, target, origin, regions)))
-                .collect::<Vec<_>>()
+            let mut found = Vec::new();
+            for (r, run) in row.chunks(RUN).enumerate() {
+                if run.iter().fold(false, |any, &a| any | (a <= threshold)) {
+                    let passing = run.iter().enumerate().filter(|(_, a)| **a <= threshold);
+                    found.extend(passing.map(|(i, _)| {
+                        let x = (r * RUN + i) as u32;
+                        (x, y, self.exact_ssd(x, y, target, origin, regions))
+                    }));
+                }
+            }
+            found
         };
         if parallel { (0..ny).into_par_iter().flat_map_iter(recheck_row).collect() } else { (0..ny).flat_map(recheck_row).collect() }
     }
@@ -697,17 +723,17 @@ impl<'a> OverlapSearch<'a> {
         let zero = Complex64::new(0.0, 0.0);
         let scratch_len = self.shared.fft_col.get_inplace_scratch_len().max(self.shared.ifft_col.get_inplace_scratch_len());
         let pairs = &work.by_frequency;
-        let column_back = |kx: usize, out: &mut [Complex64], column: &mut [Complex64], scratch: &mut [Complex64]| {
-            self.correlate_column(pairs, rows, channels, mask, kx, out, column, scratch);
+        let column_back = |kx: usize, out: &mut [Complex64], columns: &mut [Complex64], scratch: &mut [Complex64]| {
+            self.correlate_column(pairs, rows, channels, mask, kx, out, columns, scratch);
             self.shared.ifft_col.process_with_scratch(out, scratch);
         };
         if parallel {
             work.product.par_chunks_mut(h).enumerate().for_each_init(
-                || (vec![zero; h], vec![zero; scratch_len]),
-                |(column, scratch), (kx, out)| column_back(kx, out, column, scratch),
+                || (vec![zero; 4 * h], vec![zero; scratch_len]),
+                |(columns, scratch), (kx, out)| column_back(kx, out, columns, scratch),
             );
         } else {
-            work.column.resize(h, zero);
+            work.column.resize(4 * h, zero);
             work.fft_scratch.resize(scratch_len, zero);
             for (kx, out) in work.product.chunks_exact_mut(h).enumerate() {
                 column_back(kx, out, &mut work.column, &mut work.fft_scratch);
@@ -903,6 +929,41 @@ impl<'a> OverlapSearch<'a> {
     }
 }
 
+/// The smallest of `values` (of those flagged in `allowed`, when given), `∞` if none. In lanes, so
+/// that it vectorises: the smallest value is the same whatever the order it is sought in.
+fn smallest(values: &[f64], allowed: Option<&[bool]>) -> f64 {
+    const LANES: usize = 8;
+    let min = |a: f64, b: f64| if b < a { b } else { a };
+    with_avx2(
+        #[inline(always)]
+        || {
+            let mut lanes = [f64::INFINITY; LANES];
+            let chunks = values.chunks_exact(LANES);
+            let rest = chunks.remainder();
+            match allowed {
+                None => {
+                    for chunk in chunks {
+                        lanes.iter_mut().zip(chunk).for_each(|(l, &v)| *l = min(*l, v));
+                    }
+                    rest.iter().zip(&mut lanes).for_each(|(&v, l)| *l = min(*l, v));
+                }
+                Some(allowed) => {
+                    let flags = allowed.chunks_exact(LANES);
+                    let rest_flags = flags.remainder();
+                    for (chunk, flags) in chunks.zip(flags) {
+                        lanes
+                            .iter_mut()
+                            .zip(chunk.iter().zip(flags))
+                            .for_each(|(l, (&v, &a))| *l = min(*l, if a { v } else { f64::INFINITY }));
+                    }
+                    rest.iter().zip(rest_flags).zip(&mut lanes).for_each(|((&v, &a), l)| *l = min(*l, if a { v } else { f64::INFINITY }));
+                }
+            }
+            lanes.into_iter().fold(f64::INFINITY, min)
+        },
+    )
+}
+
 /// Real row `r`'s spectrum at frequency `k`, from the row-pair transforms `pairs` (rows `W`
 /// long): `A(k) = (Z(k) + Z̄(W−k)) / 2` for the first row of a pair, `B(k) = (Z(k) − Z̄(W−k)) / 2i`
 /// for the second.
@@ -1073,6 +1134,18 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let many = pool.install(|| search.candidates_many(&target, &queries, 0.2));
             assert_eq!(many, one_by_one, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn the_smallest_value_is_found_in_lanes() {
+        let values: Vec<f64> = (0..37).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
+        let flags: Vec<bool> = (0..37).map(|i| i % 3 != 0).collect();
+        for n in [0, 1, 7, 8, 9, 16, 37] {
+            let all = values[..n].iter().copied().fold(f64::INFINITY, f64::min);
+            let some = values[..n].iter().zip(&flags).filter(|(_, a)| **a).map(|(v, _)| *v).fold(f64::INFINITY, f64::min);
+            assert_eq!(smallest(&values[..n], None), all);
+            assert_eq!(smallest(&values[..n], Some(&flags[..n])), some);
         }
     }
 
