@@ -116,6 +116,46 @@ impl RgbImage {
         out
     }
 
+    /// Per box side in `sides` (each at most the image's shorter side): the share of the image's
+    /// colour variance left in the means of `side × side` windows, i.e. carried by features that
+    /// large: the variance of the window means over all windows inside the image, summed over the
+    /// channels, over the channels' summed variance.
+    pub fn large_feature_shares(&self, sides: &[usize]) -> Vec<(usize, f64)> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let raw = &self.data;
+        let (mut total, mut low) = (0.0, vec![0.0; sides.len()]);
+        for c in 0..3 {
+            // Summed-area table of the channel, (w + 1) × (h + 1); integer, so exact.
+            let mut sat = vec![0u64; (w + 1) * (h + 1)];
+            for y in 0..h {
+                let mut row = 0u64;
+                for x in 0..w {
+                    row += u64::from(raw[(y * w + x) * 3 + c]);
+                    sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
+                }
+            }
+            let sq: u64 = raw.iter().skip(c).step_by(3).map(|&v| u64::from(v) * u64::from(v)).sum();
+            let n = (w * h) as f64;
+            let mean = sat[(w + 1) * (h + 1) - 1] as f64 / n;
+            total += (sq as f64 / n - mean * mean).max(0.0);
+            for (k, &b) in sides.iter().enumerate() {
+                let (mut s, mut s2, mut count) = (0.0, 0.0, 0.0);
+                for y in 0..=h - b {
+                    for x in 0..=w - b {
+                        let (a, d) = (y * (w + 1), (y + b) * (w + 1));
+                        let m = (sat[d + x + b] + sat[a + x] - sat[d + x] - sat[a + x + b]) as f64 / (b * b) as f64;
+                        s += m;
+                        s2 += m * m;
+                        count += 1.0;
+                    }
+                }
+                let m = s / count;
+                low[k] += (s2 / count - m * m).max(0.0);
+            }
+        }
+        sides.iter().zip(low).map(|(&b, l)| (b, if total > 0.0 { l / total } else { 0.0 })).collect()
+    }
+
     /// Gray level `(R+G+B)/3` on unit scale, row-major (docs/methods.md B6: gray is `I`, not luma).
     pub fn gray_unit(&self) -> Vec<f64> {
         self.data.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect()

@@ -196,43 +196,12 @@ fn correlation_length(gray: &[f64], w: usize, h: usize) -> i64 {
     sums.iter().enumerate().skip(1).find(|(_, (s, n))| *s < 0.5 * f64::from(*n)).map_or(ri, |(d, _)| d as i64)
 }
 
-/// [`Analysis::large_features`]: per box side, the variance of the window means over all windows
-/// inside the sample, summed over the channels, over the channels' summed variance.
+/// [`Analysis::large_features`] at [`LARGE_FEATURE_SIDES`] up to a quarter of the shorter side
+/// ([`RgbImage::large_feature_shares`]).
 fn large_feature_shares(img: &RgbImage) -> Vec<(i64, f64)> {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let raw = img.as_raw();
-    let sides: Vec<usize> = LARGE_FEATURE_SIDES.into_iter().filter(|&s| s <= w.min(h) / 4).collect();
-    let (mut total, mut low) = (0.0, vec![0.0; sides.len()]);
-    for c in 0..3 {
-        // Summed-area table of the channel, (w + 1) × (h + 1); integer, so exact.
-        let mut sat = vec![0u64; (w + 1) * (h + 1)];
-        for y in 0..h {
-            let mut row = 0u64;
-            for x in 0..w {
-                row += u64::from(raw[(y * w + x) * 3 + c]);
-                sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
-            }
-        }
-        let sq: u64 = raw.iter().skip(c).step_by(3).map(|&v| u64::from(v) * u64::from(v)).sum();
-        let n = (w * h) as f64;
-        let mean = sat[(w + 1) * (h + 1) - 1] as f64 / n;
-        total += (sq as f64 / n - mean * mean).max(0.0);
-        for (k, &b) in sides.iter().enumerate() {
-            let (mut s, mut s2, mut count) = (0.0, 0.0, 0.0);
-            for y in 0..=h - b {
-                for x in 0..=w - b {
-                    let (a, d) = (y * (w + 1), (y + b) * (w + 1));
-                    let m = (sat[d + x + b] + sat[a + x] - sat[d + x] - sat[a + x + b]) as f64 / (b * b) as f64;
-                    s += m;
-                    s2 += m * m;
-                    count += 1.0;
-                }
-            }
-            let m = s / count;
-            low[k] += (s2 / count - m * m).max(0.0);
-        }
-    }
-    sides.into_iter().zip(low).map(|(b, l)| (b as i64, if total > 0.0 { l / total } else { 0.0 })).collect()
+    let quarter = img.width().min(img.height()) as usize / 4;
+    let sides: Vec<usize> = LARGE_FEATURE_SIDES.into_iter().filter(|&s| s <= quarter).collect();
+    img.large_feature_shares(&sides).into_iter().map(|(b, l)| (b as i64, l)).collect()
 }
 
 /// The normalised correlation of `plane` (`w × h`, row-major) with itself shifted by `(dx, dy)`,

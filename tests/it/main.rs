@@ -24,4 +24,5 @@ mod signals;
 mod synth;
 mod tile_export;
 mod tile_interiors;
+mod tile_tone;
 mod tileable;

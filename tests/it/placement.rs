@@ -9,7 +9,12 @@ use texsyn::synth::method::{Method, Request};
 use texsyn::synth::methods;
 use texsyn::synth::params::resolve;
 
-fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValue)]) {
+fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValue)]) -> bool {
+    check_at(method, sample, size, given, false)
+}
+
+/// [`check`], of a tileable output or not; whether the placement blends.
+fn check_at(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValue)], tileable: bool) -> bool {
     let m: &dyn Method = methods::find(method).unwrap();
     let s = rgb(&repo().join("jobs/samples").join(sample));
     let given: Vec<(String, ParamValue)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
@@ -21,7 +26,7 @@ fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValu
         params: &params,
         seed: 5,
         placement: false,
-        tileable: false,
+        tileable,
         constraints: Default::default(),
     };
     let without = m.synthesize(&plain).unwrap();
@@ -34,6 +39,7 @@ fn check(method: &str, sample: &str, size: (u32, u32), given: &[(&str, ParamValu
     let rendered = p.render_rgb8(&s);
     let differing = rendered.as_raw().chunks(3).zip(with.image.as_raw().chunks(3)).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "{method} {given:?} on {sample}: {differing} pixels differ from the placement's rendering");
+    p.has_blends()
 }
 
 #[test]
@@ -68,4 +74,16 @@ fn near_regular_placements_render_their_images() {
 fn tile_placements_render_their_images() {
     check("wang-tiles", "bricks_gray.png", (300, 260), &[]);
     check("rw-tiles", "bricks_gray.png", (300, 260), &[]);
+}
+
+/// Toned interiors (`tone`) are blend steps with sample pixels: the placement still renders the
+/// method's image exactly, also where a tileable output is fitted from a torus of whole tiles.
+#[test]
+fn toned_tile_placements_render_their_images() {
+    let on = ("tone", ParamValue::Str("on".into()));
+    assert!(check("wang-tiles", "wood_weathered.png", (300, 260), std::slice::from_ref(&on)), "toned pixels are blends");
+    assert!(check("rw-tiles", "wood_weathered.png", (300, 260), std::slice::from_ref(&on)));
+    assert!(check("rw-tiles", "grass_gray.png", (200, 180), &[on.clone(), ("colors", ParamValue::Int(3))]));
+    assert!(check_at("wang-tiles", "wood_weathered.png", (300, 260), std::slice::from_ref(&on), true));
+    assert!(check_at("rw-tiles", "wood_weathered.png", (300, 260), &[on], true));
 }

@@ -332,6 +332,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     fallback_pixels: 0,
                     interior: None,
                     sources: Vec::new(),
+                    tone: Vec::new(),
                 });
             }
             Ok(Loaded::Wang(index, WangTileSet { geometry: g, set, dn: Vec::new(), de: Vec::new(), tiles }))
@@ -378,6 +379,7 @@ pub fn load(index_path: &Path) -> Result<Loaded, ExportError> {
                     strip_costs: [0; 4],
                     pocket_costs: Vec::new(),
                     sources: Vec::new(),
+                    tone: Vec::new(),
                 });
             }
             Ok(Loaded::Rw(index, RwTileSet { geometry: g, set, pa: Vec::new(), pb: Vec::new(), tiles }))

@@ -9,7 +9,8 @@
 //!   export                   tile-set files: write, load back, render
 //!     wang_set, rw_set       the built sets: geometry, tiles, placement and filling
 //!       wang                 Wang-tile edge colours and tilings
-//! interior                   tiles' own interiors inside a closed seam (imports only common)
+//! interior, tone             tiles' own interiors inside a closed seam, and their tone matched
+//!                            to the band around them (import only common)
 //! common, align              shared by both methods: pixel error, patch candidates, `export_tiles`;
 //!                            lattice alignment (common imports align)
 //!   fit                      tileable fills of sizes that are not whole tiles (imports nothing
@@ -23,6 +24,7 @@ pub mod fit;
 pub mod interior;
 pub mod rw_set;
 pub mod rw_tiles;
+pub mod tone;
 pub mod wang;
 pub mod wang_set;
 pub mod wang_tiles;

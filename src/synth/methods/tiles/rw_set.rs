@@ -129,6 +129,8 @@ pub struct RwTile {
     /// ([`UNCOVERED`] outside `R`): filled by [`RwTileSet::record_sources`] only when a job asks
     /// for its placement, empty otherwise.
     pub sources: Vec<u32>,
+    /// `f × f` tone blends of its interior's pixels ([`super::tone`]): empty when not toned.
+    pub tone: Vec<super::tone::ToneBlend>,
 }
 
 /// The sample corners of a tile's blocks `B1..B4`, from its colours `[NW, NE, SE, SW]`.
@@ -273,6 +275,12 @@ impl super::common::TileRenderer for RwTileSet {
     }
     fn source_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u32]) {
         self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.sources)
+    }
+    fn tone_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [super::tone::ToneBlend]) {
+        self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.tone)
+    }
+    fn toned(&self) -> bool {
+        self.tiles.iter().any(|t| !t.tone.is_empty())
     }
     fn record_sources(&mut self, sample_width: u32) {
         RwTileSet::record_sources(self, sample_width)

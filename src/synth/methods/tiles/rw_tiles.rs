@@ -20,11 +20,13 @@
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
 use super::common::{
-    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TONE_PARAM, TileRenderer, ToneMode,
+    pick_candidate, representative,
 };
 use super::export::export_rw;
 use super::interior;
 use super::rw_set::{Geometry, RwTile, RwTileSet, UNSET, patches_of};
+use super::tone;
 use super::wang::{EdgeSet, TileSet, TilingOrder};
 use crate::image::RgbImage;
 use crate::image::seam_grid::{SeamBand, SeamGrid};
@@ -62,6 +64,7 @@ const PARAMS: &[ParamSpec] = &[
     },
     COLORS_PARAM,
     INTERIOR_PARAM,
+    TONE_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -107,6 +110,8 @@ pub struct RwTilesConfig {
     pub colors: Option<u32>,
     /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
     pub interior: InteriorMode,
+    /// `tone`: whether interiors of their own are toned to their bands ([`super::tone`]).
+    pub tone: ToneMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random patch choices are built to keep the cheapest (1..=4096).
@@ -129,6 +134,7 @@ impl std::default::Default for RwTilesConfig {
             tile_set: TileSet::Minimal,
             colors: None,
             interior: InteriorMode::Auto,
+            tone: ToneMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -149,6 +155,7 @@ impl MethodConfig for RwTilesConfig {
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
             word("interior", self.interior),
+            word("tone", self.tone),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -165,6 +172,7 @@ impl MethodConfig for RwTilesConfig {
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
             interior: p.choice("interior")?,
+            tone: p.choice("tone")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -787,7 +795,17 @@ fn finish_tile(
         }
         raster[i * 3..i * 3 + 3].copy_from_slice(&px(k as usize, x, y));
     }
-    Ok(RwTile { colours: [0; 4], raster, labels, centre_block: centre, interior: None, strip_costs, pocket_costs, sources: Vec::new() })
+    Ok(RwTile {
+        colours: [0; 4],
+        raster,
+        labels,
+        centre_block: centre,
+        interior: None,
+        strip_costs,
+        pocket_costs,
+        sources: Vec::new(),
+        tone: Vec::new(),
+    })
 }
 
 /// Where the internal seams can be: the strips lie in the columns and rows `≡ 0..ov (mod h)`.
@@ -815,6 +833,10 @@ impl Method for RwTiles {
         // Likewise `interior`: tiles were made of their edge patches only.
         if !given.iter().any(|(k, _)| k == "interior") {
             given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
+        }
+        // Likewise `tone`: interiors were as cut.
+        if !given.iter().any(|(k, _)| k == "tone") {
+            given.push(("tone".to_string(), ParamValue::Str("off".to_string())));
         }
     }
 
@@ -868,6 +890,7 @@ impl Method for RwTiles {
         let smaller = sample.0.min(sample.1) as i64;
         // A given size only: `auto` may choose another.
         let valid = tile % 2 == 0 && ov % 2 == 0 && 2 * ov + 4 <= tile && s <= smaller;
+        errors.extend(common::check_tone(cfg.tone, cfg.interior));
         if cfg.interior == InteriorMode::Own
             && cfg.tile.is_some()
             && valid
@@ -1055,6 +1078,22 @@ impl RwTiles {
             // no ring, so this is for safety): build them whole, as without interiors.
             (tiles, chosen) = build_set(None)?;
         }
+        // Interiors of their own, toned to their bands where `tone` says so.
+        let tone = interiors.map(|_| common::tone_choice(cfg.tone, req.sample, tile as u32, align.is_some()));
+        let toned = match &tone {
+            Some((true, _)) => {
+                let side = tiles.geometry.f as usize;
+                Some(tone::tone_set(
+                    &mut tiles.tiles,
+                    side,
+                    interior::INTERIOR,
+                    req.sample,
+                    |tl| &tl.labels[..],
+                    |tl| (&mut tl.raster[..], &tl.labels[..], &mut tl.tone),
+                ))
+            }
+            _ => None,
+        };
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
@@ -1094,6 +1133,11 @@ impl RwTiles {
         }
         if let Some(cost) = interiors {
             diagnostics["interior"] = interior::record(cfg.interior, ring_depths.expect("a ring"), cost);
+        }
+        if let Some((_, mut record)) = tone {
+            // Only with interiors of their own, so that the record of other fills stays as it was.
+            record["toned_pixels"] = serde_json::json!(toned.unwrap_or(0));
+            diagnostics["tone"] = record;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1263,9 +1307,25 @@ mod tests {
             })
             .unwrap();
         assert_ne!(other.image, small.image);
-        // Every output pixel is a sample pixel (no blending).
+        // This coded sample's features are large: its interiors are toned (blend steps), also
+        // the same with one thread. Untoned, every output pixel is a sample pixel (no blending).
+        assert_eq!(big.diagnostics["tone"]["tone"], "on", "{}", big.diagnostics["tone"]);
+        let off = params(&[("tile", ParamValue::Int(32)), ("overlap", ParamValue::Int(6)), ("tone", ParamValue::Str("off".into()))]);
+        let plain = RwTiles
+            .synthesize(&Request {
+                sample: &sample,
+                width: 300,
+                height: 200,
+                params: &off,
+                seed: 9,
+                placement: false,
+                tileable: false,
+                constraints: std::default::Default::default(),
+            })
+            .unwrap();
         let colours: std::collections::HashSet<[u8; 3]> = sample.as_raw().chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        assert!(big.image.as_raw().chunks_exact(3).all(|c| colours.contains(&[c[0], c[1], c[2]])));
+        assert!(plain.image.as_raw().chunks_exact(3).all(|c| colours.contains(&[c[0], c[1], c[2]])));
+        assert!(!small.image.as_raw().chunks_exact(3).all(|c| colours.contains(&[c[0], c[1], c[2]])), "toned pixels are blends");
     }
 
     #[test]
@@ -1448,6 +1508,7 @@ mod tests {
             tile_set: TileSet::Complete,
             colors: Some(3),
             interior: InteriorMode::Own,
+            tone: ToneMode::Off,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1459,6 +1520,7 @@ mod tests {
         assert!(
             cfg.tile != d.tile
                 && cfg.overlap != d.overlap
+                && cfg.tone != d.tone
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
                 && cfg.interior != d.interior
@@ -1639,7 +1701,9 @@ mod tests {
         for (name, sample) in
             [("grass_gray", common::testing::sample("grass_gray.png")), ("shaded noise", common::testing::shaded_noise(3))]
         {
-            let p = params(&[]);
+            // The patch choice alone: toned interiors (`tone`, on for the shaded noise) follow
+            // their bands, which is another matter.
+            let p = params(&[("tone", ParamValue::Str("off".into()))]);
             let req = Request {
                 sample: &sample,
                 width: 512,

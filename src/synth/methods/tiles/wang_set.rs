@@ -91,6 +91,8 @@ pub struct WangTile {
     /// `t × t` sample indices (`y · sample_width + x`) the raster's pixels are copies of: filled by
     /// [`WangTileSet::record_sources`] only when a job asks for its placement, empty otherwise.
     pub sources: Vec<u32>,
+    /// `t × t` tone blends of its interior's pixels ([`super::tone`]): empty when not toned.
+    pub tone: Vec<super::tone::ToneBlend>,
 }
 
 /// The sample centres of a tile's diamonds in N, E, S, W order, from its colours `[N, W, S, E]`.
@@ -209,6 +211,12 @@ impl super::common::TileRenderer for WangTileSet {
     }
     fn source_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [u32]) {
         self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.sources)
+    }
+    fn tone_rows(&self, tiling: &Tiling, width: u32, y0: u32, rows: &mut [super::tone::ToneBlend]) {
+        self.copy_rows(tiling, width, y0, rows, 1, |tile| &tile.tone)
+    }
+    fn toned(&self) -> bool {
+        self.tiles.iter().any(|t| !t.tone.is_empty())
     }
     fn record_sources(&mut self, sample_width: u32) {
         WangTileSet::record_sources(self, sample_width)

@@ -18,10 +18,12 @@
 
 use super::align::{self, Align, Alignment, Overlap, V, best_offset};
 use super::common::{
-    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TileRenderer, pick_candidate, representative,
+    self, COLORS_PARAM, EXPORT_TILES_PARAM, INTERIOR_PARAM, InteriorMode, Patches, PixelError, TONE_PARAM, TileRenderer, ToneMode,
+    pick_candidate, representative,
 };
 use super::export::export_wang;
 use super::interior;
+use super::tone;
 use super::wang::{EdgeSet, TileSet, TilingOrder};
 use super::wang_set::{E, Geometry, N, S, W, WangTile, WangTileSet, diamonds_of};
 use crate::image::RgbImage;
@@ -66,6 +68,7 @@ const PARAMS: &[ParamSpec] = &[
     },
     COLORS_PARAM,
     INTERIOR_PARAM,
+    TONE_PARAM,
     ParamSpec {
         name: "pixel_error",
         kind: ParamKind::Choice(PixelError::NAMES),
@@ -123,6 +126,8 @@ pub struct WangTilesConfig {
     pub colors: Option<u32>,
     /// `interior`: whether tiles take their insides from patches of their own ([`super::interior`]).
     pub interior: InteriorMode,
+    /// `tone`: whether interiors of their own are toned to their bands ([`super::tone`]).
+    pub tone: ToneMode,
     /// `pixel_error`: the per-pixel cut cost.
     pub pixel_error: PixelError,
     /// `patch_candidates`: how many random diamond choices are built to keep the cheapest (1..=4096).
@@ -146,6 +151,7 @@ impl std::default::Default for WangTilesConfig {
             tile_set: TileSet::Minimal,
             colors: None,
             interior: InteriorMode::Auto,
+            tone: ToneMode::Auto,
             pixel_error: PixelError::Squared,
             patch_candidates: 1,
             align: Align::Auto,
@@ -167,6 +173,7 @@ impl MethodConfig for WangTilesConfig {
             word("tile_set", self.tile_set),
             int_or("colors", self.colors.map(i64::from), common::AUTO_COLORS_WORD),
             word("interior", self.interior),
+            word("tone", self.tone),
             word("pixel_error", self.pixel_error),
             int("patch_candidates", self.patch_candidates),
             word("align", self.align),
@@ -184,6 +191,7 @@ impl MethodConfig for WangTilesConfig {
             tile_set: p.choice("tile_set")?,
             colors: common::colors_param(p)?,
             interior: p.choice("interior")?,
+            tone: p.choice("tone")?,
             pixel_error: p.choice("pixel_error")?,
             patch_candidates: p.uint("patch_candidates")?,
             align: p.choice("align")?,
@@ -633,7 +641,7 @@ fn build_tile_within(
         }
         raster[i * 3..i * 3 + 3].copy_from_slice(&px(labels[i] as usize, x, y));
     }
-    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new() })
+    Ok(WangTile { colours: [0; 4], raster, labels, cut_costs, fallback_pixels, interior: None, sources: Vec::new(), tone: Vec::new() })
 }
 
 /// [`interior_ring`] with the ring's depths `(q0, q1)` given ([`interior::aligned_band`]).
@@ -713,6 +721,10 @@ impl Method for WangTiles {
         if !given.iter().any(|(k, _)| k == "interior") {
             given.push(("interior".to_string(), ParamValue::Str("edges".to_string())));
         }
+        // Likewise `tone`: interiors were as cut.
+        if !given.iter().any(|(k, _)| k == "tone") {
+            given.push(("tone".to_string(), ParamValue::Str("off".to_string())));
+        }
     }
 
     fn name(&self) -> &'static str {
@@ -765,6 +777,7 @@ impl Method for WangTiles {
         let smaller = sample.0.min(sample.1) as i64;
         // A given size only: `auto` may choose another.
         let valid = t % 2 == 0 && ov % 2 == 0 && ov * 2 <= t && need <= smaller;
+        errors.extend(common::check_tone(cfg.tone, cfg.interior));
         if cfg.interior == InteriorMode::Own
             && cfg.tile.is_some()
             && valid
@@ -932,6 +945,22 @@ impl WangTiles {
             // ring; build them whole, as without interiors.
             (tiles, chosen) = build_set(None)?;
         }
+        // Interiors of their own, toned to their bands where `tone` says so.
+        let tone = interiors.map(|_| common::tone_choice(cfg.tone, req.sample, t as u32, align.is_some()));
+        let toned = match &tone {
+            Some((true, _)) => {
+                let side = t as usize;
+                Some(tone::tone_set(
+                    &mut tiles.tiles,
+                    side,
+                    interior::INTERIOR,
+                    req.sample,
+                    |tl| &tl.labels[..],
+                    |tl| (&mut tl.raster[..], &tl.labels[..], &mut tl.tone),
+                ))
+            }
+            _ => None,
+        };
         let build = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let (tiling, fit) = tiles.tiling(order, req);
@@ -970,6 +999,11 @@ impl WangTiles {
         }
         if let Some(cost) = interiors {
             diagnostics["interior"] = interior::record(cfg.interior, ring_depths.expect("a ring"), cost);
+        }
+        if let Some((_, mut record)) = tone {
+            // Only with interiors of their own, so that the record of other fills stays as it was.
+            record["toned_pixels"] = serde_json::json!(toned.unwrap_or(0));
+            diagnostics["tone"] = record;
         }
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
@@ -1326,6 +1360,7 @@ mod tests {
             tile_set: TileSet::Complete,
             colors: Some(3),
             interior: InteriorMode::Own,
+            tone: ToneMode::Off,
             pixel_error: PixelError::Euclidean,
             patch_candidates: 5,
             align: Align::Lattice,
@@ -1337,6 +1372,7 @@ mod tests {
         assert!(
             cfg.tile != d.tile
                 && cfg.overlap != d.overlap
+                && cfg.tone != d.tone
                 && cfg.cut != d.cut
                 && cfg.tile_set != d.tile_set
                 && cfg.colors != d.colors
