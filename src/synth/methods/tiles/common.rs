@@ -351,6 +351,28 @@ pub fn tone_choice(mode: ToneMode, sample: &RgbImage, tile: u32, aligned: bool) 
     }
 }
 
+/// The most colours `colors = "auto"` picks for a set whose interiors are toned ([`tone_choice`]):
+/// toning costs time per tile, and a set has `K³` (minimal) tiles. Measured on weathered wood at
+/// 2048² (issue #30): with 8 colours (512 tiles) RW tiles took 0.083 s and Wang tiles 0.079 s,
+/// 7.9 and 9.2 times faster than quilting (0.63 s), below the issue's 10; with 6 (216 tiles) 0.034
+/// and 0.051 s, while the fills' repetition stayed the same or fell (RW 0.096 to 0.074, Wang 0.176
+/// to 0.172; quilting's 0.31: a sample with large features repeats them whatever fills it).
+pub const TONED_COLORS: u32 = 6;
+
+/// `colors = "auto"` (`choice` is its record) capped at [`TONED_COLORS`] for a `toned` set.
+pub fn cap_toned_colors(k: u32, choice: Option<serde_json::Value>, toned: bool) -> (u32, Option<serde_json::Value>) {
+    match choice {
+        Some(_) if toned && k > TONED_COLORS => (
+            TONED_COLORS,
+            Some(serde_json::json!({
+                "colors": TONED_COLORS,
+                "how": format!("auto: {TONED_COLORS}; {k} would fit, but the interiors are toned (tone) and {TONED_COLORS} keep toning a fraction of the fill's time"),
+            })),
+        ),
+        choice => (k, choice),
+    }
+}
+
 /// The refusal of `tone = "on"` with `interior = "edges"`: nothing to tone.
 pub fn check_tone(tone: ToneMode, interior: InteriorMode) -> Option<crate::synth::params::ParamError> {
     (tone == ToneMode::On && interior == InteriorMode::Edges).then(|| {

@@ -48,14 +48,34 @@ const BIN_BITS: u32 = 5;
 /// in, in the nearest bin that has one (by 6-neighbour steps through the bin grid).
 pub struct Palette {
     bins: Vec<u32>,
-    /// Per channel, the 1st and 99th percentile of the sample's values: the colours a blend
-    /// can reach without leaving the sample's gamut.
-    low: [f64; 3],
-    high: [f64; 3],
+    /// Per channel and value `v`, `1 / room` up to the 99th percentile of the sample's values
+    /// and down to the 1st (at least 1 level): how far a blend may push `v` without leaving
+    /// the sample's gamut.
+    up: [[f32; 256]; 3],
+    down: [[f32; 256]; 3],
 }
 
-fn bin_of(c: [f64; 3]) -> usize {
-    let b = |v: f64| ((v.clamp(0.0, 255.0) as u32) >> (8 - BIN_BITS)) as usize;
+/// For `n = 0..=DEN`, the smallest of [`WEIGHTS`] at least `n` (the largest where none is).
+const NUM_FOR: [u8; DEN as usize + 1] = {
+    let mut t = [0u8; DEN as usize + 1];
+    let mut n = 0;
+    while n <= DEN as usize {
+        let mut i = 0;
+        t[n] = WEIGHTS[WEIGHTS.len() - 1];
+        while i < WEIGHTS.len() {
+            if WEIGHTS[i] as usize >= n {
+                t[n] = WEIGHTS[i];
+                break;
+            }
+            i += 1;
+        }
+        n += 1;
+    }
+    t
+};
+
+fn bin_of(c: [f32; 3]) -> usize {
+    let b = |v: f32| ((v.clamp(0.0, 255.0) as u32) >> (8 - BIN_BITS)) as usize;
     let n = 1usize << BIN_BITS;
     (b(c[0]) * n + b(c[1])) * n + b(c[2])
 }
@@ -69,7 +89,7 @@ impl Palette {
         let mut best: Vec<(u32, u32)> = vec![(u32::MAX, u32::MAX); n * n * n];
         for (i, px) in sample.as_raw().chunks_exact(3).enumerate() {
             let c = [f64::from(px[0]), f64::from(px[1]), f64::from(px[2])];
-            let b = bin_of(c);
+            let b = bin_of([f32::from(px[0]), f32::from(px[1]), f32::from(px[2])]);
             let centre = |v: f64| f64::from((v as u32) >> (8 - BIN_BITS) << (8 - BIN_BITS)) + half;
             let d: f64 = c.iter().map(|&v| (v - centre(v)).powi(2)).sum();
             let d = (d * 4.0) as u32;
@@ -107,8 +127,8 @@ impl Palette {
                 visit(r, g, bl + 1);
             }
         }
-        let mut low = [0f64; 3];
-        let mut high = [255f64; 3];
+        let mut low = [0f32; 3];
+        let mut high = [255f32; 3];
         for k in 0..3 {
             let mut hist = [0usize; 256];
             for px in sample.as_raw().chunks_exact(3) {
@@ -122,14 +142,17 @@ impl Palette {
                     acc * 100 >= total * q
                 })
             };
-            low[k] = level(1).unwrap_or(0) as f64;
-            high[k] = level(99).unwrap_or(255) as f64;
+            low[k] = level(1).unwrap_or(0) as f32;
+            high[k] = level(99).unwrap_or(255) as f32;
         }
-        Palette { bins, low, high }
+        let up = std::array::from_fn(|k| std::array::from_fn(|v| 1.0 / (high[k] - v as f32).max(1.0)));
+        let down = std::array::from_fn(|k| std::array::from_fn(|v| 1.0 / (v as f32 - low[k]).max(1.0)));
+        Palette { bins, up, down }
     }
 
     /// A sample pixel (its index, `y · width + x`) whose colour is near `c`.
-    fn near(&self, c: [f64; 3]) -> u32 {
+    #[inline]
+    fn near(&self, c: [f32; 3]) -> u32 {
         self.bins[bin_of(c)]
     }
 }
@@ -326,7 +349,6 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
         })
         .collect();
     let data = sample.as_raw();
-    let (low, high) = (palette.low.map(|v| v as f32), palette.high.map(|v| v as f32));
     let nodes = g.nodes;
     for &(i, fade, node, fx, fy) in &g.work {
         let i = i as usize;
@@ -343,16 +365,11 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
         let v = [raster[3 * i], raster[3 * i + 1], raster[3 * i + 2]];
         // The smallest weight whose colour to blend in, `v + δ/a`, stays within the sample's
         // colours (the smaller the weight, the less a colour bin's width shows): `a ≥ |δ| / room`
-        // in every channel, compared without dividing.
-        let room: [f32; 3] =
-            std::array::from_fn(|k| if delta[k] > 0.0 { high[k] - f32::from(v[k]) } else { f32::from(v[k]) - low[k] }.max(1.0));
-        let num = WEIGHTS
-            .iter()
-            .copied()
-            .find(|&w| (0..3).all(|k| delta[k].abs() * DEN as f32 <= f32::from(w) * room[k]))
-            .unwrap_or(WEIGHTS[WEIGHTS.len() - 1]);
+        // in every channel.
+        let need = (0..3).fold(0f32, |m, k| m.max(delta[k].abs() * if delta[k] > 0.0 { palette.up[k][v[k] as usize] } else { palette.down[k][v[k] as usize] }));
+        let num = NUM_FOR[((need * DEN as f32).ceil() as usize).min(DEN as usize)];
         let scale = DEN as f32 / f32::from(num);
-        let s = palette.near(std::array::from_fn(|k| f64::from(f32::from(v[k]) + delta[k] * scale)));
+        let s = palette.near(std::array::from_fn(|k| f32::from(v[k]) + delta[k] * scale));
         let j = 3 * s as usize;
         let r: [u8; 3] = std::array::from_fn(|k| blend(v[k], data[j + k], num));
         let miss = |r: [u8; 3]| -> f32 { (0..3).map(|k| (f32::from(r[k]) - f32::from(v[k]) - delta[k]).powi(2)).sum() };
@@ -395,13 +412,13 @@ mod tests {
     fn the_palette_finds_a_pixel_of_a_colour_near_the_one_asked() {
         let sample = RgbImage::from_fn(16, 16, |x, y| [(x * 16) as u8, (y * 16) as u8, 100]);
         let p = Palette::new(&sample);
-        for c in [[0.0, 0.0, 100.0], [120.0, 200.0, 100.0], [250.0, 250.0, 250.0], [37.0, 91.0, 0.0]] {
+        for c in [[0.0f32, 0.0, 100.0], [120.0, 200.0, 100.0], [250.0, 250.0, 250.0], [37.0, 91.0, 0.0]] {
             let s = p.near(c);
             let got = sample.get(s % 16, s / 16);
             // Every colour in the sample's gamut has a pixel within a bin or so of it.
-            let near: [f64; 3] = [c[0].min(240.0), c[1].min(240.0), 100.0];
+            let near: [f32; 3] = [c[0].min(240.0), c[1].min(240.0), 100.0];
             for k in 0..3 {
-                assert!((f64::from(got[k]) - near[k]).abs() <= 16.0, "{c:?} -> {got:?}");
+                assert!((f32::from(got[k]) - near[k]).abs() <= 16.0, "{c:?} -> {got:?}");
             }
         }
     }
