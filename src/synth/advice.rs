@@ -1034,9 +1034,14 @@ pub fn fit(a: &Analysis, method: &str, p: &Params) -> Fit {
                             "{:.0} % of the sample's colour variance is in features {} px and more across, and every {tile}-px \
                              tile joins patches with different ones along the same lines of the tile grid (its edge patches, \
                              two per edge colour, and its own interior), so the tiling shows them in a visible regular \
-                             patchwork (more colors vary which meet, not where)",
+                             patchwork (more colors vary which meet, not where{})",
                             100.0 * share,
-                            tile / 4
+                            tile / 4,
+                            if p.get("tone") == Some(&ParamValue::Str("off".into())) {
+                                ""
+                            } else {
+                                "; toned interiors, tone, soften the steps of shade along its lines, not what each patch holds"
+                            }
                         ),
                         instead: "quilting",
                     }

@@ -29,11 +29,13 @@ fn a_manifest_written_before_the_layered_refactor_verifies() {
         // tiles of more than two colours take insides of their own; a record without it means
         // `edges`). The new fill is the tile methods' algorithm version 2 (issue #30's spread
         // interiors and balanced bands), while the old record's two colours stay version 1.
+        // Likewise `tone` (`auto`: interiors toned on samples with large features; a record
+        // without it means `off`).
         if o["method"] == "rw-tiles" || o["method"] == "wang-tiles" {
             for k in ["content_key", "params_digest", "outputs", "diagnostics", "algorithm_version"] {
                 o.remove(k);
             }
-            for k in ["colors", "align", "interior"] {
+            for k in ["colors", "align", "interior", "tone"] {
                 o["params"].as_object_mut().unwrap().remove(k);
             }
         }

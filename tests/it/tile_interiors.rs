@@ -70,13 +70,15 @@ fn aligned_tiles_take_in_phase_interiors_and_repeat_at_most_twice_as_much_as_qui
         "{}",
         wang["diagnostics"]["interior"]
     );
-    assert_eq!(wang["algorithm_version"], 4);
+    // Version 4 brought in-phase interiors; 5 (`tone = "auto"` may tone them) is every default's.
+    assert_eq!(wang["algorithm_version"], 5);
     let w = tiles[0].1;
     eprintln!("city_bricks: wang-tiles {w:.3}, rw-tiles {:.3}, quilting {q:.3}", tiles[1].1);
     assert!(w <= 1.75 * q, "city_bricks wang-tiles: repetition {w:.3} against quilting's {q:.3}");
     let rw = job(&m, "rw-tiles");
     assert!(rw["diagnostics"].get("interior").is_none(), "city_bricks rw-tiles: edges under interior = auto");
-    assert_eq!(rw["algorithm_version"], 5);
+    // Version 5 placed aligned patches apart; 6 (`tone = "auto"`) is every default's.
+    assert_eq!(rw["algorithm_version"], 6);
     distinct_patches(rw, "city_bricks");
     let r = tiles[1].1;
     assert!(r <= 2.0 * q, "city_bricks rw-tiles: repetition {r:.3} against quilting's {q:.3}");

@@ -366,7 +366,9 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
         // The smallest weight whose colour to blend in, `v + δ/a`, stays within the sample's
         // colours (the smaller the weight, the less a colour bin's width shows): `a ≥ |δ| / room`
         // in every channel.
-        let need = (0..3).fold(0f32, |m, k| m.max(delta[k].abs() * if delta[k] > 0.0 { palette.up[k][v[k] as usize] } else { palette.down[k][v[k] as usize] }));
+        let need = (0..3).fold(0f32, |m, k| {
+            m.max(delta[k].abs() * if delta[k] > 0.0 { palette.up[k][v[k] as usize] } else { palette.down[k][v[k] as usize] })
+        });
         let num = NUM_FOR[((need * DEN as f32).ceil() as usize).min(DEN as usize)];
         let scale = DEN as f32 / f32::from(num);
         let s = palette.near(std::array::from_fn(|k| f32::from(v[k]) + delta[k] * scale));

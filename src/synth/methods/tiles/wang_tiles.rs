@@ -892,7 +892,8 @@ impl WangTiles {
         let choice = cfg.tile.is_none().then(|| WangAlign::auto_tile(lattice.as_ref(), dims, cfg.overlap, wrap, Some(colors)));
         let (t, ov) = (cfg.tile.map_or_else(|| choice.as_ref().map_or(0, |c| c.tile as i32), |t| t as i32), cfg.overlap as i32);
         // Whether interiors of their own will be toned: decided before the colours, which it caps.
-        let tone_plan = (cfg.interior != InteriorMode::Edges).then(|| common::tone_choice(cfg.tone, req.sample, t as u32, lattice.is_some()));
+        let tone_plan =
+            (cfg.interior != InteriorMode::Edges).then(|| common::tone_choice(cfg.tone, req.sample, t as u32, lattice.is_some()));
         let (k, colors_choice) = common::resolve_colors(cfg.colors, cfg.tile_set, dims, patch(cfg.overlap)(i64::from(t)) as u32);
         let (k, colors_choice) = common::cap_toned_colors(k, colors_choice, tone_plan.as_ref().is_some_and(|t| t.0));
         if t % 2 != 0 || ov % 2 != 0 || ov * 2 > t {
