@@ -9,11 +9,12 @@
 //!   export                   tile-set files: write, load back, render
 //!     wang_set, rw_set       the built sets: geometry, tiles, placement and filling
 //!       wang                 Wang-tile edge colours and tilings
-//! interior, tone             tiles' own interiors inside a closed seam, and their tone matched
-//!                            to the band around them (import only common)
+//! interior                   tiles' own interiors inside a closed seam (imports only common)
 //! common, align              shared by both methods: pixel error, patch candidates, `export_tiles`;
-//!                            lattice alignment (common imports align)
+//!                            lattice alignment (common imports align and tone)
 //!   fit                      tileable fills of sizes that are not whole tiles (imports nothing
+//!                            from the family)
+//!   tone                     interiors' tone matched to the band around them (imports nothing
 //!                            from the family)
 //! ```
 

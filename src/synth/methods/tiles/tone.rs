@@ -2,8 +2,8 @@
 //! the tone of the edge band around it, smoothly, so that the tile grid does not show as steps of
 //! shade.
 //!
-//! Why: on a sample whose colour variance lies largely in features 16 px and more across (mossy
-//! stone, brown rock, rock albedo), every tile's interior patch carries a shade of its own, and its
+//! Why: on a sample whose colour variance lies largely in features a quarter of a tile and more
+//! across (weathered wood, mossy stone, brown rock, rock albedo), every tile's interior patch carries a shade of its own, and its
 //! seam with the band, near the tile outline, is a step of shade along the same lines in every
 //! tile: the fill shows its tile grid, Wang as squares and RW as rhombi, however well the cut
 //! follows the fine texture. Feathering the two across the seam does not help: averaging two
@@ -18,10 +18,17 @@
 //! pixels, so that a 16-bit or float output, a material's companions and `texsyn apply` render the
 //! same composition. A shift `v → v + δ` is written as one blend step `v → (1 − a)·v + a·s` with a
 //! sample pixel `s` whose colour is near `v + δ/a`, found through a colour table of the sample
-//! ([`Palette`]), for the weight `a` among [`WEIGHTS`] that lands nearest `v + δ` (after rounding,
-//! exactly as rendering rounds). Where no weight brings the pixel closer, it stays a copy. In a
+//! ([`Palette`]), for the smallest weight `a` among [`WEIGHTS`] that keeps `v + δ/a` within the
+//! sample's colours (the smaller `a`, the less the table's bin width shows), and kept only when
+//! the result (rounded exactly as rendering rounds) lands nearer `v + δ` than `v` does. In a
 //! companion map the same steps blend in the companion's pixels at those places, at a weight of at
 //! most 1/2 and mostly far less.
+//!
+//! Cost: what every tile shares (which pixels are near the seam, in which sector, their weights)
+//! is measured once per set ([`ToneGeometry`]); per pixel, a bilinear lookup of the field, one
+//! table lookup and one blend. A set with `colors = "auto"` takes at most
+//! `common::TONED_COLORS` colours when toned, so that a 2048² fill stays well over 10 times faster
+//! than quilting.
 
 use crate::image::RgbImage;
 use rayon::prelude::*;
@@ -29,7 +36,7 @@ use rayon::prelude::*;
 /// The denominator of every tone blend's weight.
 pub const DEN: u32 = 32;
 
-/// The blend weights tried, as numerators over [`DEN`]: 1/8 to 1/2.
+/// The blend weights, as numerators over [`DEN`]: 1/8 to 1/2.
 pub const WEIGHTS: [u8; 6] = [4, 5, 6, 8, 11, 16];
 
 /// Angular sectors around an interior's border in which band and interior tones are compared.
