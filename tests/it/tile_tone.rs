@@ -3,7 +3,7 @@
 //! defaults showed their tile grid as steps of shade between each tile's interior and its edge
 //! band; `tone = "auto"` now brings the interiors to their bands' tone there, leaves fine-grained
 //! samples as they were, and the toned pixels stay a placement (source maps, `apply`, a
-//! material's companions, `verify`).
+//! material's companions, `verify`) and an export (`tiles render`).
 
 use super::common::*;
 use texsyn::image::RgbImage;
@@ -115,4 +115,31 @@ fn toned_tiles_stay_a_placement_for_apply_and_companions() {
     let blended = companion.as_raw().chunks_exact(3).filter(|c| !sample_normals.contains(&[c[0], c[1], c[2]])).count();
     assert!(blended > 1000, "the companion follows the toned pixels' blends: {blended} pixels are not sample normals");
     run_ok(texsyn().arg("verify").arg(out.join("manifest.json")));
+}
+
+/// An exported toned set carries its tiles as toned: `tiles render` reproduces the output pixel
+/// for pixel from the export alone, for both methods.
+#[test]
+fn an_exported_toned_set_renders_the_same_fill() {
+    let dir = scratch("tiletoneexport");
+    let rock = repo().join("tests/fixtures/structured/rock_brown.png");
+    for m in ["wang-tiles", "rw-tiles"] {
+        write(
+            &dir.join("jobs").join(format!("{m}.toml")),
+            &format!(
+                "sample = {:?}\nmethod = \"{m}\"\nseed = 4\n[output]\npath = \"{m}.png\"\nwidth = 300\nheight = 260\n[params]\nexport_tiles = true\n",
+                rock.display().to_string()
+            ),
+        );
+    }
+    let out = dir.join("out");
+    run_ok(texsyn().arg("run").arg(dir.join("jobs")).arg("-o").arg(&out).arg("-q"));
+    let jobs = manifest(&out)["jobs"].as_array().unwrap().clone();
+    for m in ["wang-tiles", "rw-tiles"] {
+        let record = jobs.iter().find(|j| j["method"] == m).unwrap();
+        assert_eq!(record["diagnostics"]["tone"]["tone"], "on", "{m}: {}", record["diagnostics"]["tone"]);
+        let again = dir.join(format!("{m}.again.png"));
+        run_ok(texsyn().args(["tiles", "render"]).arg(out.join(format!("{m}.tiles/index.json"))).arg("-o").arg(&again));
+        assert_eq!(pixels(&again), pixels(&out.join(format!("{m}.png"))), "{m}: the export renders another fill");
+    }
 }
