@@ -31,6 +31,7 @@
 //! than quilting.
 
 use crate::image::RgbImage;
+use crate::synth::primitives::feather;
 use rayon::prelude::*;
 
 /// The denominator of every tone blend's weight.
@@ -162,16 +163,6 @@ impl Palette {
     fn near(&self, c: [f32; 3]) -> u32 {
         self.bins[bin_of(c)]
     }
-}
-
-/// How rendering rounds one blend step (`synth::placement`): the same expression, so that the
-/// tile's raster is what its placement renders.
-#[inline]
-fn blend(v: u8, s: u8, num: u8) -> u8 {
-    let a = f64::from(num) / f64::from(DEN);
-    // `floor(x + 0.5)` clamped to 0..=255, as rendering rounds: for `x + 0.5 ≥ 0` truncation is
-    // the floor, and below 0 both clamp to 0 (a call to `floor` costs more than the rest).
-    ((1.0 - a) * f64::from(v) + a * f64::from(s) + 0.5).clamp(0.0, 255.0) as u8
 }
 
 /// A toned pixel's blend: the sample index blended in and its weight's numerator over [`DEN`];
@@ -380,7 +371,9 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
         let scale = DEN as f32 / f32::from(num);
         let s = palette.near(std::array::from_fn(|k| f32::from(v[k]) + delta[k] * scale));
         let j = 3 * s as usize;
-        let r: [u8; 3] = std::array::from_fn(|k| blend(v[k], data[j + k], num));
+        // Rounded as rendering rounds a blend step (`synth::placement`), so that the tile's
+        // raster is what its placement renders.
+        let r = feather::blend(v, [data[j], data[j + 1], data[j + 2]], f64::from(num) / f64::from(DEN));
         let miss = |r: [u8; 3]| -> f32 { (0..3).map(|k| (f32::from(r[k]) - f32::from(v[k]) - delta[k]).powi(2)).sum() };
         if miss(r) < miss(v) {
             raster[3 * i..3 * i + 3].copy_from_slice(&r);
@@ -490,9 +483,8 @@ mod tests {
                     assert_eq!(raster[3 * i..3 * i + 3], before[3 * i..3 * i + 3]);
                 } else {
                     let sp = sample.get(s % 64, s / 64);
-                    for k in 0..3 {
-                        assert_eq!(raster[3 * i + k], blend(before[3 * i + k], sp[k], num));
-                    }
+                    let old = [before[3 * i], before[3 * i + 1], before[3 * i + 2]];
+                    assert_eq!(raster[3 * i..3 * i + 3], feather::blend(old, sp, f64::from(num) / f64::from(DEN)));
                 }
             }
         }
