@@ -102,6 +102,12 @@ fn main() {
         let _ = std::fs::remove_dir_all(&work);
         return;
     }
+    // `cargo bench --bench peers -- transfer` runs only the texture-transfer part.
+    if std::env::args().any(|a| a == "transfer") {
+        inpaint::transfer(&work, embark.as_deref(), reps, &|r, c| time(r, c));
+        let _ = std::fs::remove_dir_all(&work);
+        return;
+    }
     // `cargo bench --bench peers -- samples` runs only the several-samples and augment part.
     if std::env::args().any(|a| a == "samples") {
         samples::run(&work, embark.as_deref(), reps, &|r, c| time(r, c));

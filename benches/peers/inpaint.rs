@@ -1,7 +1,8 @@
 //! Inpainting and texture transfer against Embark's `--inpaint` and `transfer-style` (issue #28),
 //! part of the peers bench:
 //!
-//!     cargo bench --bench peers -- inpaint     # only this part
+//!     cargo bench --bench peers -- inpaint     # only this part (with the transfer)
+//!     cargo bench --bench peers -- transfer    # only the transfer
 //!
 //! Each bundled sample gets a round hole (radius 40 px, off centre) painted magenta, so that
 //! neither program can copy what was there. A second table does the same at 512² (each sample
@@ -204,9 +205,9 @@ pub fn transfer(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(u
     let target_path = repo.join("jobs/samples/guided/target_rings.png");
     let target = texsyn::load_image(&target_path).expect("bundled target");
     let (w, h) = target.dimensions();
-    println!("\ntexture transfer onto jobs/samples/guided/target_rings.png ({w}x{h}), one thread; texsyn: quilting block 32 / overlap 6,");
+    println!("\ntexture transfer onto jobs/samples/guided/target_rings.png ({w}x{h}), one thread; texsyn: quilting with its defaults");
     println!(
-        "[guide] defaults (weight 0.7, 3 passes); Embark: transfer-style defaults. follow = correlation with the target (16-px cells)\n"
+        "(a transfer's blocks 33, 22, 15; weight 0.7); Embark: transfer-style defaults. follow = correlation with the target (16-px cells)\n"
     );
     println!(
         "{:<16} {:>9} {:>9} {:>8}   {:>16} {:>16} {:>16}",
@@ -220,7 +221,7 @@ pub fn transfer(work: &Path, embark: Option<&Path>, reps: usize, time: &dyn Fn(u
         std::fs::write(
             jobs.join("t.toml"),
             format!(
-                "sample = \"{}\"\nmethod = \"quilting\"\nseed = 2\n[guide]\ntarget = \"{}\"\n[output]\npath = \"t.png\"\nwidth = {w}\nheight = {h}\n[params]\nblock = 32\noverlap = 6\n",
+                "sample = \"{}\"\nmethod = \"quilting\"\nseed = 2\n[guide]\ntarget = \"{}\"\n[output]\npath = \"t.png\"\nwidth = {w}\nheight = {h}\n",
                 sample_path.display(),
                 target_path.display()
             ),

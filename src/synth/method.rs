@@ -142,6 +142,12 @@ pub trait Method: Send + Sync {
     fn summary(&self) -> &'static str;
     /// The declared parameters.
     fn params(&self) -> &'static [ParamSpec];
+    /// Defaults that differ for a job using these features (a `[guide]`, an `[inpaint]`…): put
+    /// among the job's parameters when it leaves them out, before they are resolved, so that they
+    /// are recorded (and re-made by `verify`) like any given one. Most methods have none.
+    fn defaults_for(&self, _uses: Uses) -> Vec<(String, crate::synth::params::ParamValue)> {
+        Vec::new()
+    }
     /// Makes concrete the parameters whose resolved value depends on the sample's size (a search
     /// `auto` chooses by it), before the job is checked, estimated and recorded: the recorded
     /// parameters then say what made the pixels. Most methods have none.

@@ -158,9 +158,19 @@ pub(super) fn expand(ctx: &mut Ctx, raw: &Raw, ready: &Ready) -> Vec<Job> {
             return Vec::new();
         }
     }
+    let uses = crate::synth::method::Uses {
+        inpaint: inpaint.is_some(),
+        copies: !augment.is_empty(),
+        luminance_guide: guide.as_ref().is_some_and(|g| g.source.is_none()),
+    };
     let mut jobs = Vec::new();
     for point in points {
         let mut given = raw.params.clone();
+        for (key, value) in method.defaults_for(uses) {
+            if !given.iter().any(|(k, _)| *k == key) && !point.iter().any(|(k, _)| *k == key) {
+                given.push((key, value));
+            }
+        }
         let mut seed = raw.seed.unwrap_or(0);
         for (k, v) in &point {
             if k == "seed" {
