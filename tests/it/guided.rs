@@ -284,6 +284,7 @@ fn texture_transfer_follows_the_target_with_the_samples_texture() {
 /// default 50, which followed the target too loosely for the rings to show (correlation 0.795 on
 /// this sample and seed; Embark's `transfer-style` 0.934); the default is recorded like a given
 /// block, a given or swept block is kept, and an inpainting's guide keeps the plain default.
+/// Without `width` and `height` the output takes the target's size, as with `synth --guide`.
 #[test]
 fn a_transfer_with_the_defaults_follows_the_target() {
     let d = scratch("transfer_defaults");
@@ -295,7 +296,7 @@ fn a_transfer_with_the_defaults_follows_the_target() {
         samples.join("pebbles_beige.png").display(),
         samples.join("guided/target_rings.png").display()
     );
-    std::fs::write(jobs.join("defaults.toml"), format!("{head}[output]\npath = \"defaults.png\"\nwidth = 384\nheight = 256\n")).unwrap();
+    std::fs::write(jobs.join("defaults.toml"), format!("{head}[output]\npath = \"defaults.png\"\n")).unwrap();
     std::fs::write(
         jobs.join("given.toml"),
         format!("{head}[output]\npath = \"given.png\"\nwidth = 384\nheight = 256\n[params]\nblock = 40\n"),
@@ -319,7 +320,10 @@ fn a_transfer_with_the_defaults_follows_the_target() {
     .unwrap();
     run_ok(texsyn().args(["run", "-q", "-o"]).arg(d.join("out")).arg(&jobs));
     let m = json(&d.join("out/manifest.json"));
-    let params = |id: &str| m["jobs"].as_array().unwrap().iter().find(|j| j["output_spec"]["path"] == id).unwrap()["params"].clone();
+    let record = |id: &str| m["jobs"].as_array().unwrap().iter().find(|j| j["output_spec"]["path"] == id).unwrap().clone();
+    let params = |id: &str| record(id)["params"].clone();
+    let spec = record("defaults.png")["output_spec"].clone();
+    assert_eq!((spec["width"].as_u64(), spec["height"].as_u64()), (Some(384), Some(256)), "without a size the output takes the target's");
     assert_eq!((params("defaults.png")["block"].as_i64(), params("defaults.png")["overlap"].as_i64()), (Some(33), Some(6)));
     assert_eq!(params("given.png")["block"], 40);
     assert_eq!(params("inpaint.png")["block"], 50, "an inpainting's guide keeps the plain default");

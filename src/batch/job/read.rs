@@ -171,8 +171,9 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             ctx.err(None, Some(key), format!("missing required key `{key}`"));
         }
     }
-    // An inpainting job's output has its image's size: width and height may be left out.
-    let inpaint_sized = raw.inpaint.is_some();
+    // An inpainting job's output has its image's size, a guided one its target's (as with
+    // `texsyn synth --guide`): width and height may be left out.
+    let inpaint_sized = raw.inpaint.is_some() || raw.guide.is_some();
     if table.get("output").is_none() {
         ctx.err(None, Some("output"), "missing required table [output] (with path, width and height)");
     } else if matches!(table.get("output").map(|v| v.get_ref()), Some(DeValue::Table(_))) {
@@ -365,10 +366,22 @@ fn build_jobs(ctx: &mut Ctx, table: &DeTable, file_bytes: &[u8]) -> Vec<Job> {
             _ => {}
         }
     }
+    let guide_span = raw.guide.as_ref().map(|g| g.target.as_ref().map_or(g.span.clone(), |t| t.1.clone()));
     let guide = match raw.guide.take() {
         Some(g) => check_guide(ctx, g, &raw, method, inpaint.is_some()),
         None => None,
     };
+    if let Some(g) = &guide
+        && (raw.width.is_none() || raw.height.is_none())
+    {
+        match image_size(&g.target) {
+            Ok((w, h)) => {
+                raw.width.get_or_insert(w);
+                raw.height.get_or_insert(h);
+            }
+            Err(e) => ctx.err(guide_span, Some("guide.target"), format!("cannot read the size of `{}`: {e}", g.target.display())),
+        }
+    }
     let format_and_depth = check_output_format(ctx, &raw);
     let mut companions = Vec::new();
     for c in std::mem::take(&mut raw.companions) {
@@ -721,11 +734,7 @@ fn check_inpaint(
     }
     let mut size = None;
     if raw.width.is_none() || raw.height.is_none() {
-        let header = ::image::ImageReader::open(&image)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| e.to_string())
-            .and_then(|r| r.into_dimensions().map_err(|e| e.to_string()));
-        match header {
+        match image_size(&image) {
             Ok(dims) => size = Some(dims),
             Err(e) => {
                 let span = r.image.as_ref().map(|(_, s)| s.clone());
@@ -963,4 +972,12 @@ pub(super) fn missing_file_reason(p: &Path) -> &'static str {
         Err(_) if std::fs::symlink_metadata(p).is_ok() => "is a symbolic link to nothing",
         Err(_) => "does not exist",
     }
+}
+
+/// The size an image file's header gives, without decoding it.
+fn image_size(path: &std::path::Path) -> Result<(u32, u32), String> {
+    ::image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| e.to_string())
+        .and_then(|r| r.into_dimensions().map_err(|e| e.to_string()))
 }
