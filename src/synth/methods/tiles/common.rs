@@ -1059,6 +1059,46 @@ pub(crate) mod testing {
     }
 }
 
+/// What both tile methods record of how a fill was made beyond its tiles: whether and how it
+/// wraps, and what each `auto` chose. Each entry only where it applies (a `tile_choice` only for
+/// `tile = "auto"`…), so that the records of jobs without it stay as they were.
+pub struct ChoiceRecords {
+    pub wraps: bool,
+    pub tileable_fit: Option<serde_json::Value>,
+    pub align_choice: serde_json::Value,
+    pub align: Option<serde_json::Value>,
+    pub tile_choice: Option<serde_json::Value>,
+    pub colors_choice: Option<serde_json::Value>,
+    pub interior: Option<serde_json::Value>,
+    /// `diagnostics.tone` (only with interiors of their own) and how many pixels toning changed.
+    pub tone: Option<(serde_json::Value, usize)>,
+}
+
+impl ChoiceRecords {
+    pub fn add_to(self, diagnostics: &mut serde_json::Value) {
+        if self.wraps {
+            diagnostics["wraps"] = serde_json::Value::Bool(true);
+        }
+        diagnostics["align_choice"] = self.align_choice;
+        let optional = [
+            ("tileable_fit", self.tileable_fit),
+            ("align", self.align),
+            ("tile_choice", self.tile_choice),
+            ("colors_choice", self.colors_choice),
+            ("interior", self.interior),
+        ];
+        for (key, value) in optional {
+            if let Some(v) = value {
+                diagnostics[key] = v;
+            }
+        }
+        if let Some((mut record, toned)) = self.tone {
+            record["toned_pixels"] = serde_json::json!(toned);
+            diagnostics["tone"] = record;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

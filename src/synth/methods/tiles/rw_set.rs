@@ -133,6 +133,15 @@ pub struct RwTile {
     pub tone: Vec<super::tone::ToneBlend>,
 }
 
+impl super::tone::Toneable for RwTile {
+    fn labels(&self) -> &[u8] {
+        &self.labels
+    }
+    fn tone_parts(&mut self) -> (&mut [u8], &[u8], &mut Vec<super::tone::ToneBlend>) {
+        (&mut self.raster, &self.labels, &mut self.tone)
+    }
+}
+
 /// The sample corners of a tile's blocks `B1..B4`, from its colours `[NW, NE, SE, SW]`.
 pub fn patches_of(colours: [u8; 4], pa: &[(u32, u32)], pb: &[(u32, u32)]) -> [(u32, u32); 4] {
     [pa[colours[0] as usize], pb[colours[1] as usize], pa[colours[2] as usize], pb[colours[3] as usize]]

@@ -383,23 +383,25 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
     blends
 }
 
+/// A built tile as toning sees it: its square raster, its labels (the interior's pixels labelled
+/// [`super::interior::INTERIOR`]) and where its blends go. Both tile methods' tiles are.
+pub trait Toneable: Send + Sync {
+    fn labels(&self) -> &[u8];
+    /// The raster to tone, the labels, and the blends to fill.
+    fn tone_parts(&mut self) -> (&mut [u8], &[u8], &mut Vec<ToneBlend>);
+}
+
 /// Tones every tile of a set ([`tone_tile`]), in parallel (each tile on its own, so the result
-/// does not depend on the thread count); `parts` lends a tile's `side × side` raster, its labels
-/// and where its blends go. Returns how many pixels changed.
-pub fn tone_set<T: Send + Sync>(
-    tiles: &mut [T],
-    side: usize,
-    interior: u8,
-    sample: &RgbImage,
-    labels: impl Fn(&T) -> &[u8] + Sync,
-    parts: impl Fn(&mut T) -> (&mut [u8], &[u8], &mut Vec<ToneBlend>) + Sync,
-) -> usize {
+/// does not depend on the thread count); each tile's raster is `side × side`. Returns how many
+/// pixels changed.
+pub fn tone_set<T: Toneable>(tiles: &mut [T], side: usize, sample: &RgbImage) -> usize {
+    let interior = super::interior::INTERIOR;
     let palette = Palette::new(sample);
-    let geometry = ToneGeometry::new(side, interior, tiles.iter().map(&labels));
+    let geometry = ToneGeometry::new(side, interior, tiles.iter().map(T::labels));
     tiles
         .par_iter_mut()
         .map(|tile| {
-            let (raster, labels, blends) = parts(tile);
+            let (raster, labels, blends) = tile.tone_parts();
             *blends = tone_tile(raster, labels, &geometry, interior, sample, &palette);
             blends.iter().filter(|b| b.1 > 0).count()
         })

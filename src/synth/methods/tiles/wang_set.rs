@@ -95,6 +95,15 @@ pub struct WangTile {
     pub tone: Vec<super::tone::ToneBlend>,
 }
 
+impl super::tone::Toneable for WangTile {
+    fn labels(&self) -> &[u8] {
+        &self.labels
+    }
+    fn tone_parts(&mut self) -> (&mut [u8], &[u8], &mut Vec<super::tone::ToneBlend>) {
+        (&mut self.raster, &self.labels, &mut self.tone)
+    }
+}
+
 /// The sample centres of a tile's diamonds in N, E, S, W order, from its colours `[N, W, S, E]`.
 pub fn diamonds_of(colours: [u8; 4], dn: &[(u32, u32)], de: &[(u32, u32)]) -> [(u32, u32); 4] {
     [dn[colours[0] as usize], de[colours[3] as usize], dn[colours[2] as usize], de[colours[1] as usize]]

@@ -952,17 +952,7 @@ impl WangTiles {
         // Interiors of their own, toned to their bands where `tone` says so.
         let tone = interiors.and(tone_plan);
         let toned = match &tone {
-            Some((true, _)) => {
-                let side = t as usize;
-                Some(tone::tone_set(
-                    &mut tiles.tiles,
-                    side,
-                    interior::INTERIOR,
-                    req.sample,
-                    |tl| &tl.labels[..],
-                    |tl| (&mut tl.raster[..], &tl.labels[..], &mut tl.tone),
-                ))
-            }
+            Some((true, _)) => Some(tone::tone_set(&mut tiles.tiles, t as usize, req.sample)),
             _ => None,
         };
         let build = t0.elapsed().as_secs_f64();
@@ -981,34 +971,17 @@ impl WangTiles {
             "grid": { "rows": tiling.rows, "cols": tiling.cols },
             "usage": tiling.usage(set),
         });
-        if req.tileable {
-            // Only then, so that the record of an ordinary fill stays as it was.
-            diagnostics["wraps"] = serde_json::Value::Bool(true);
+        common::ChoiceRecords {
+            wraps: req.tileable,
+            tileable_fit: fit.as_ref().map(|f| f.describe(tiles.unit())),
+            align_choice: align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice)),
+            align: align.as_ref().map(|al| al.diagnostics(&g, req.sample.dimensions())),
+            tile_choice: choice.map(|c| c.record),
+            colors_choice,
+            interior: interiors.map(|cost| interior::record(cfg.interior, ring_depths.expect("a ring"), cost)),
+            tone: tone.map(|(_, record)| (record, toned.unwrap_or(0))),
         }
-        if let Some(f) = &fit {
-            // Only for a size that is not whole tiles: how it was met.
-            diagnostics["tileable_fit"] = f.describe(tiles.unit());
-        }
-        diagnostics["align_choice"] = align::choice_record(cfg.align, align.as_ref().map(|a| &a.lattice));
-        if let Some(al) = &align {
-            diagnostics["align"] = al.diagnostics(&g, req.sample.dimensions());
-        }
-        if let Some(c) = choice {
-            // Only for `tile = "auto"`, so that the record of a given size stays as it was.
-            diagnostics["tile_choice"] = c.record;
-        }
-        if let Some(c) = colors_choice {
-            // Likewise only for `colors = "auto"`.
-            diagnostics["colors_choice"] = c;
-        }
-        if let Some(cost) = interiors {
-            diagnostics["interior"] = interior::record(cfg.interior, ring_depths.expect("a ring"), cost);
-        }
-        if let Some((_, mut record)) = tone {
-            // Only with interiors of their own, so that the record of other fills stays as it was.
-            record["toned_pixels"] = serde_json::json!(toned.unwrap_or(0));
-            diagnostics["tone"] = record;
-        }
+        .add_to(&mut diagnostics);
         let synthesis = Synthesis {
             image: RgbImage::new(0, 0),
             seams: Some(match &fit {
