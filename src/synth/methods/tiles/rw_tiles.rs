@@ -1085,7 +1085,7 @@ impl RwTiles {
         // Interiors of their own, toned to their bands where `tone` says so.
         let tone = interiors.and(tone_plan);
         let toned = match &tone {
-            Some((true, _)) => Some(tone::tone_set(&mut tiles.tiles, tiles.geometry.f as usize, req.sample)),
+            Some((true, _)) => Some(tone::tone_set(&mut tiles.tiles, tiles.geometry.f as usize, interior::INTERIOR, req.sample)),
             _ => None,
         };
         let build = t0.elapsed().as_secs_f64();

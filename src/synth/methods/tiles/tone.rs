@@ -383,8 +383,8 @@ pub fn tone_tile(raster: &mut [u8], labels: &[u8], g: &ToneGeometry, interior: u
     blends
 }
 
-/// A built tile as toning sees it: its square raster, its labels (the interior's pixels labelled
-/// [`super::interior::INTERIOR`]) and where its blends go. Both tile methods' tiles are.
+/// A built tile as toning sees it: its square raster, its labels and where its blends go. Both
+/// tile methods' tiles are.
 pub trait Toneable: Send + Sync {
     fn labels(&self) -> &[u8];
     /// The raster to tone, the labels, and the blends to fill.
@@ -392,10 +392,9 @@ pub trait Toneable: Send + Sync {
 }
 
 /// Tones every tile of a set ([`tone_tile`]), in parallel (each tile on its own, so the result
-/// does not depend on the thread count); each tile's raster is `side × side`. Returns how many
-/// pixels changed.
-pub fn tone_set<T: Toneable>(tiles: &mut [T], side: usize, sample: &RgbImage) -> usize {
-    let interior = super::interior::INTERIOR;
+/// does not depend on the thread count); each tile's raster is `side × side`, its interior's
+/// pixels labelled `interior`. Returns how many pixels changed.
+pub fn tone_set<T: Toneable>(tiles: &mut [T], side: usize, interior: u8, sample: &RgbImage) -> usize {
     let palette = Palette::new(sample);
     let geometry = ToneGeometry::new(side, interior, tiles.iter().map(T::labels));
     tiles
