@@ -287,10 +287,13 @@ pub(crate) fn extract_centred(plane: &[f64], w: usize, h: usize, opts: &LatticeO
     }
     let result = extract_centred_anew(plane, w, h, opts);
     let mut extracted = EXTRACTED.lock().unwrap_or_else(|e| e.into_inner());
-    if extracted.len() >= EXTRACTIONS_KEPT {
-        drop(extracted.remove(0));
+    // Two jobs on one sample may have extracted it at once: keep one entry.
+    if !extracted.iter().any(|(k, _)| *k == key) {
+        if extracted.len() >= EXTRACTIONS_KEPT {
+            drop(extracted.remove(0));
+        }
+        extracted.push((key, result.clone()));
     }
-    extracted.push((key, result.clone()));
     result
 }
 
@@ -305,17 +308,16 @@ const EXTRACTIONS_KEPT: usize = 16;
 static EXTRACTED: std::sync::Mutex<Vec<(ExtractionKey, Result<Lattice, SynthError>)>> = std::sync::Mutex::new(Vec::new());
 
 /// A plane (by its size and SHA-256) and the options it was searched with.
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, PartialEq)]
 struct ExtractionKey {
     size: (usize, usize),
-    digest: [u8; 32],
+    digest: crate::digest::Digest,
     options: (usize, u64, u64, u64),
 }
 
 impl ExtractionKey {
     fn of(plane: &[f64], w: usize, h: usize, opts: &LatticeOptions) -> ExtractionKey {
-        use sha2::Digest;
-        let mut hasher = sha2::Sha256::new();
+        let mut hasher = crate::digest::Hasher::new();
         let mut bytes = Vec::with_capacity(8 * 1024);
         for chunk in plane.chunks(1024) {
             bytes.clear();
@@ -324,7 +326,7 @@ impl ExtractionKey {
         }
         ExtractionKey {
             size: (w, h),
-            digest: hasher.finalize().into(),
+            digest: hasher.finish(),
             options: (opts.max_peaks, opts.min_length.to_bits(), opts.min_angle_deg.to_bits(), opts.min_peak.to_bits()),
         }
     }
