@@ -9,8 +9,9 @@
 //!
 //! A job's estimate is [`Method::peak_memory`] (the method's own working set, output image
 //! included; stated by each method from measurements) plus what the runner holds around it: the
-//! process itself, the decoded sample, the encoder's buffers and, if the job asks for metrics,
-//! their analysis of the output. Large tile fills are rendered and written strip by strip
+//! process itself, the decoded sample, the encoder's buffers, the plan's analysis of the sample
+//! (the advice, [`crate::synth::advice::peak_memory`]) and, if the job asks for metrics, their
+//! analysis of the output. Large tile fills are rendered and written strip by strip
 //! ([`crate::batch::execute::renders_in_strips`]); their estimate is the method's working set
 //! without the image ([`Method::strip_peak_memory`]). `tests/it/memory.rs` checks the estimates
 //! against the peak RSS of real runs, for every method.
@@ -33,7 +34,8 @@ pub const PROCESS_BYTES: u64 = 24 * MIB;
 
 /// The peak memory of one job, in bytes: the runner's share plus the method's.
 ///
-/// The peak is whichever phase is largest: synthesis (the method's working set), encoding (the
+/// The peak is whichever phase is largest: the plan's analysis of the sample (the advice: a 12 MP
+/// photo's is larger than its 1024² quilting), synthesis (the method's working set), encoding (the
 /// output image plus the encoder's buffers) or metrics (the output plus their analyses); the
 /// decoded sample and the process itself are there throughout.
 pub fn job_estimate(method: &dyn Method, params: &Params, sample: (u32, u32), output: &OutputSpec, metrics: bool) -> u64 {
@@ -77,7 +79,8 @@ pub fn job_estimate_with(
     }
     if renders_in_strips(method, output, metrics) {
         // One strip at a time (counted by the method) and the PNG compressor's window and buffer.
-        return PROCESS_BYTES + 2 * sample_bytes + method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
+        let strips = method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
+        return PROCESS_BYTES + 2 * sample_bytes + strips.max(analysis_estimate(sample));
     }
     let synthesis = method.peak_memory(params, sample, (output.width, output.height));
     // 8-bit PNG is compressed strip by strip beside the image (a strip, the compressor's window
@@ -92,7 +95,13 @@ pub fn job_estimate_with(
     // The metrics' analyses of the output (gray levels, gradients, orientation histograms and
     // FFT autocorrelations in f64): measured at about 90 bytes per output pixel.
     let metrics_bytes = if metrics { raw + 96 * out_px } else { 0 };
-    PROCESS_BYTES + 2 * sample_bytes + synthesis.max(encoding).max(metrics_bytes)
+    PROCESS_BYTES + 2 * sample_bytes + analysis_estimate(sample).max(synthesis).max(encoding).max(metrics_bytes)
+}
+
+/// The plan's analysis of a sample of `size` ([`crate::synth::advice::peak_memory`]), which every
+/// job that runs has (an inpainting job's is of a part of its image, so no larger).
+pub fn analysis_estimate(size: (u32, u32)) -> u64 {
+    crate::synth::advice::peak_memory(size)
 }
 
 /// A size as people write it: plain bytes (`1048576`), or a number with a unit, `K`, `M`, `G`, `T`

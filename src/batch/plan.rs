@@ -355,7 +355,7 @@ pub fn plan(inputs: &[PathBuf], opts: &PlanOptions) -> Result<Plan, Error> {
         }
         entries.push(Entry { job, sample, companions, sample_mask, fill, guide, atlas, content_key, record, action, memory: estimate });
     }
-    add_warnings(&mut entries, &previous, &same_tool);
+    add_warnings(&mut entries, &previous, &same_tool, opts.max_memory);
     invalid.sort_by(|a, b| a.id.cmp(&b.id));
     Ok(Plan { out: opts.out.clone(), shard, entries, invalid, previous, job_roots })
 }
@@ -656,8 +656,10 @@ fn keep_shard(set: &mut JobSet, s: Shard) -> ShardPlan {
 /// analysis runs once per distinct sample pixels, and only for samples with a job that runs or
 /// whose earlier record another build wrote: an up-to-date job recorded by this very build keeps
 /// its recorded warnings (the advice is a function of the sample, the job and the build), so a
-/// re-run with nothing to do does not analyse every sample again.
-fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, same_tool: &BTreeSet<String>) {
+/// re-run with nothing to do does not analyse every sample again. The analyses run side by side,
+/// each taking its estimate from a budget of `max_memory`, as the jobs do later: a directory of
+/// camera photos is analysed a few at a time under a limit.
+fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, same_tool: &BTreeSet<String>, max_memory: Option<u64>) {
     let reuse = |e: &Entry| e.action == Action::UpToDate && same_tool.contains(&e.job.id);
     // What shows the texture: the (first) sample; for an inpainting job, the largest rectangle of
     // its image outside the hole (analysed whole, the hole's paint read as a flat area and as
@@ -680,9 +682,11 @@ fn add_warnings(entries: &mut [Entry], previous: &BTreeMap<String, JobRecord>, s
     let mut wanted: Vec<(String, Arc<LoadedSample>, Option<(u32, u32, u32, u32)>)> = per_entry.iter().flatten().cloned().collect();
     wanted.sort_by(|a, b| a.0.cmp(&b.0));
     wanted.dedup_by(|a, b| a.0 == b.0);
+    let budget = memory::Budget::new(max_memory);
     let analyses: BTreeMap<String, Analysis> = wanted
         .par_iter()
         .map(|(key, s, rect)| {
+            let _memory = budget.acquire(memory::analysis_estimate(rect.map_or(s.image.dimensions(), |r| (r.2, r.3))));
             let analysis = match rect {
                 Some((x, y, w, h)) => advice::analyse(&s.image.crop(*x, *y, *w, *h)),
                 None => advice::analyse(&s.image),

@@ -99,6 +99,16 @@ impl<T: Copy> Acf<T> {
 }
 
 /// The smallest `n' ≥ n` of the form `2^a·3^b·5^c` (fast FFT lengths).
+/// The bytes one [`AcfPlanner`] holds at its peak for an autocorrelation of a `w × h` plane with
+/// offsets up to `(rx, ry)` ([`AcfPlanner::real`]): the row and column planes of the padded
+/// transform (complex), the FFTs' scratch and the window it returns. The memory model counts the
+/// lattice extraction by it.
+pub fn real_working_set(w: usize, h: usize, rx: usize, ry: usize) -> u64 {
+    let (pw, ph) = (fft_size(w + rx), fft_size(h + ry));
+    let complex = std::mem::size_of::<Complex64>() as u64;
+    complex * (h.max(ry + 1) * pw + pw * ph + pw.max(ph)) as u64 + 8 * ((2 * rx + 1) * (2 * ry + 1)) as u64
+}
+
 fn fft_size(n: usize) -> usize {
     let mut m = n.max(1);
     loop {
@@ -152,12 +162,12 @@ pub fn autocorrelation_complex(
 /// same FFTs on the same data, and the same operations on each value.
 pub struct AcfPlanner {
     planner: FftPlannerScalar<f64>,
-    /// The padded plane transformed along rows, `h × pw`.
-    rows_fwd: Vec<Complex64>,
+    /// The padded plane transformed along rows, `h × pw`; once transposed into `cols`, the same
+    /// buffer takes the rows `dy ∈ 0..=ry` of the inverse transform, `(ry + 1) × pw` (`ry < h`),
+    /// so that a transform holds two planes, not three ([`real_working_set`]).
+    rows: Vec<Complex64>,
     /// Its transpose, `pw × ph`.
     cols: Vec<Complex64>,
-    /// The rows `dy ∈ 0..=ry` of the inverse transform, `(ry + 1) × pw`.
-    rows_inv: Vec<Complex64>,
     scratch: Vec<Complex64>,
 }
 
@@ -169,7 +179,7 @@ impl std::default::Default for AcfPlanner {
 
 impl AcfPlanner {
     pub fn new() -> Self {
-        AcfPlanner { planner: FftPlannerScalar::new(), rows_fwd: Vec::new(), cols: Vec::new(), rows_inv: Vec::new(), scratch: Vec::new() }
+        AcfPlanner { planner: FftPlannerScalar::new(), rows: Vec::new(), cols: Vec::new(), scratch: Vec::new() }
     }
 
     /// [`autocorrelation`].
@@ -294,7 +304,7 @@ impl AcfPlanner {
 
         // The padded plane's rows 0..h (rows h.. are zero, and stay zero along rows), forward
         // along rows.
-        let buf = &mut self.rows_fwd;
+        let buf = &mut self.rows;
         buf.clear();
         buf.resize(h * pw, zero);
         for y in 0..h {
@@ -328,7 +338,7 @@ impl AcfPlanner {
         col_inv.process_with_scratch(t, scratch);
         // Back to row-major, but only the rows dy ∈ 0..=ry are needed: the autocorrelation of
         // the other half of the window is read off these (`S(−d) = conj S(d)`).
-        let rows = &mut self.rows_inv;
+        let rows = &mut self.rows;
         rows.clear();
         rows.resize((ry + 1) * pw, zero);
         for r0 in (0..=ry).step_by(TILE) {
@@ -342,7 +352,7 @@ impl AcfPlanner {
             }
         }
         row_inv.process_with_scratch(rows, scratch);
-        Ok((&self.rows_inv, pw, (pw * ph) as f64))
+        Ok((&self.rows, pw, (pw * ph) as f64))
     }
 }
 
@@ -426,6 +436,22 @@ mod tests {
                 ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
             })
             .collect()
+    }
+
+    #[test]
+    fn the_stated_working_set_covers_the_planners_buffers() {
+        // The memory model counts the lattice extraction by `real_working_set`: it must cover what
+        // a planner really holds after an autocorrelation, and not by a wide margin.
+        for (w, h) in [(64usize, 48usize), (200, 150), (257, 129)] {
+            let (rx, ry) = (w / 2, h / 2);
+            let mut planner = AcfPlanner::new();
+            let acf = planner.real(&lcg_plane(w * h, 3), w, h, rx, ry, AcfForm::Biased).unwrap();
+            let complex = std::mem::size_of::<Complex64>();
+            let held =
+                complex * (planner.rows.capacity() + planner.cols.capacity() + planner.scratch.capacity()) + 8 * acf.width() * acf.height();
+            let stated = real_working_set(w, h, rx, ry) as usize;
+            assert!(held <= stated && stated <= held + held / 8, "{w}x{h}: holds {held} B, stated {stated} B");
+        }
     }
 
     #[test]

@@ -569,23 +569,39 @@ pub const ANALYSIS_PIXELS: u64 = 1024 * 1024;
 /// Deterministic: the reduction depends on the pixels only. Measures of features smaller than the
 /// reduction (window sides under 4 reduced pixels) are not available then.
 pub fn analyse(img: &RgbImage) -> Analysis {
-    let mut factor = 1i64;
-    let mut reduced: Option<RgbImage> = None;
-    while {
-        let (w, h) = reduced.as_ref().unwrap_or(img).dimensions();
-        u64::from(w) * u64::from(h) > ANALYSIS_PIXELS && w >= 16 && h >= 16
-    } {
-        reduced = Some(crate::synth::primitives::pyramid_search::reduce(reduced.as_ref().unwrap_or(img)));
-        factor *= 2;
+    let (_, halvings) = analysed_size(img.dimensions());
+    if halvings == 0 {
+        return analyse_as_is(img);
     }
-    match reduced {
-        None => analyse_as_is(img),
-        Some(small) => {
-            let a = analyse_as_is(&small);
-            drop(small);
-            scaled(a, factor, img.dimensions())
-        }
+    let mut small = crate::synth::primitives::pyramid_search::reduce(img);
+    for _ in 1..halvings {
+        small = crate::synth::primitives::pyramid_search::reduce(&small);
     }
+    let a = analyse_as_is(&small);
+    drop(small);
+    scaled(a, 1 << halvings, img.dimensions())
+}
+
+/// The size a sample of `size` is analysed at, and how many times it is halved to get there.
+fn analysed_size((mut w, mut h): (u32, u32)) -> ((u32, u32), u32) {
+    let mut halvings = 0;
+    while u64::from(w) * u64::from(h) > ANALYSIS_PIXELS && w >= 16 && h >= 16 {
+        (w, h, halvings) = (w / 2, h / 2, halvings + 1);
+    }
+    ((w, h), halvings)
+}
+
+/// The peak memory of [`analyse`] on a sample of `size`, beside the sample itself: the reduced
+/// copies (the last halving holds its input and its output), the centred gray plane and the
+/// lattice extraction ([`lattice::peak_memory`]), its largest phase (the orientation field, the
+/// contrast tables and the ridge test's planes, each a few planes of the analysed size, come and go
+/// before or after it). The memory model counts it as a phase of every job, which the plan
+/// analyses; at 12 MP (analysed at 1000 × 750) about 140 MB.
+pub fn peak_memory(size: (u32, u32)) -> u64 {
+    let ((w, h), halvings) = analysed_size(size);
+    let px = u64::from(w) * u64::from(h);
+    let reduced = if halvings > 0 { 3 * px + 3 * 4 * px } else { 0 };
+    reduced + 8 * px + lattice::peak_memory(w as usize, h as usize)
 }
 
 /// An analysis of a copy reduced `f` times, in the pixels of the `(width, height)` sample.

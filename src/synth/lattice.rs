@@ -16,7 +16,6 @@ use crate::image::RgbImage;
 use crate::metrics::{AcfForm, AcfPlanner, centred_gray};
 use crate::synth::error::SynthError;
 use crate::synth::params::{Default, ParamKind, ParamSpec, Params};
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// `t1_x, t1_y, t2_x, t2_y`: the lattice a job may give instead of having it extracted. Declared
@@ -332,6 +331,14 @@ impl ExtractionKey {
     }
 }
 
+/// The peak memory of [`extract_centred`] on a `w × h` plane, beside the plane itself: the gray
+/// plane's extraction and, at the same time, a fallback view's (each its padded transform and
+/// window, [`crate::metrics::acf::real_working_set`]), with the grain-free plane, the view and the band-pass's two
+/// temporaries. The memory model counts it through the advice, which extracts every sample's lattice.
+pub fn peak_memory(w: usize, h: usize) -> u64 {
+    2 * crate::metrics::acf::real_working_set(w, h, w / 2, h / 2) + 4 * 8 * (w * h) as u64
+}
+
 /// [`extract_centred`] without looking among the kept results.
 fn extract_centred_anew(plane: &[f64], w: usize, h: usize, opts: &LatticeOptions) -> Result<Lattice, SynthError> {
     let found = AtomicBool::new(false);
@@ -347,19 +354,18 @@ fn extract_centred_anew(plane: &[f64], w: usize, h: usize, opts: &LatticeOptions
             }
             let longest = w.min(h) as f64 / 3.0;
             let fine = grain_free(plane, w, h);
-            let found_in: Vec<Option<Lattice>> = FallbackView::ALL
-                .par_iter()
-                .map(|&view| {
-                    if found.load(Ordering::Relaxed) {
-                        return None;
-                    }
-                    let viewed = view.of_grain_free(plane, &fine, w, h);
-                    extract_from(&viewed, w, h, opts, &mut AcfPlanner::new(), Some(longest))
-                        .ok()
-                        .map(|l| Lattice { found_in: Some(view.name()), ..l })
-                })
-                .collect();
-            found_in.into_iter().flatten().next()
+            // One view after the other, not side by side: the first that yields a lattice is
+            // taken either way, and each extraction holds its padded transform (about 70 bytes
+            // per plane pixel), so that at most two are held at once, beside the gray plane's
+            // ([`peak_memory`]).
+            let mut planner = AcfPlanner::new();
+            FallbackView::ALL.iter().find_map(|&view| {
+                if found.load(Ordering::Relaxed) {
+                    return None;
+                }
+                let viewed = view.of_grain_free(plane, &fine, w, h);
+                extract_from(&viewed, w, h, opts, &mut planner, Some(longest)).ok().map(|l| Lattice { found_in: Some(view.name()), ..l })
+            })
         },
     );
     match (gray, fallback) {

@@ -162,7 +162,10 @@ fn large_tile_fills_are_written_in_strips_with_the_same_pixels() {
 fn camera_sized_samples_are_estimated_honestly() {
     // A 12 MP "photo" (pebbles enlarged 16×, cropped to 4000×3000: made here, not stored) to a
     // 1024² output with quilting's defaults: `search = "auto"` takes the pyramid, and the run's
-    // peak stays within the estimate's margin, as every method's does above.
+    // peak stays within the estimate's margin, as every method's does above. The peak is the
+    // plan's analysis of the photo (the advice's lattice extraction, two transforms at once), not
+    // the synthesis: before the estimate counted it, it measured 177–192 MiB against 187 MiB.
+    // Four threads on two cores: the analysis's parts overlap as they would on a large machine.
     let d = scratch("mem-camera");
     let base = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
     let photo = d.join("photo_12mp.png");
@@ -179,7 +182,7 @@ fn camera_sized_samples_are_estimated_honestly() {
     };
     quilt("camera", &photo, 1024, "");
     let out = d.join("out");
-    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", "2"]));
+    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", "4"]));
     let m = manifest(&out);
     assert_eq!(m["jobs"][0]["params"]["search"], "pyramid", "{}", m["jobs"][0]["params"]);
     let measured = m["run"]["peak_rss_bytes"].as_u64().unwrap() as f64;
