@@ -149,6 +149,25 @@ pub fn available() -> Option<u64> {
     meminfo_field(&text, "MemAvailable:")
 }
 
+/// Gives the memory of freed blocks back to the system, from every thread's arena of the
+/// allocator (glibc's `malloc_trim`; elsewhere nothing).
+///
+/// Why: the estimates count the bytes a job holds, and freed bytes count only if the next
+/// allocation cannot reuse them. glibc keeps one arena per thread, and a thread reuses only its
+/// own: a 12 MP photo's analysis at planning left its transforms (about 100 MB) in two threads'
+/// arenas, and a 1024² quilting of it on 16 threads peaked at 269–278 MiB against an estimate
+/// of 229 MiB (its live heap: 146 MiB); trimmed after the plan, and with `main`'s trim threshold
+/// of 32 MiB, 192 MiB. A run calls it once, after planning: after every job it cost 4 s on the
+/// bundled 476 jobs (25 s).
+pub fn release_freed() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    #[allow(unsafe_code)]
+    // SAFETY: `malloc_trim` only returns free pages to the system, taking each arena's lock.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 /// The peak resident set size of this process so far (`VmHWM` in `/proc/self/status`), where
 /// the platform reports it.
 pub fn peak_rss() -> Option<u64> {

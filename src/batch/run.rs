@@ -81,6 +81,9 @@ pub fn run(inputs: &[PathBuf], opts: &RunOptions, observer: &dyn Observer) -> Re
     let out = OutDir::open_part(&opts.out, part.as_deref())?;
     let pool = pool(opts.threads)?;
     let plan = pool.install(|| plan::plan(inputs, &opts.plan_options()))?;
+    // The plan's analyses of the samples left their large buffers, freed, in the arenas of the
+    // threads that ran them, where the jobs that follow on other threads cannot reuse them.
+    memory::release_freed();
     pool.install(|| execute_plan(plan, &out, opts, observer, started))
 }
 

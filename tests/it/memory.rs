@@ -166,6 +166,8 @@ fn camera_sized_samples_are_estimated_honestly() {
     // plan's analysis of the photo (the advice's lattice extraction, two transforms at once), not
     // the synthesis: before the estimate counted it, it measured 177–192 MiB against 187 MiB.
     // Four threads on two cores: the analysis's parts overlap as they would on a large machine.
+    // (On 16 cores with `-j 16` it measured 276–294 MiB while every thread's allocator arena kept
+    // what it had freed; with the arenas trimmed after the plan and past 32 MiB, 200–217 MiB.)
     let d = scratch("mem-camera");
     let base = rgb(&repo().join("jobs/samples/pebbles_beige.png"));
     let photo = d.join("photo_12mp.png");
