@@ -9,7 +9,7 @@
 //!
 //! A job's estimate is [`Method::peak_memory`] (the method's own working set, output image
 //! included; stated by each method from measurements) plus what the runner holds around it: the
-//! process itself, the decoded sample, the encoder's buffers, the plan's analysis of the sample
+//! process itself and a share per thread of the pool, the decoded sample, the encoder's buffers, the plan's analysis of the sample
 //! (the advice, [`crate::synth::advice::peak_memory`]) and, if the job asks for metrics, their
 //! analysis of the output. Large tile fills are rendered and written strip by strip
 //! ([`crate::batch::execute::renders_in_strips`]); their estimate is the method's working set
@@ -31,6 +31,12 @@ pub const GIB: u64 = 1 << 30;
 /// What the process holds whatever it runs: code, the allocator's arenas, thread stacks, the plan.
 /// Measured: `texsyn run` of a 64² job peaks at about 12 MB (VmHWM); rounded up.
 pub const PROCESS_BYTES: u64 = 24 * MIB;
+
+/// The process and, for every thread of the current rayon pool (the run's `-j`, which a job's
+/// method uses), what the method adds per thread ([`Method::thread_memory`]).
+fn process_bytes(method: &dyn Method, params: &Params, sample: (u32, u32)) -> u64 {
+    PROCESS_BYTES + method.thread_memory(params, sample) * rayon::current_num_threads() as u64
+}
 
 /// The peak memory of one job, in bytes: the runner's share plus the method's.
 ///
@@ -71,16 +77,16 @@ pub fn job_estimate_with(
         let map = if m.source_map { 40 * out_px } else { 0 };
         // Companion samples are decoded like the sample (at most float RGBA each).
         let companions = m.companions as u64 * u64::from(sample.0) * u64::from(sample.1) * 16;
-        return job_estimate_with(method, params, sample, output, metrics, None)
-            .max(PROCESS_BYTES + 2 * sample_bytes + method.peak_memory(params, sample, (output.width, output.height)))
-            + 20 * out_px
+        return job_estimate_with(method, params, sample, output, metrics, None).max(
+            process_bytes(method, params, sample) + 2 * sample_bytes + method.peak_memory(params, sample, (output.width, output.height)),
+        ) + 20 * out_px
             + rendering.max(map)
             + companions;
     }
     if renders_in_strips(method, output, metrics) {
         // One strip at a time (counted by the method) and the PNG compressor's window and buffer.
         let strips = method.strip_peak_memory(params, sample, (output.width, output.height)) + 4 * MIB;
-        return PROCESS_BYTES + 2 * sample_bytes + strips.max(analysis_estimate(sample));
+        return process_bytes(method, params, sample) + 2 * sample_bytes + strips.max(analysis_estimate(sample));
     }
     let synthesis = method.peak_memory(params, sample, (output.width, output.height));
     // 8-bit PNG is compressed strip by strip beside the image (a strip, the compressor's window
@@ -95,7 +101,7 @@ pub fn job_estimate_with(
     // The metrics' analyses of the output (gray levels, gradients, orientation histograms and
     // FFT autocorrelations in f64): measured at about 90 bytes per output pixel.
     let metrics_bytes = if metrics { raw + 96 * out_px } else { 0 };
-    PROCESS_BYTES + 2 * sample_bytes + analysis_estimate(sample).max(synthesis).max(encoding).max(metrics_bytes)
+    process_bytes(method, params, sample) + 2 * sample_bytes + analysis_estimate(sample).max(synthesis).max(encoding).max(metrics_bytes)
 }
 
 /// The plan's analysis of a sample of `size` ([`crate::synth::advice::peak_memory`]), which every

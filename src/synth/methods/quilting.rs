@@ -216,6 +216,10 @@ impl Method for Quilting {
         super::search_memory(search, sample, output)
     }
 
+    fn thread_memory(&self, params: &Params, sample: (u32, u32)) -> u64 {
+        super::search_thread_memory(params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample), sample)
+    }
+
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
         let cfg = QuiltingConfig::from_params(req.params)?;
         let (block, overlap, tolerance) = (cfg.block, cfg.overlap_or_derived(), cfg.tolerance);
