@@ -188,15 +188,19 @@ fn camera_sized_samples_are_estimated_honestly() {
         );
     };
     quilt("camera", &photo, 1024, "");
-    let out = d.join("out");
-    run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", "4"]));
-    let m = manifest(&out);
-    assert_eq!(m["jobs"][0]["params"]["search"], "pyramid", "{}", m["jobs"][0]["params"]);
-    let measured = m["run"]["peak_rss_bytes"].as_u64().unwrap() as f64;
-    let estimate = m["jobs"][0]["timing"]["estimated_peak_bytes"].as_u64().unwrap() as f64;
-    let line = format!("12 MP sample, 1024² output: estimate {:.1} MiB, measured {:.1} MiB", estimate / MIB, measured / MIB);
-    eprintln!("{line}");
-    assert!(measured <= estimate && estimate <= 1.5 * measured + 48.0 * MIB, "{line}");
+    // And 16: the pyramid's searches side by side, each thread's work arrays counted.
+    for threads in ["4", "16"] {
+        let out = d.join(format!("out-{threads}"));
+        run_ok(texsyn().arg("run").arg(&jobs).arg("-o").arg(&out).args(["-q", "-j", threads]));
+        let m = manifest(&out);
+        assert_eq!(m["jobs"][0]["params"]["search"], "pyramid", "{}", m["jobs"][0]["params"]);
+        let measured = m["run"]["peak_rss_bytes"].as_u64().unwrap() as f64;
+        let estimate = m["jobs"][0]["timing"]["estimated_peak_bytes"].as_u64().unwrap() as f64;
+        let line =
+            format!("12 MP sample, 1024² output, -j {threads}: estimate {:.1} MiB, measured {:.1} MiB", estimate / MIB, measured / MIB);
+        eprintln!("{line}");
+        assert!(measured <= estimate && estimate <= 1.5 * measured + 48.0 * MIB, "{line}");
+    }
 
     // 24 MP (6000×4000), planned only: the pyramid's estimate stays bounded (the sample a few
     // bytes a pixel, the search a coarse level of fixed size), so a 512 MiB limit lets it run,
