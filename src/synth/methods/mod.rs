@@ -18,7 +18,7 @@ use crate::synth::method::Method;
 use crate::synth::params::{Choice, MethodConfig, ParamError, ParamValue, Params};
 use crate::synth::primitives::overlap::Rect;
 use crate::synth::primitives::overlap_search::{Candidates, OverlapSearch};
-use crate::synth::primitives::pyramid_search::PyramidSearch;
+use crate::synth::primitives::pyramid_search::{self, PyramidSearch};
 
 crate::choice! {
     /// How a block search scores sample positions (quilting's `search`, patch sampling's
@@ -107,11 +107,12 @@ pub(crate) fn engine_version(params: &Params, key: &str, base: u32) -> u32 {
 /// `COARSE_PIXELS`, whatever the sample (4000×3000 to 2048², measured by hand: 131 MB peak RSS
 /// against an estimate of 207 MB). tests/it/memory.rs runs a 12 MP sample to 1024² within the
 /// estimate's margin and plans a 24 MP one under a 512 MiB limit that refuses the exact search.
-pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u32)) -> u64 {
+/// A pyramid that would not reduce the sample (`block`'s coarse level 0) is the exact search.
+pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u32), block: u32) -> u64 {
     use crate::synth::method::linear_memory;
     match engine {
-        Engine::Pyramid => {
-            let coarse = crate::synth::primitives::pyramid_search::COARSE_PIXELS;
+        Engine::Pyramid if pyramid_search::coarse_level(sample, block) > 0 => {
+            let coarse = pyramid_search::COARSE_PIXELS;
             linear_memory(sample, output, 3.5, 2.0, (4 << 20) + 256 * coarse)
         }
         _ => linear_memory(sample, output, 3.5, 256.0, 4 << 20),
@@ -123,16 +124,17 @@ pub(crate) fn search_memory(engine: Engine, sample: (u32, u32), output: (u32, u3
 /// SSDs: about 40 B per sample pixel), kept per thread; the pyramid's coarse searches less.
 /// Measured (peak RSS, `-j 16` against `-j 2`): quilting a 256² sample to 2048², 3.5 MiB a thread
 /// (live heap 47 against 20 MB); a 12 MP photo to 1024² by the pyramid, 2.6 to 3.9 MiB.
-pub(crate) fn search_thread_memory(engine: Engine, sample: (u32, u32)) -> u64 {
+pub(crate) fn search_thread_memory(engine: Engine, sample: (u32, u32), block: u32) -> u64 {
     match engine {
-        Engine::Pyramid => 4 << 20,
+        Engine::Pyramid if pyramid_search::coarse_level(sample, block) > 0 => 4 << 20,
         _ => crate::synth::method::THREAD_MEMORY + 48 * u64::from(sample.0) * u64::from(sample.1),
     }
 }
 
 /// A block search over one sample, as its [`Engine`] says.
 pub(crate) enum BlockSearch<'a> {
-    /// The exact search, by FFT or by direct sums.
+    /// The exact search, by direct sums (`Direct`) or by FFT (any other engine: `Pyramid` is a
+    /// pyramid whose coarse level is the sample itself).
     Exact(OverlapSearch<'a>, Engine),
     /// The coarse-to-fine search, and the positions a sample mask allows (when there is one).
     Pyramid(PyramidSearch<'a>, Option<Allowed<'a>>),
@@ -182,7 +184,13 @@ impl<'a> BlockSearch<'a> {
     /// Prepares the search of `block × block` blocks of `sample` (`auto` resolved by its size).
     pub(crate) fn new(engine: Engine, sample: &'a RgbImage, block: u32) -> BlockSearch<'a> {
         match engine.for_sample(sample.dimensions()) {
-            Engine::Pyramid => BlockSearch::Pyramid(PyramidSearch::new(sample, block), None),
+            Engine::Pyramid if pyramid_search::coarse_level(sample.dimensions(), block) > 0 => {
+                BlockSearch::Pyramid(PyramidSearch::new(sample, block), None)
+            }
+            // A pyramid that would not reduce the sample searches it whole: that is the exact FFT
+            // search (same candidates, so the same pixels), kept as such so that a sample mask or
+            // a hole's restriction does not turn it into direct sums at every position (a 512²
+            // inpainting with `search = "pyramid"` took 7.5 s instead of 0.25 s).
             e => BlockSearch::Exact(OverlapSearch::new(sample, block, block), e),
         }
     }
@@ -264,6 +272,7 @@ impl<'a> BlockSearch<'a> {
     /// The pyramid's coarse level, for diagnostics (`None` for the exact search).
     pub(crate) fn coarse_level(&self) -> Option<u32> {
         match self {
+            BlockSearch::Exact(_, Engine::Pyramid) => Some(0),
             BlockSearch::Exact(..) => None,
             BlockSearch::Pyramid(p, _) => Some(p.coarse_level()),
         }
@@ -351,4 +360,42 @@ pub(crate) fn untwinned(
         }
     }
     members
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texture(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| {
+            let v = (x * 37 + y * 91 + (x * y) % 53) as u8;
+            [v, v.wrapping_mul(3), v ^ 0x5a]
+        })
+    }
+
+    #[test]
+    fn a_pyramid_that_would_not_reduce_the_sample_is_the_exact_fft_search() {
+        // Also when positions are restricted (a hole, a sample mask): the pyramid's restricted
+        // path scores every position by direct sums, 25× slower than the FFT on a 512² inpainting.
+        let sample = texture(200, 160);
+        let allowed = vec![true; (200 - 30 + 1) * (160 - 30 + 1)];
+        for flags in [None, Some(allowed)] {
+            let search = BlockSearch::within(Engine::Pyramid, &sample, 30, flags);
+            assert!(matches!(search, BlockSearch::Exact(_, Engine::Pyramid)));
+            assert_eq!(search.coarse_level(), Some(0), "recorded as the pyramid's level 0");
+        }
+        let big = texture(1200, 900);
+        assert!(matches!(BlockSearch::new(Engine::Pyramid, &big, 40), BlockSearch::Pyramid(..)));
+        assert!(matches!(BlockSearch::new(Engine::Auto, &big, 40), BlockSearch::Pyramid(..)));
+        assert!(matches!(BlockSearch::new(Engine::Auto, &sample, 30), BlockSearch::Exact(_, Engine::Fft)));
+    }
+
+    #[test]
+    fn the_memory_of_a_pyramid_at_full_resolution_is_the_exact_searchs() {
+        let (small, out) = ((400, 300), (512, 512));
+        assert_eq!(search_memory(Engine::Pyramid, small, out, 50), search_memory(Engine::Fft, small, out, 50));
+        assert_eq!(search_thread_memory(Engine::Pyramid, small, 50), search_thread_memory(Engine::Fft, small, 50));
+        let big = (4000, 3000);
+        assert!(search_memory(Engine::Pyramid, big, out, 50) < search_memory(Engine::Fft, big, out, 50) / 10);
+    }
 }

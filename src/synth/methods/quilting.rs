@@ -213,11 +213,12 @@ impl Method for Quilting {
 
     fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
         let search = params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample);
-        super::search_memory(search, sample, output)
+        super::search_memory(search, sample, output, memory_block(params))
     }
 
     fn thread_memory(&self, params: &Params, sample: (u32, u32)) -> u64 {
-        super::search_thread_memory(params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample), sample)
+        let search = params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample);
+        super::search_thread_memory(search, sample, memory_block(params))
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -633,6 +634,12 @@ impl Quilting {
         torus.record_fit(&mut diagnostics);
         Ok(Synthesis { image, seams: Some(torus.seam_grid()), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
+}
+
+/// The block the memory estimate assumes: the job's, or the smallest a transfer defaults to (a
+/// smaller block keeps a big sample's pyramid at full resolution, the costlier search).
+fn memory_block(params: &Params) -> u32 {
+    params.int("block").ok().and_then(|b| u32::try_from(b).ok()).unwrap_or(TRANSFER_BLOCK as u32)
 }
 
 #[cfg(test)]
