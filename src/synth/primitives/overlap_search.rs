@@ -635,10 +635,7 @@ impl<'a> OverlapSearch<'a> {
         let margin = self.approximate(work, target, origin, regions, map_index, parallel);
         let amin = smallest(&work.approx, self.allowed.as_deref());
         let threshold = (1.0 + tolerance) * (amin + margin) + margin;
-        let mut rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
-        if self.allowed.is_some() {
-            rechecked.retain(|&(x, y, _)| self.allows(x, y));
-        }
+        let rechecked = self.recheck(&work.approx, threshold, target, origin, regions, parallel);
         let min = rechecked.iter().map(|c| c.2).min().expect("the best candidate is always rechecked");
         let members = rechecked.into_iter().filter(|c| within(c.2, min, tolerance)).collect();
         Candidates { min_ssd: min, members }
@@ -658,7 +655,11 @@ impl<'a> OverlapSearch<'a> {
         parallel: bool,
     ) -> Vec<(u32, u32, u64)> {
         let margin = self.approximate(work, target, origin, regions, Some(map_index), parallel);
-        let mut order = work.approx.clone();
+        let allowed = |i: usize| self.allowed.as_ref().is_none_or(|a| a[i]);
+        let mut order: Vec<f64> = work.approx.iter().enumerate().filter(|&(i, _)| allowed(i)).map(|(_, &a)| a).collect();
+        if order.is_empty() {
+            return Vec::new();
+        }
         let k = count.clamp(1, order.len()) - 1;
         let kth = *order.select_nth_unstable_by(k, f64::total_cmp).1;
         let mut found = self.recheck(&work.approx, kth + 2.0 * margin, target, origin, regions, parallel);
@@ -667,7 +668,11 @@ impl<'a> OverlapSearch<'a> {
         found
     }
 
-    /// Every position whose approximate SSD is at most `threshold`, with its exact SSD, row-major.
+    /// Every position whose approximate SSD is at most `threshold`, with its exact SSD, row-major;
+    /// only positions the search may copy from. Why here and not after: the threshold comes from
+    /// the allowed positions, and the forbidden ones may match far better (a hole's own image,
+    /// when the fill copies from another photo, sits in the atlas beside it): re-scoring them
+    /// all made a 256² inpainting from another sample take 1.1 s instead of 0.08 s.
     fn recheck(
         &self,
         approx: &[f64],
@@ -687,11 +692,8 @@ impl<'a> OverlapSearch<'a> {
             let mut found = Vec::new();
             for (r, run) in row.chunks(RUN).enumerate() {
                 if run.iter().fold(false, |any, &a| any | (a <= threshold)) {
-                    let passing = run.iter().enumerate().filter(|(_, a)| **a <= threshold);
-                    found.extend(passing.map(|(i, _)| {
-                        let x = (r * RUN + i) as u32;
-                        (x, y, self.exact_ssd(x, y, target, origin, regions))
-                    }));
+                    let passing = run.iter().enumerate().filter(|(_, a)| **a <= threshold).map(|(i, _)| (r * RUN + i) as u32);
+                    found.extend(passing.filter(|&x| self.allows(x, y)).map(|x| (x, y, self.exact_ssd(x, y, target, origin, regions))));
                 }
             }
             found
