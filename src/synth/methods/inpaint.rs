@@ -4,8 +4,8 @@
 //! The output starts as the image, each pixel its own source, and only pixels of the fill
 //! region are ever written: everything outside it stays bit for bit (also in companions and at
 //! 16-bit or float, which are rendered from the same placement). Blocks are laid over the hole's
-//! bounding box at the method's stride, in raster order, and only blocks that still hold an
-//! empty pixel are made. For each, the search compares the block's content where it must join
+//! bounding box at the method's stride and made from the hole's border inwards ([`next_block`]),
+//! and only blocks that still hold an empty pixel are made. For each, the search compares the block's content where it must join
 //! — what earlier blocks filled within `overlap` of its empty pixels, and the known image in a
 //! narrow band along the hole — with each sample position that lies wholly outside the hole
 //! (the hole holds what must go) and inside the sample mask. The chosen block then meets what
@@ -258,13 +258,18 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
     let mut blocks = 0u32;
     let mut candidate_counts = Vec::new();
     let mut placed: Vec<(u32, u32)> = Vec::new();
-    for (bi, &oy) in ys.iter().enumerate() {
-        for (bj, &ox) in xs.iter().enumerate() {
+    let mut todo: Vec<(usize, usize)> = (0..ys.len()).flat_map(|bi| (0..xs.len()).map(move |bj| (bi, bj))).collect();
+    while let Some((bi, bj)) = next_block(&mut todo, |bi, bj| {
+        let (ox, oy) = (xs[bj], ys[bi]);
+        let empty = (0..block)
+            .flat_map(|j| (0..block).map(move |i| (i, j)))
+            .filter(|&(i, j)| state[(at(oy, j, h) * w + at(ox, i, w)) as usize] == State::Empty)
+            .count();
+        (empty > 0).then_some(block * block - empty as u32)
+    }) {
+        {
+            let (ox, oy) = (xs[bj], ys[bi]);
             let index = |i: u32, j: u32| (at(oy, j, h) * w + at(ox, i, w)) as usize;
-            let empty = (0..block).any(|j| (0..block).any(|i| state[index(i, j)] == State::Empty));
-            if !empty {
-                continue;
-            }
             blocks += 1;
             // The block's window of the canvas, and the runs of it that hold content.
             let window = RgbImage::from_fn(block, block, |i, j| canvas.image.get(at(ox, i, w), at(oy, j, h)));
@@ -380,6 +385,33 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
         }
     });
     Ok(Synthesis { image, seams: None, diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+}
+
+/// The next block of the hole to make: among the grid positions left in `todo`, the one whose
+/// window already holds the most content (`content(bi, bj)`: its known and filled pixels, `None`
+/// once it holds no empty pixel, which drops it), the first in raster order among equals; `None`
+/// when every block is made. Why not raster order: a block made early along the hole's far side
+/// must then meet blocks that were made without knowing it, and on a wall whose mortar line runs
+/// through the hole the line ended mid-hole in a block of another stone. Filling from the
+/// border inwards (the onion peel of exemplar-based inpainting) lets each block continue the
+/// known image wherever it touches it, and leaves the hole's middle for last, where blocks meet
+/// what was made around them on every side.
+fn next_block(todo: &mut Vec<(usize, usize)>, mut content: impl FnMut(usize, usize) -> Option<u32>) -> Option<(usize, usize)> {
+    let mut best: Option<(u32, usize)> = None;
+    let mut k = 0;
+    while k < todo.len() {
+        let (bi, bj) = todo[k];
+        match content(bi, bj) {
+            None => {
+                todo.remove(k);
+                continue;
+            }
+            Some(c) if best.is_none_or(|(b, _)| c > b) => best = Some((c, k)),
+            Some(_) => {}
+        }
+        k += 1;
+    }
+    best.map(|(_, k)| todo.remove(k))
 }
 
 /// Feathers the block at sample position `src` into its window: empty pixels take it, pixels

@@ -68,15 +68,21 @@ pub(crate) fn resolve_engine(params: &mut Params, key: &str, sample: (u32, u32))
 /// method's version, their pixels unchanged.
 pub(crate) const PYRAMID_VERSION: u32 = 1;
 
-/// The algorithm version of quilting's and patch sampling's inpainting (and of patch sampling's
-/// syntheses from turned copies), whose pixels changed in issue #28 while plain syntheses kept
-/// version 1 (2 is that with the pyramid); see their `algorithm_version_of`.
-pub(crate) const INPAINT_VERSION: u32 = 3;
+/// The algorithm version of patch sampling's syntheses from turned copies, whose pixels changed
+/// in issue #28 while plain syntheses kept version 1 (2 is that with the pyramid); see its
+/// `algorithm_version_of`.
+pub(crate) const COPIES_VERSION: u32 = 3;
 
-/// The algorithm version of quilting's and patch sampling's syntheses and hole fills led by a
-/// luminance guide, compared at a block's scale since issue #28's transfer statistics (6 with the
-/// pyramid); a guide with its own `source` keeps the versions above.
-pub(crate) const LUMINANCE_GUIDE_VERSION: u32 = 5;
+/// The algorithm version of quilting's and patch sampling's inpainting: 3 (issue #28) while the
+/// hole's blocks were made in raster order, 9 since they are made from the hole's border inwards
+/// (`inpaint::next_block`; 10 with the pyramid).
+pub(crate) const INPAINT_VERSION: u32 = 9;
+
+/// The algorithm version of quilting's and patch sampling's hole fills led by a luminance guide,
+/// compared at a block's scale since issue #28's transfer statistics: 5 in raster order, 11 from
+/// the border inwards (12 with the pyramid); a guide with its own `source` keeps the versions
+/// above.
+pub(crate) const LUMINANCE_GUIDE_VERSION: u32 = 11;
 
 /// The algorithm version of quilting's and patch sampling's syntheses led by a luminance guide
 /// (not hole fills) since their later passes follow the previous pass through the target instead

@@ -172,7 +172,8 @@ impl Method for Quilting {
     }
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting prefers blocks that repeat little of what the hole already copied
-        // (`inpaint::Reuse`, issue #28); version 5: a luminance guide is compared at a block's
+        // (`inpaint::Reuse`, issue #28); version 9: the hole's blocks are made from its border
+        // inwards (11 led by a luminance guide); version 5: a luminance guide is compared at a block's
         // scale (7 for syntheses, whose later passes follow the previous one through the target);
         // plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
         let base = if uses.luminance_guide {

@@ -203,13 +203,16 @@ impl Method for PatchSampling {
     }
     fn algorithm_version_of(&self, params: &Params, uses: Uses) -> u32 {
         // Version 3: inpainting cuts its patches into earlier fill (it feathered them), and with
-        // turned copies continuations are always scored and twins left out (issue #28); version 5:
+        // turned copies continuations are always scored and twins left out (issue #28); version 9:
+        // the hole's patches are made from its border inwards (11 led by a luminance guide); version 5:
         // a luminance guide is compared at a block's scale (7 for syntheses, whose later passes
         // follow the previous one through the target); plain syntheses keep version 1 and their pixels (2 is version 1 with the pyramid).
         let base = if uses.luminance_guide {
             super::luminance_guide_version(uses)
-        } else if uses.inpaint || uses.copies {
+        } else if uses.inpaint {
             super::INPAINT_VERSION
+        } else if uses.copies {
+            super::COPIES_VERSION
         } else {
             self.algorithm_version()
         };
