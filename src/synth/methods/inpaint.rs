@@ -259,112 +259,100 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
     let mut candidate_counts = Vec::new();
     let mut placed: Vec<(u32, u32)> = Vec::new();
     let mut todo: Vec<(usize, usize)> = (0..ys.len()).flat_map(|bi| (0..xs.len()).map(move |bj| (bi, bj))).collect();
-    while let Some((bi, bj)) = next_block(&mut todo, |bi, bj| {
+    let mut empty = EmptyCounts::new(&xs, &ys, block, (w, h), |x, y| state[(y * w + x) as usize] == State::Empty);
+    while let Some((bi, bj)) = next_block(&mut todo, |bi, bj| empty.content(bi, bj)) {
         let (ox, oy) = (xs[bj], ys[bi]);
-        let empty = (0..block)
-            .flat_map(|j| (0..block).map(move |i| (i, j)))
-            .filter(|&(i, j)| state[(at(oy, j, h) * w + at(ox, i, w)) as usize] == State::Empty)
-            .count();
-        (empty > 0).then_some(block * block - empty as u32)
-    }) {
-        {
-            let (ox, oy) = (xs[bj], ys[bi]);
-            let index = |i: u32, j: u32| (at(oy, j, h) * w + at(ox, i, w)) as usize;
-            blocks += 1;
-            // The block's window of the canvas, and the runs of it that hold content.
-            let window = RgbImage::from_fn(block, block, |i, j| canvas.image.get(at(ox, i, w), at(oy, j, h)));
-            let near = near_empty(block, how.overlap, |i, j| state[index(i, j)] == State::Empty);
-            let near_known = near_empty(block, KNOWN_BAND.min(how.overlap), |i, j| state[index(i, j)] == State::Empty);
-            let regions = content_runs(block, |i, j| match state[index(i, j)] {
-                State::Empty => false,
-                State::Filled => near[(j * block + i) as usize],
-                State::Known => near_known[(j * block + i) as usize],
-            });
-            // Where the window's content was copied from, as block positions (a known pixel is
-            // its own source): the blocks a new one must not mirror.
-            let mut neighbours = std::collections::BTreeSet::new();
-            if twins_matter {
-                for r in &regions {
-                    for i in r.x..r.x + r.w {
-                        let (fx, fy) = source[index(i, r.y)];
-                        if let (Some(nx), Some(ny)) = (fx.checked_sub(i), fy.checked_sub(r.y)) {
-                            neighbours.insert((nx, ny));
-                        }
+        let index = |i: u32, j: u32| (at(oy, j, h) * w + at(ox, i, w)) as usize;
+        blocks += 1;
+        // The block's window of the canvas, and the runs of it that hold content.
+        let window = RgbImage::from_fn(block, block, |i, j| canvas.image.get(at(ox, i, w), at(oy, j, h)));
+        let near = near_empty(block, how.overlap, |i, j| state[index(i, j)] == State::Empty);
+        let near_known = near_empty(block, KNOWN_BAND.min(how.overlap), |i, j| state[index(i, j)] == State::Empty);
+        let regions = content_runs(block, |i, j| match state[index(i, j)] {
+            State::Empty => false,
+            State::Filled => near[(j * block + i) as usize],
+            State::Known => near_known[(j * block + i) as usize],
+        });
+        // Where the window's content was copied from, as block positions (a known pixel is
+        // its own source): the blocks a new one must not mirror.
+        let mut neighbours = std::collections::BTreeSet::new();
+        if twins_matter {
+            for r in &regions {
+                for i in r.x..r.x + r.w {
+                    let (fx, fy) = source[index(i, r.y)];
+                    if let (Some(nx), Some(ny)) = (fx.checked_sub(i), fy.checked_sub(r.y)) {
+                        neighbours.insert((nx, ny));
                     }
                 }
             }
-            let neighbours: Vec<(u32, u32)> = neighbours.into_iter().collect();
-            let (sx, sy) = if regions.is_empty() {
-                // Nothing to match (a hole that swallows a whole block at the image's corner):
-                // any allowed position, as quilting's first block.
-                let count = how.allowed.iter().filter(|&&a| a).count() as u64;
-                let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
-                nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
-            } else {
-                let want = Want {
-                    window: &window,
-                    regions: &regions,
-                    neighbours: &neighbours,
-                    index: (bi as u32, bj as u32),
-                    place: (ox, oy),
-                    placed: &placed,
-                };
-                let (p, count) = pick(&want);
-                candidate_counts.extend(count);
-                p
+        }
+        let neighbours: Vec<(u32, u32)> = neighbours.into_iter().collect();
+        let (sx, sy) = if regions.is_empty() {
+            // Nothing to match (a hole that swallows a whole block at the image's corner):
+            // any allowed position, as quilting's first block.
+            let count = how.allowed.iter().filter(|&&a| a).count() as u64;
+            let mut s = Stream::new(req.seed, &format!("{}/inpaint/first/bi={bi}/bj={bj}", how.label));
+            nth_allowed(how.allowed, positions_x, s.below(count)).expect("an allowed position")
+        } else {
+            let want = Want {
+                window: &window,
+                regions: &regions,
+                neighbours: &neighbours,
+                index: (bi as u32, bj as u32),
+                place: (ox, oy),
+                placed: &placed,
             };
-            placed.push((sx, sy));
-            if how.rule == OverlapRule::Feather {
-                feather_in(
-                    &mut canvas,
-                    sample,
-                    (sx, sy),
-                    block,
-                    how.overlap,
-                    |i, j| state[index(i, j)],
-                    |i, j| (at(ox, i, w), at(oy, j, h)),
-                );
-                for j in 0..block {
-                    for i in 0..block {
-                        let (x, y) = (at(ox, i, w), at(oy, j, h));
-                        let k = (y * w + x) as usize;
-                        if state[k] == State::Empty {
-                            state[k] = State::Filled;
-                            source[k] = (sx + i, sy + j);
-                        }
-                    }
-                }
-                continue;
-            }
-            let (bu, n) = (block as usize, (block * block) as usize);
-            let mut sides = Vec::with_capacity(n);
-            let mut error = Vec::with_capacity(n);
+            let (p, count) = pick(&want);
+            candidate_counts.extend(count);
+            p
+        };
+        placed.push((sx, sy));
+        if how.rule == OverlapRule::Feather {
+            feather_in(&mut canvas, sample, (sx, sy), block, how.overlap, |i, j| state[index(i, j)], |i, j| (at(ox, i, w), at(oy, j, h)));
             for j in 0..block {
                 for i in 0..block {
-                    let st = state[index(i, j)];
-                    let rim = i == 0 || j == 0 || i == block - 1 || j == block - 1;
-                    sides.push(match (st, how.rule) {
-                        (State::Known, _) => Side::Keep,
-                        (State::Empty, _) | (State::Filled, OverlapRule::Overwrite) => Side::New,
-                        // A filled pixel on the window's rim meets content outside the window,
-                        // which the cut cannot see: it stays, so the seam runs inside the
-                        // window where its cost is counted (else a block with no known pixel
-                        // would take its whole window at no cost, along a straight line).
-                        (State::Filled, _) if rim => Side::Keep,
-                        (State::Filled, _) => Side::Free,
-                    });
-                    error.push(if st == State::Empty { 0 } else { u64::from(pixel_error(window.get(i, j), sample.get(sx + i, sy + j))) });
+                    let (x, y) = (at(ox, i, w), at(oy, j, h));
+                    let k = (y * w + x) as usize;
+                    if state[k] == State::Empty {
+                        state[k] = State::Filled;
+                        source[k] = (sx + i, sy + j);
+                        empty.filled(x, y);
+                    }
                 }
             }
-            let take = min_cut(bu, bu, &sides, &error);
-            for j in 0..block {
-                for i in 0..block {
-                    if take[(j * block + i) as usize] {
-                        let (x, y) = (at(ox, i, w), at(oy, j, h));
-                        canvas.copy(x, y, sample, sx + i, sy + j);
-                        state[(y * w + x) as usize] = State::Filled;
-                        source[(y * w + x) as usize] = (sx + i, sy + j);
+            continue;
+        }
+        let (bu, n) = (block as usize, (block * block) as usize);
+        let mut sides = Vec::with_capacity(n);
+        let mut error = Vec::with_capacity(n);
+        for j in 0..block {
+            for i in 0..block {
+                let st = state[index(i, j)];
+                let rim = i == 0 || j == 0 || i == block - 1 || j == block - 1;
+                sides.push(match (st, how.rule) {
+                    (State::Known, _) => Side::Keep,
+                    (State::Empty, _) | (State::Filled, OverlapRule::Overwrite) => Side::New,
+                    // A filled pixel on the window's rim meets content outside the window,
+                    // which the cut cannot see: it stays, so the seam runs inside the
+                    // window where its cost is counted (else a block with no known pixel
+                    // would take its whole window at no cost, along a straight line).
+                    (State::Filled, _) if rim => Side::Keep,
+                    (State::Filled, _) => Side::Free,
+                });
+                error.push(if st == State::Empty { 0 } else { u64::from(pixel_error(window.get(i, j), sample.get(sx + i, sy + j))) });
+            }
+        }
+        let take = min_cut(bu, bu, &sides, &error);
+        for j in 0..block {
+            for i in 0..block {
+                if take[(j * block + i) as usize] {
+                    let (x, y) = (at(ox, i, w), at(oy, j, h));
+                    canvas.copy(x, y, sample, sx + i, sy + j);
+                    if state[(y * w + x) as usize] == State::Empty {
+                        empty.filled(x, y);
                     }
+                    state[(y * w + x) as usize] = State::Filled;
+                    source[(y * w + x) as usize] = (sx + i, sy + j);
                 }
             }
         }
@@ -385,6 +373,62 @@ pub(crate) fn fill(req: &Request, region: &FillRegion, how: &Fill, pick: &mut Pi
         }
     });
     Ok(Synthesis { image, seams: None, diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
+}
+
+/// How many empty pixels each block's window holds, kept as pixels are filled, so that choosing
+/// the next block does not count every remaining window again (on a 900² hole of 484 blocks
+/// that recount was an eighth of the fill's time).
+struct EmptyCounts {
+    /// Row-major over the blocks (`ys.len() × xs.len()`).
+    counts: Vec<u32>,
+    columns: usize,
+    /// The blocks whose windows hold image column `x` (`bj`s) and row `y` (`bi`s), wrapping.
+    blocks_at_x: Vec<Vec<usize>>,
+    blocks_at_y: Vec<Vec<usize>>,
+    area: u32,
+}
+
+impl EmptyCounts {
+    fn new(xs: &[u32], ys: &[u32], block: u32, (w, h): (u32, u32), is_empty: impl Fn(u32, u32) -> bool) -> EmptyCounts {
+        let spans = |origins: &[u32], size: u32| {
+            let mut at = vec![Vec::new(); size as usize];
+            for (b, &o) in origins.iter().enumerate() {
+                for i in 0..block {
+                    at[((o + i) % size) as usize].push(b);
+                }
+            }
+            at
+        };
+        let (blocks_at_x, blocks_at_y) = (spans(xs, w), spans(ys, h));
+        let mut counts = vec![0; xs.len() * ys.len()];
+        for y in 0..h {
+            for x in 0..w {
+                if is_empty(x, y) {
+                    for &bi in &blocks_at_y[y as usize] {
+                        for &bj in &blocks_at_x[x as usize] {
+                            counts[bi * xs.len() + bj] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        EmptyCounts { counts, columns: xs.len(), blocks_at_x, blocks_at_y, area: block * block }
+    }
+
+    /// The known and filled pixels of block `(bi, bj)`'s window; `None` once none is empty.
+    fn content(&self, bi: usize, bj: usize) -> Option<u32> {
+        let empty = self.counts[bi * self.columns + bj];
+        (empty > 0).then_some(self.area - empty)
+    }
+
+    /// The empty pixel `(x, y)` was filled.
+    fn filled(&mut self, x: u32, y: u32) {
+        for &bi in &self.blocks_at_y[y as usize] {
+            for &bj in &self.blocks_at_x[x as usize] {
+                self.counts[bi * self.columns + bj] -= 1;
+            }
+        }
+    }
 }
 
 /// The next block of the hole to make: among the grid positions left in `todo`, the one whose
