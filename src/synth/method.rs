@@ -219,12 +219,12 @@ pub trait Method: Send + Sync {
     }
 }
 
-/// Bytes of `per_output_pixel` per output pixel, plus `per_sample_pixel` per sample pixel, plus
 /// [`Method::thread_memory`]'s default: what a thread's allocator arena keeps between tasks.
 /// Measured (peak RSS of one job with `-j 16` against `-j 2`, 256² samples): double-seam, TES,
 /// Wang and RW tiles, coevolution and patch sampling took 0.2 to 0.9 MiB more a thread.
 pub const THREAD_MEMORY: u64 = 1 << 20;
 
+/// Bytes of `per_output_pixel` per output pixel, plus `per_sample_pixel` per sample pixel, plus
 /// `fixed`: the shape every method's [`Method::peak_memory`] takes (their tables, canvases and
 /// search buffers grow with one size or the other).
 pub fn linear_memory(sample: (u32, u32), output: (u32, u32), per_output_pixel: f64, per_sample_pixel: f64, fixed: u64) -> u64 {

@@ -213,13 +213,11 @@ impl Method for Quilting {
     }
 
     fn peak_memory(&self, params: &Params, sample: (u32, u32), output: (u32, u32)) -> u64 {
-        let search = params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample);
-        super::search_memory(search, sample, output, memory_block(params))
+        super::search_memory(memory_engine(params, sample), sample, output, memory_block(params))
     }
 
     fn thread_memory(&self, params: &Params, sample: (u32, u32)) -> u64 {
-        let search = params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample);
-        super::search_thread_memory(search, sample, memory_block(params))
+        super::search_thread_memory(memory_engine(params, sample), sample, memory_block(params))
     }
 
     fn synthesize(&self, req: &Request) -> Result<Synthesis, SynthError> {
@@ -635,6 +633,11 @@ impl Quilting {
         torus.record_fit(&mut diagnostics);
         Ok(Synthesis { image, seams: Some(torus.seam_grid()), diagnostics, phases: Vec::new(), extras: Vec::new(), placement })
     }
+}
+
+/// The search the memory estimate assumes: the job's, `auto` resolved for the sample.
+fn memory_engine(params: &Params, sample: (u32, u32)) -> Engine {
+    params.choice::<Engine>("search").unwrap_or(Engine::Auto).for_sample(sample)
 }
 
 /// The block the memory estimate assumes: the job's, or the smallest a transfer defaults to (a
